@@ -1,0 +1,116 @@
+"""Build and install linkage_monitor with its ROS 2 messages in one `pip install`.
+
+The messages in msg/ are generated with rosidl (CMake, the ROS 2 Kilted wheels from PyPI)
+during `build_py`: the generated `linkage_monitor.msg` package and its typesupport
+libraries are placed beside the hand-written Python package, and the staged `lib/` and
+`share/` trees (shared libraries, .msg files, ament index) are installed into the
+environment's prefix through `data_files`. Install with the build inputs already in the
+environment: `pip install --no-build-isolation -e .` (see the Makefile).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from setuptools import Distribution, find_packages, setup
+from setuptools.command.build_py import build_py
+
+ROOT = Path(__file__).resolve().parent
+PACKAGE = "linkage_monitor"
+BUILD = ROOT / "build" / "rosidl"
+STAGE = BUILD / "stage"
+GENERATED = ROOT / PACKAGE / "msg"
+
+
+def _run(cmd: list[str], env: dict[str, str], cwd: Path, log: Path) -> None:
+    with log.open("w") as out:
+        proc = subprocess.run(cmd, cwd=cwd, env=env, stdout=out, stderr=subprocess.STDOUT)
+    if proc.returncode != 0:
+        sys.stderr.write(log.read_text()[-4000:])
+        raise SystemExit(f"message generation failed: {' '.join(cmd)} (log: {log})")
+
+
+def generate_messages() -> None:
+    """Run rosidl on msg/ via CMake into build/rosidl/stage and copy the Python side in."""
+    prefix = Path(sys.prefix)
+    # CMake refuses exported include paths inside the source dir, and the venv lives in
+    # the repository: configure from a copy of the interface sources under build/.
+    src = BUILD / "src"
+    src.mkdir(parents=True, exist_ok=True)
+    for name in ("CMakeLists.txt", "package.xml"):
+        shutil.copy2(ROOT / name, src / name)
+    shutil.copytree(ROOT / "msg", src / "msg", dirs_exist_ok=True)
+    env = dict(os.environ)
+    env["AMENT_PREFIX_PATH"] = str(prefix)
+    env["CMAKE_PREFIX_PATH"] = str(prefix)
+    env["PATH"] = f"{prefix / 'bin'}{os.pathsep}{env.get('PATH', '')}"
+    cmake = shutil.which("cmake", path=env["PATH"]) or "cmake"
+    work = BUILD / "cmake"
+    work.mkdir(parents=True, exist_ok=True)
+    if not (work / "build.ninja").exists():
+        _run([cmake, str(src), "-G", "Ninja", f"-DCMAKE_INSTALL_PREFIX={STAGE}",
+              f"-DPython3_EXECUTABLE={sys.executable}", "-DBUILD_TESTING=OFF",
+              "-DLINKAGE_MONITOR_MSGS_ONLY=ON"], env, work, BUILD / "configure.log")
+    _run([cmake, "--build", ".", "--target", "install"], env, work, BUILD / "build.log")
+    site = next(STAGE.glob(f"lib/python*/site-packages/{PACKAGE}"))
+    shutil.rmtree(GENERATED, ignore_errors=True)
+    shutil.copytree(site / "msg", GENERATED,
+                    ignore=shutil.ignore_patterns("*.c", "__pycache__"))
+    for lib in site.glob("*.so"):
+        shutil.copy2(lib, ROOT / PACKAGE / lib.name)
+
+
+def staged_data_files() -> list[tuple[str, list[str]]]:
+    """The staged lib/*.so and share/ tree as (install dir, files) pairs for data_files."""
+    files: dict[str, list[str]] = {}
+    for path in sorted(STAGE.rglob("*")):
+        rel = path.relative_to(STAGE)
+        if path.is_dir() or rel.parts[0] not in ("lib", "share"):
+            continue
+        if rel.parts[0] == "lib" and (len(rel.parts) != 2 or path.suffix != ".so"):
+            continue  # the Python side is shipped as package files
+        files.setdefault(str(rel.parent), []).append(str(path.relative_to(ROOT)))
+    return sorted(files.items())
+
+
+class BuildWithMessages(build_py):
+    """build_py that first generates linkage_monitor.msg from msg/*.msg."""
+
+    def run(self) -> None:
+        generate_messages()
+        self.distribution.data_files = staged_data_files()
+        super().run()
+
+
+class PlatformDistribution(Distribution):
+    """The package ships compiled typesupport libraries: a platform wheel with data."""
+
+    def has_ext_modules(self) -> bool:
+        return True
+
+    def has_data(self) -> bool:
+        return True
+
+
+GENERATED.mkdir(exist_ok=True)  # filled by build_py; must exist for the metadata step
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    description="Live hinge reactions, lift capacity and steerability of tractor linkages (ROS 2)",
+    packages=sorted({*find_packages(include=[PACKAGE, f"{PACKAGE}.*"]), f"{PACKAGE}.msg"}),
+    package_data={PACKAGE: ["*.so"], f"{PACKAGE}.presets": ["*.yaml"]},
+    data_files=[],
+    python_requires=">=3.10",
+    distclass=PlatformDistribution,
+    cmdclass={"build_py": BuildWithMessages},
+    entry_points={
+        "console_scripts": [
+            "linkage-monitor = linkage_monitor.cli:main",
+            "linkage_monitor_node = linkage_monitor.node:main",
+        ],
+    },
+)
