@@ -1,0 +1,202 @@
+"""Read rosbag2 MCAP bags (ours, `ros2 bag record -s mcap`, rosbags) back into rclpy messages.
+
+`read_bag` yields decoded messages one by one; `read_inputs` gathers the sensor topics the
+solver needs (JointState, FluidPressure) into numpy columns for the batched replay.
+A bag whose writer was killed (no summary, possibly a truncated last record) is read up to
+its last complete record.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib
+import logging
+import os
+import struct
+from collections.abc import Collection, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from mcap.exceptions import McapError
+from mcap.reader import NonSeekingReader, SeekingReader
+from rclpy.serialization import deserialize_message
+
+from linkage_monitor.recording import BagError
+
+JOINT_STATE = "sensor_msgs/msg/JointState"
+FLUID_PRESSURE = "sensor_msgs/msg/FluidPressure"
+_MCAP_MAGIC = b"\x89MCAP0\r\n"
+_log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class JointStateColumns:
+    """One JointState topic as columns; row i is message i in log-time order.
+
+    stamp_ns, log_time_ns: header stamp and receive time, ns since the epoch, shape (N,).
+    names: joint names, the column order of position and velocity.
+    position: rad (revolute) or m (prismatic), shape (N, len(names)); NaN where a message
+    lacks the joint. velocity: rad/s or m/s, same shape; NaN where not given.
+    """
+
+    stamp_ns: np.ndarray
+    log_time_ns: np.ndarray
+    names: tuple[str, ...]
+    position: np.ndarray
+    velocity: np.ndarray
+
+
+@dataclass(frozen=True)
+class PressureColumns:
+    """One FluidPressure topic as columns: stamp_ns, log_time_ns (ns since the epoch),
+    fluid_pressure (Pa, absolute), variance (Pa^2, 0 = unknown), each shape (N,)."""
+
+    stamp_ns: np.ndarray
+    log_time_ns: np.ndarray
+    fluid_pressure: np.ndarray
+    variance: np.ndarray
+
+
+def mcap_files(path: str | os.PathLike[str]) -> list[Path]:
+    """Return the MCAP files of a bag: a rosbag2 directory (metadata.yaml order, else every
+    `*.mcap` in name order) or a single `.mcap` file. Raises BagError saying what is wrong."""
+    path = Path(path)
+    if not path.exists():
+        raise BagError(f"bag {path} does not exist: give a bag directory or an .mcap file")
+    if path.is_dir():
+        files = _files_from_metadata(path) or sorted(path.glob("*.mcap"))
+        if not files:
+            raise BagError(f"bag directory {path} holds no .mcap file (is it a sqlite3 bag? "
+                           "record with storage 'mcap')")
+    else:
+        files = [path]
+    for file in files:
+        if not file.is_file():
+            raise BagError(f"bag file {file} listed in {path / 'metadata.yaml'} is missing")
+        with open(file, "rb") as stream:
+            head = stream.read(len(_MCAP_MAGIC))
+        if head != _MCAP_MAGIC:
+            raise BagError(f"{file} is not an MCAP file (starts with {head!r}, expected "
+                           f"{_MCAP_MAGIC!r}): give a bag recorded with storage 'mcap'")
+    return files
+
+
+def read_bag(path: str | os.PathLike[str], topics: Collection[str] | None = None
+             ) -> Iterator[tuple[str, str, int, int, Any]]:
+    """Yield (topic, type_name, stamp_ns, log_time_ns, msg) for every message of the bag.
+
+    msg is the rclpy message (class found from type_name `pkg/msg/Type`). stamp_ns is the
+    header stamp (ns since the epoch) for messages with a header, else the MCAP publish_time;
+    log_time_ns is the receive time. Messages come in log-time order per file (in write
+    order for a file without index, e.g. from a killed writer).
+    topics: only these topics (default: all).
+    """
+    yield from _messages(path, topics=topics, types=None)
+
+
+def read_inputs(path: str | os.PathLike[str]) -> dict[str, JointStateColumns | PressureColumns]:
+    """Return every JointState and FluidPressure topic of the bag as numpy columns.
+
+    Raises BagError if the bag holds neither type.
+    """
+    rows: dict[str, list[tuple[int, int, Any]]] = {}
+    kinds: dict[str, str] = {}
+    for topic, type_name, stamp, log_time, msg in _messages(
+            path, topics=None, types=(JOINT_STATE, FLUID_PRESSURE)):
+        rows.setdefault(topic, []).append((stamp, log_time, msg))
+        kinds[topic] = type_name
+    if not rows:
+        raise BagError(f"bag {path} holds no {JOINT_STATE} or {FLUID_PRESSURE} messages: "
+                       "nothing to replay (record the sensor topics)")
+    return {topic: (_joint_columns(r) if kinds[topic] == JOINT_STATE else _pressure_columns(r))
+            for topic, r in rows.items()}
+
+
+def message_class(type_name: str) -> type:
+    """Return the rclpy message class of `pkg/msg/Type` (the package must be installed)."""
+    return _message_class(type_name)
+
+
+@functools.lru_cache(maxsize=None)
+def _message_class(type_name: str) -> type:
+    package, interface, name = (type_name.split("/") + ["", ""])[:3]
+    try:
+        return getattr(importlib.import_module(f"{package}.{interface}"), name)
+    except (ImportError, AttributeError, ValueError) as exc:
+        raise BagError(f"message type {type_name!r} has no Python class {package}.{interface}."
+                       f"{name}: install the package {package!r} into this environment"
+                       ) from exc
+
+
+def _files_from_metadata(directory: Path) -> list[Path]:
+    metadata = directory / "metadata.yaml"
+    if not metadata.is_file():
+        return []
+    try:
+        info = yaml.safe_load(metadata.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+        return [directory / Path(p).name for p in info["relative_file_paths"]]
+    except (yaml.YAMLError, KeyError, TypeError) as exc:
+        raise BagError(f"{metadata} is not a rosbag2 metadata file ({exc!r}): fix or remove it"
+                       ) from exc
+
+
+def _messages(path: str | os.PathLike[str], topics: Collection[str] | None,
+              types: Collection[str] | None) -> Iterator[tuple[str, str, int, int, Any]]:
+    for file in mcap_files(path):
+        for schema, channel, message in _raw_messages(file, topics):
+            type_name = schema.name if schema is not None else ""
+            if types is not None and type_name not in types:
+                continue
+            if channel.message_encoding != "cdr":
+                raise BagError(f"{file}: topic {channel.topic!r} is encoded as "
+                               f"{channel.message_encoding!r}, only 'cdr' is supported")
+            msg = deserialize_message(message.data, _message_class(type_name))
+            header = getattr(msg, "header", None)
+            stamp = (header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
+                     if header is not None else message.publish_time)
+            yield channel.topic, type_name, stamp, message.log_time, msg
+
+
+def _raw_messages(file: Path, topics: Collection[str] | None) -> Iterator[tuple[Any, Any, Any]]:
+    """(schema, channel, message) records of one MCAP file: indexed when it has a summary,
+    else by a linear scan that stops at a truncated last record."""
+    topic_list = list(topics) if topics is not None else None
+    with open(file, "rb") as stream:
+        try:
+            reader: SeekingReader | NonSeekingReader = SeekingReader(stream)
+            indexed = reader.get_summary() is not None
+        except McapError:
+            indexed = False
+        if not indexed:  # stream order = write order (log-time order for BagWriter bags)
+            stream.seek(0)
+            reader = NonSeekingReader(stream)
+        try:
+            yield from reader.iter_messages(topics=topic_list, log_time_order=indexed)
+        except (McapError, struct.error) as exc:  # a record cut off by a killed writer
+            _log.warning("%s ends in an incomplete record (%r): read up to there", file, exc)
+
+
+def _joint_columns(rows: list[tuple[int, int, Any]]) -> JointStateColumns:
+    names = tuple(dict.fromkeys(n for _, _, msg in rows for n in msg.name))
+    column = {n: i for i, n in enumerate(names)}
+    position = np.full((len(rows), len(names)), np.nan)
+    velocity = np.full((len(rows), len(names)), np.nan)
+    for i, (_, _, msg) in enumerate(rows):
+        index = [column[n] for n in msg.name]
+        position[i, index[:len(msg.position)]] = msg.position
+        velocity[i, index[:len(msg.velocity)]] = msg.velocity
+    return JointStateColumns(
+        stamp_ns=np.array([r[0] for r in rows], dtype=np.int64),
+        log_time_ns=np.array([r[1] for r in rows], dtype=np.int64),
+        names=names, position=position, velocity=velocity)
+
+
+def _pressure_columns(rows: list[tuple[int, int, Any]]) -> PressureColumns:
+    return PressureColumns(
+        stamp_ns=np.array([r[0] for r in rows], dtype=np.int64),
+        log_time_ns=np.array([r[1] for r in rows], dtype=np.int64),
+        fluid_pressure=np.array([r[2].fluid_pressure for r in rows], dtype=float),
+        variance=np.array([r[2].variance for r in rows], dtype=float))

@@ -1,0 +1,319 @@
+"""rosbag2-compatible MCAP bag writer: `<dir>/metadata.yaml` + `<dir>/<name>_0.mcap`.
+
+What `ros2 bag record -s mcap` writes (rosbag2_storage_mcap, foxglove registry.md): profile
+`ros2`, schema name `pkg/msg/Type` with encoding `ros2msg` (msg_schema.message_definition),
+messages `cdr` (rclpy.serialization), channel metadata `offered_qos_profiles`, a `rosbag2`
+metadata record and a version-9 `metadata.yaml`.
+
+Crash safety: every `flush_period_s` (and on `flush()`) the open chunk is closed and written,
+and the file is made to end in a valid DataEnd + Footer (no summary), so a process killed
+with SIGKILL leaves a bag that footer-reading readers (rosbags, mcap SeekingReader, Rerun)
+open and that holds everything written up to the last flush. `metadata.yaml` is rewritten
+at the same time.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+from mcap.writer import CompressionType, Writer
+from rclpy.qos import (
+    DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy)
+from rclpy.serialization import serialize_message
+
+from linkage_monitor.msg_schema import exact_cdr, message_definition
+
+MECHANISM_TOPIC = "/linkage_monitor/mechanism"
+"""Topic of the mechanism description (std_msgs/String holding the mechanism YAML)."""
+
+ROSBAG2_VERSION = 9
+_MCAP_MAGIC = b"\x89MCAP0\r\n"
+# DataEnd (op 0x0F, crc 0 = not computed) + Footer (op 0x02, summary_start 0 = no summary,
+# summary_offset_start 0, summary_crc 0) + magic: the smallest valid MCAP ending.
+_TAIL = (struct.pack("<BQI", 0x0F, 4, 0) + struct.pack("<BQQQI", 0x02, 20, 0, 0, 0)
+         + _MCAP_MAGIC)
+
+
+def message_type_name(msg: Any) -> str:
+    """Return the ROS type name `pkg/msg/Type` of an rclpy message object."""
+    cls = type(msg)
+    package, interface = cls.__module__.split(".")[:2]
+    return f"{package}/{interface}/{cls.__name__}"
+
+
+def qos_to_dict(qos: QoSProfile) -> dict[str, Any]:
+    """Return `qos` as one entry of rosbag2 v9 `offered_qos_profiles` (policy names, sec/nsec)."""
+
+    def duration(ns: int) -> dict[str, int]:
+        return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
+
+    return {
+        "history": HistoryPolicy(qos.history).name.lower(),
+        "depth": int(qos.depth),
+        "reliability": ReliabilityPolicy(qos.reliability).name.lower(),
+        "durability": DurabilityPolicy(qos.durability).name.lower(),
+        "deadline": duration(qos.deadline.nanoseconds),
+        "lifespan": duration(qos.lifespan.nanoseconds),
+        "liveliness": LivelinessPolicy(qos.liveliness).name.lower(),
+        "liveliness_lease_duration": duration(qos.liveliness_lease_duration.nanoseconds),
+        "avoid_ros_namespace_conventions": bool(qos.avoid_ros_namespace_conventions),
+    }
+
+
+class _TailedFile:
+    """Unbuffered file that ends in a valid MCAP tail after every write.
+
+    Each write is followed by `_TAIL`, and the position moves back before it, so the next
+    write overwrites it. `tell()` is the logical end; `close()` truncates the last tail.
+    """
+
+    def __init__(self, path: Path) -> None:
+        self._file = open(path, "xb", buffering=0)  # noqa: SIM115 (closed in close())
+        self._tail = False
+
+    def enable_tail(self) -> None:
+        self._tail = True
+
+    def write(self, data: bytes | memoryview) -> int:
+        written = self._file.write(data)
+        if self._tail:
+            self._file.write(_TAIL)
+            self._file.seek(-len(_TAIL), os.SEEK_CUR)
+        return written
+
+    def tell(self) -> int:
+        return self._file.tell()
+
+    def flush(self) -> None:
+        """Nothing buffered in-process; data written is in the OS page cache."""
+
+    def fsync(self) -> None:
+        os.fsync(self._file.fileno())
+
+    def close(self) -> None:
+        self._file.truncate(self._file.tell())
+        self._file.close()
+
+
+@dataclass
+class _Topic:
+    name: str
+    type_name: str
+    channel_id: int
+    qos: dict[str, Any]
+    count: int = 0
+
+
+@dataclass
+class _Span:
+    """Receive-time span of the messages written, ns since the epoch."""
+
+    start: int | None = None
+    end: int | None = None
+    count: int = 0
+    topics: dict[str, _Topic] = field(default_factory=dict)
+
+    def add(self, log_time_ns: int) -> None:
+        self.start = log_time_ns if self.start is None else min(self.start, log_time_ns)
+        self.end = log_time_ns if self.end is None else max(self.end, log_time_ns)
+        self.count += 1
+
+
+class BagError(RuntimeError):
+    """A bag cannot be written or read: says which path and what is wrong."""
+
+
+class BagWriter:
+    """Thread-safe writer of one rosbag2 MCAP bag directory.
+
+    `BagWriter("bags/run1")` creates `bags/run1/metadata.yaml` and `bags/run1/run1_0.mcap`.
+    A background thread flushes every `flush_period_s` seconds, so a killed process loses at
+    most that much. Use as a context manager or call `close()`.
+    """
+
+    def __init__(self, directory: str | os.PathLike[str], name: str | None = None, *,
+                 chunk_size: int = 1 << 20, flush_period_s: float = 1.0,
+                 compression: CompressionType = CompressionType.ZSTD) -> None:
+        self.directory = Path(directory)
+        self.name = name or self.directory.name
+        self.mcap_path = self.directory / f"{self.name}_0.mcap"
+        if (self.directory / "metadata.yaml").exists() or self.mcap_path.exists():
+            raise BagError(f"bag directory {self.directory} already holds a bag: "
+                           "choose a new directory or remove the old bag")
+        if flush_period_s <= 0:
+            raise ValueError(f"flush_period_s must be > 0 s, got {flush_period_s}")
+        self.directory.mkdir(parents=True, exist_ok=True)
+        self._lock = threading.Lock()
+        self._span = _Span()
+        self._schemas: dict[str, int] = {}
+        self._dirty = False
+        self._closed = threading.Event()
+        self._file = _TailedFile(self.mcap_path)
+        self._writer = Writer(self._file, chunk_size=chunk_size, compression=compression)
+        self._writer.start(profile="ros2", library="linkage_monitor.recording")
+        self._file.enable_tail()
+        self._file.write(b"")  # end the header in a valid tail right away
+        self._write_metadata_yaml()
+        self._flusher = threading.Thread(target=self._flush_loop, args=(flush_period_s,),
+                                         name=f"BagWriter flush {self.name}", daemon=True)
+        self._flusher.start()
+
+    def __enter__(self) -> BagWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def write(self, topic: str, msg: Any, stamp_ns: int, *, type_name: str | None = None,
+              qos: QoSProfile | None = None, log_time_ns: int | None = None) -> None:
+        """Record one message on `topic`.
+
+        msg: an rclpy message object, or its CDR bytes (then `type_name` is required).
+        stamp_ns: header stamp, ns since the epoch (MCAP publish_time).
+        log_time_ns: receive time, ns since the epoch (MCAP log_time); default: now, never
+        earlier than the last message. Keep explicit values in order too: readers of a bag
+        whose writer was killed (no index) need messages in log_time order.
+        qos: offered QoS recorded for the topic at its first message (default: rclpy's
+        default publisher profile, keep_last 10, reliable, volatile).
+        """
+        if isinstance(msg, (bytes, bytearray, memoryview)):
+            if type_name is None:
+                raise ValueError(f"message on {topic!r} is raw bytes: pass type_name='pkg/msg/Type'")
+            data = bytes(msg)
+        else:
+            type_name = type_name or message_type_name(msg)
+            data = exact_cdr(type_name, serialize_message(msg))
+        with self._lock:
+            self._check_open()
+            # receive order = log_time order, which readers of a killed (unindexed) bag need
+            log_time = (max(time.time_ns(), self._span.end or 0) if log_time_ns is None
+                        else int(log_time_ns))
+            entry = self._topic(topic, type_name, qos)
+            self._writer.add_message(entry.channel_id, log_time=log_time, data=data,
+                                     publish_time=int(stamp_ns), sequence=entry.count)
+            entry.count += 1
+            self._span.add(log_time)
+            self._dirty = True
+
+    def record_mechanism(self, mechanism_yaml: str, stamp_ns: int) -> None:
+        """Store the mechanism description: a std_msgs/String on MECHANISM_TOPIC
+        (transient-local, as the node publishes it) and an MCAP attachment `mechanism.yaml`."""
+        from std_msgs.msg import String
+
+        qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.write(MECHANISM_TOPIC, String(data=mechanism_yaml), stamp_ns, qos=qos,
+                   log_time_ns=stamp_ns)
+        self.attach("mechanism.yaml", mechanism_yaml.encode("utf-8"), "application/yaml",
+                    stamp_ns)
+
+    def attach(self, name: str, data: bytes, media_type: str, log_time_ns: int | None = None
+               ) -> None:
+        """Add an MCAP attachment (a file stored in the bag, e.g. the mechanism YAML)."""
+        stamp = time.time_ns() if log_time_ns is None else int(log_time_ns)
+        with self._lock:
+            self._check_open()
+            self._writer.add_attachment(create_time=stamp, log_time=stamp, name=name,
+                                        media_type=media_type, data=data)
+
+    def flush(self) -> None:
+        """Write everything recorded so far to disk in a readable form (chunk + footer +
+        metadata.yaml). Called every flush_period_s by the background thread."""
+        with self._lock:
+            if self._closed.is_set() or not self._dirty:
+                return
+            self._writer.flush()
+            self._file.fsync()
+            self._write_metadata_yaml()
+            self._dirty = False
+
+    def close(self) -> None:
+        """Finish the MCAP file (summary, indexes, `rosbag2` metadata record) and write the
+        final metadata.yaml. Idempotent."""
+        with self._lock:
+            if self._closed.is_set():
+                return
+            self._closed.set()
+            info = self._bag_information()
+            self._writer.add_metadata("rosbag2", {
+                "serialized_metadata": yaml.safe_dump(info, sort_keys=False)})
+            self._writer.finish()
+            self._file.close()
+            self._write_metadata_yaml()
+        self._flusher.join()
+
+    @property
+    def message_counts(self) -> dict[str, int]:
+        """Messages written per topic so far."""
+        with self._lock:
+            return {name: t.count for name, t in self._span.topics.items()}
+
+    def _check_open(self) -> None:
+        if self._closed.is_set():
+            raise BagError(f"bag {self.directory} is closed: open a new BagWriter")
+
+    def _topic(self, topic: str, type_name: str, qos: QoSProfile | None) -> _Topic:
+        entry = self._span.topics.get(topic)
+        if entry is not None:
+            if entry.type_name != type_name:
+                raise BagError(f"topic {topic!r} in bag {self.directory} holds {entry.type_name},"
+                               f" cannot also record {type_name}: use another topic")
+            return entry
+        schema_id = self._schemas.get(type_name)
+        if schema_id is None:
+            schema_id = self._writer.register_schema(
+                name=type_name, encoding="ros2msg",
+                data=message_definition(type_name).encode("utf-8"))
+            self._schemas[type_name] = schema_id
+        qos_dict = qos_to_dict(qos if qos is not None else QoSProfile(depth=10))
+        channel_id = self._writer.register_channel(
+            topic=topic, message_encoding="cdr", schema_id=schema_id,
+            metadata={"offered_qos_profiles": yaml.safe_dump([qos_dict], sort_keys=False)})
+        entry = _Topic(topic, type_name, channel_id, qos_dict)
+        self._span.topics[topic] = entry
+        return entry
+
+    def _bag_information(self) -> dict[str, Any]:
+        """rosbag2 `rosbag2_bagfile_information` (metadata version 9) of what is written."""
+        span = self._span
+        start = span.start or 0
+        duration = (span.end - span.start) if span.start is not None else 0
+        return {
+            "version": ROSBAG2_VERSION,
+            "storage_identifier": "mcap",
+            "duration": {"nanoseconds": duration},
+            "starting_time": {"nanoseconds_since_epoch": start},
+            "message_count": span.count,
+            "topics_with_message_count": [
+                {"topic_metadata": {"name": t.name, "type": t.type_name,
+                                    "serialization_format": "cdr",
+                                    "offered_qos_profiles": [t.qos]},
+                 "message_count": t.count}
+                for t in span.topics.values()],
+            "compression_format": "",
+            "compression_mode": "",
+            "relative_file_paths": [self.mcap_path.name],
+            "files": [{"path": self.mcap_path.name,
+                       "starting_time": {"nanoseconds_since_epoch": start},
+                       "duration": {"nanoseconds": duration},
+                       "message_count": span.count}],
+            "custom_data": None,
+            "ros_distro": os.environ.get("ROS_DISTRO", "kilted"),
+        }
+
+    def _write_metadata_yaml(self) -> None:
+        text = yaml.safe_dump({"rosbag2_bagfile_information": self._bag_information()},
+                              sort_keys=False)
+        tmp = self.directory / "metadata.yaml.tmp"
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, self.directory / "metadata.yaml")
+
+    def _flush_loop(self, period_s: float) -> None:
+        while not self._closed.wait(period_s):
+            self.flush()

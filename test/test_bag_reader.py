@@ -1,0 +1,110 @@
+"""read_bag / read_inputs on bags written by rosbags (the `ros2 bag record` layout) and by
+BagWriter, and their errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+from sensor_msgs.msg import FluidPressure, JointState
+from std_msgs.msg import String
+
+from linkage_monitor.bag_reader import (
+    JointStateColumns, PressureColumns, read_bag, read_inputs)
+from linkage_monitor.recording import BagError, BagWriter
+
+T0 = 1_700_000_000_000_000_000  # ns since the epoch
+N = 25
+
+
+def _rosbags_bag(directory: Path) -> Path:
+    """A bag written by rosbags.rosbag2.Writer (version 9, MCAP) with Kilted type definitions:
+    joint i at position 0.01*i rad, pressure 1e5 + 1e4*i Pa, stamps 20 ms apart."""
+    store = get_typestore(Stores.ROS2_KILTED)
+    JointStateT = store.types["sensor_msgs/msg/JointState"]
+    FluidPressureT = store.types["sensor_msgs/msg/FluidPressure"]
+    HeaderT = store.types["std_msgs/msg/Header"]
+    TimeT = store.types["builtin_interfaces/msg/Time"]
+    with Writer(directory, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        joints = writer.add_connection("/joint_states", JointStateT.__msgtype__, typestore=store)
+        pressure = writer.add_connection("/lift_cylinder/pressure", FluidPressureT.__msgtype__,
+                                         typestore=store)
+        for i in range(N):
+            stamp = T0 + i * 20_000_000
+            header = HeaderT(stamp=TimeT(sec=stamp // 10**9, nanosec=stamp % 10**9), frame_id="")
+            js = JointStateT(header=header, name=["lift_arm", "top_link"],
+                             position=np.array([0.01 * i, 0.5]), velocity=np.array([0.2, 0.0]),
+                             effort=np.array([], dtype=float))
+            writer.write(joints, stamp + 7, store.serialize_cdr(js, JointStateT.__msgtype__))
+            fp = FluidPressureT(header=header, fluid_pressure=1e5 + 1e4 * i, variance=0.0)
+            writer.write(pressure, stamp + 9, store.serialize_cdr(fp, FluidPressureT.__msgtype__))
+    return directory
+
+
+def test_reads_rosbags_bag_message_for_message(tmp_path: Path) -> None:
+    bag = _rosbags_bag(tmp_path / "rosbags_bag")
+    rows = list(read_bag(bag))
+    joints = [r for r in rows if r[0] == "/joint_states"]
+    pressures = [r for r in rows if r[0] == "/lift_cylinder/pressure"]
+    assert len(joints) == len(pressures) == N
+    for i, (_, type_name, stamp, log_time, msg) in enumerate(joints):
+        assert type_name == "sensor_msgs/msg/JointState" and isinstance(msg, JointState)
+        assert (stamp, log_time) == (T0 + i * 20_000_000, T0 + i * 20_000_000 + 7)
+        assert list(msg.name) == ["lift_arm", "top_link"]
+        assert list(msg.position) == [0.01 * i, 0.5]
+    for i, (_, _, _, log_time, msg) in enumerate(pressures):
+        assert isinstance(msg, FluidPressure) and msg.fluid_pressure == 1e5 + 1e4 * i
+        assert log_time == T0 + i * 20_000_000 + 9
+    only = list(read_bag(bag, topics=["/lift_cylinder/pressure"]))
+    assert [r[4].fluid_pressure for r in only] == [r[4].fluid_pressure for r in pressures]
+    # a single .mcap file reads the same
+    assert len(list(read_bag(next(bag.glob("*.mcap"))))) == 2 * N
+
+
+def test_read_inputs_columns_equal_written_values(tmp_path: Path) -> None:
+    inputs = read_inputs(_rosbags_bag(tmp_path / "rosbags_bag"))
+    joints = inputs["/joint_states"]
+    assert isinstance(joints, JointStateColumns)
+    assert joints.names == ("lift_arm", "top_link")
+    assert np.array_equal(joints.stamp_ns, T0 + np.arange(N, dtype=np.int64) * 20_000_000)
+    assert np.array_equal(joints.position[:, 0], 0.01 * np.arange(N))
+    assert np.array_equal(joints.velocity, np.tile([0.2, 0.0], (N, 1)))
+    pressure = inputs["/lift_cylinder/pressure"]
+    assert isinstance(pressure, PressureColumns)
+    assert np.array_equal(pressure.fluid_pressure, 1e5 + 1e4 * np.arange(N))
+    assert np.array_equal(pressure.log_time_ns, pressure.stamp_ns + 9)
+
+
+def test_read_inputs_aligns_joint_names_across_messages(tmp_path: Path) -> None:
+    with BagWriter(tmp_path / "ours") as writer:
+        writer.write("/joint_states", JointState(name=["lift_arm"], position=[0.3]), 1,
+                     log_time_ns=1)
+        writer.write("/joint_states", JointState(name=["top_link", "lift_arm"],
+                                                 position=[0.7, 0.4], velocity=[1.0, 2.0]), 2,
+                     log_time_ns=2)
+    joints = read_inputs(tmp_path / "ours")["/joint_states"]
+    assert joints.names == ("lift_arm", "top_link")
+    # row 0 has no top_link and no velocities; row 1 is reordered by name
+    assert np.array_equal(joints.position, [[0.3, np.nan], [0.4, 0.7]], equal_nan=True)
+    assert np.array_equal(joints.velocity, [[np.nan, np.nan], [2.0, 1.0]], equal_nan=True)
+
+
+def test_errors_name_the_path_and_the_problem(tmp_path: Path) -> None:
+    missing = tmp_path / "nowhere"
+    with pytest.raises(BagError, match=f"{missing}.*does not exist"):
+        list(read_bag(missing))
+    not_mcap = tmp_path / "notes.mcap"
+    not_mcap.write_text("SQLite format 3")
+    with pytest.raises(BagError, match=f"{not_mcap} is not an MCAP file"):
+        list(read_bag(not_mcap))
+    empty_dir = tmp_path / "empty"
+    empty_dir.mkdir()
+    with pytest.raises(BagError, match="holds no .mcap file"):
+        list(read_bag(empty_dir))
+    with BagWriter(tmp_path / "strings") as writer:
+        writer.write("/chatter", String(data="hello"), 1)
+    with pytest.raises(BagError, match="strings.*no sensor_msgs/msg/JointState"):
+        read_inputs(tmp_path / "strings")
