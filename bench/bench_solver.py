@@ -1,0 +1,76 @@
+"""Solver speed: single-pose solve time (µs) and batched poses/s, against numpy's batched dense
+``np.linalg.solve`` of the same system size timed in the same run (the floor for one linear solve
+per pose). Run: ``.venv/bin/python bench/bench_solver.py``. Goals: ≥ 2 M poses/s, ≤ 30 µs."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from linkage_monitor.mechanics import (Inputs, Solver, load_mechanism, load_preset, mechanism_from_dict,  # noqa: E402
+                                       preset_names)
+
+
+def stroke_only(mech):
+    """The same mechanism with only the cylinder strokes measured (the bench sweeps the stroke)."""
+    raw = dict(mech.raw)
+    raw["measurements"] = {**raw["measurements"], "angles": []}
+    raw["reference_inputs"] = {k: v for k, v in (raw.get("reference_inputs") or {}).items() if k != "angles"}
+    return mechanism_from_dict(raw, file=mech.file)
+
+
+def best_of(fn, repeat: int = 5) -> float:
+    """Smallest wall time (s) of ``repeat`` calls."""
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def main() -> None:
+    if "belarus_1221" in preset_names():
+        mech, label = load_preset("belarus_1221"), "preset belarus_1221"
+    else:
+        mech, label = load_mechanism(Path(__file__).resolve().parents[1] / "test/fixtures/hitch.yaml"), "fixture hitch"
+    if mech.measurements.angles:
+        full = Solver(mech)
+        ref = Inputs(**{k: dict(v) for k, v in mech.reference_inputs.items()})
+        full.solve(ref)
+        t_full = best_of(lambda: [full.solve(ref) for _ in range(200)], 3) / 200
+        print(f"single pose with all measurements (stroke + angles, least squares): {t_full * 1e6:8.1f} us")
+        mech = stroke_only(mech)
+    solver = Solver(mech)
+    cyl = mech.measurements.cylinders[0]
+    length0 = solver.kin.reference_inputs()[0]
+    n_sys = solver.kin.n
+    print(f"{label}: {len(mech.moving_bodies)} moving bodies, system size {n_sys}x{n_sys}")
+
+    strokes = length0 * (1 + 0.002 * np.sin(np.arange(200)))
+    solver.solve(Inputs(cylinders={cyl: float(strokes[0])}))
+    t_single = best_of(lambda: [solver.solve(Inputs(cylinders={cyl: float(s)})) for s in strokes], 3) / strokes.size
+    print(f"single pose (continuation from the previous pose): {t_single * 1e6:8.1f} us  (goal <= 30 us)")
+
+    n = 100_000
+    batch_strokes = length0 * np.random.default_rng(0).uniform(0.97, 1.03, n)
+    t_batch = best_of(lambda: solver.solve_batch(cylinders={cyl: batch_strokes}), 2)
+    rate = n / t_batch
+    print(f"batched, {n} poses from the reference pose:        {rate / 1e6:8.3f} M poses/s  (goal >= 2 M/s)")
+
+    a = np.random.default_rng(1).standard_normal((n, n_sys, n_sys)) + n_sys * np.eye(n_sys)
+    b = np.random.default_rng(2).standard_normal((n, n_sys, 1))
+    t_np = best_of(lambda: np.linalg.solve(a, b), 3)
+    t_np1 = best_of(lambda: [np.linalg.solve(a[i], b[i]) for i in range(200)], 3) / 200
+    print(f"baseline np.linalg.solve batched {n_sys}x{n_sys}:           {n / t_np / 1e6:8.3f} M solves/s")
+    print(f"baseline np.linalg.solve one {n_sys}x{n_sys}:               {t_np1 * 1e6:8.1f} us")
+    print(f"ratio batched solver / one batched linear solve: {t_batch / t_np:6.1f}x the time")
+    print(f"ratio single solver / one single linear solve:   {t_single / t_np1:6.1f}x the time")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,148 @@
+"""``linkage-monitor`` command line: list presets, solve one pose of a mechanism.
+
+Thin adapter over :mod:`linkage_monitor.mechanics`; SI units (m, rad, N, Pa), frame x forward,
+z up, origin at the rear wheels' ground contact.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from typing import Sequence
+
+import yaml
+
+from .mechanics import Inputs, LinkageError, Mechanism, Result, Solver, load_mechanism, load_preset, preset_names
+from .mechanics.presets import preset_description
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line on stderr, exit code 2
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argparse parser with the ``presets`` and ``solve`` subcommands."""
+    parser = _Parser(prog="linkage-monitor", description="Loads in a tractor hitch linkage from cylinder "
+                     "strokes, joint angles and pressures (SI units: m, rad, N, Pa).")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    sub.add_parser("presets", help="list the bundled mechanisms with their description")
+    solve = sub.add_parser("solve", help="solve one pose: hinge reactions, cylinder forces, implement load",
+                           description="Solve one pose. Inputs default to the file's reference_inputs.")
+    src = solve.add_mutually_exclusive_group(required=True)
+    src.add_argument("--preset", metavar="NAME", help="bundled mechanism (see `linkage-monitor presets`)")
+    src.add_argument("--mechanism", metavar="FILE", help="mechanism YAML (docs/mechanism-schema.md)")
+    solve.add_argument("--stroke", action="append", default=[], metavar="CYL=METRES",
+                       help="measured cylinder length pin to pin, m (repeatable)")
+    solve.add_argument("--angle", action="append", default=[], metavar="SENSOR=RAD",
+                       help="joint-angle sensor reading, rad (repeatable)")
+    solve.add_argument("--pressure", action="append", default=[], metavar="CYL=CAP_PA[:ROD_PA]",
+                       help="gauge pressures of a cylinder's cap (and rod) chamber, Pa; makes its force "
+                            "measured and the implement load estimated (repeatable)")
+    solve.add_argument("--set", action="append", default=[], metavar="dotted.key=VALUE",
+                       help="override a scalar of the file, e.g. implement.mass=1530 or "
+                            "cylinders.lift_cylinder.bore=0.11 (repeatable)")
+    solve.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    return parser
+
+
+def _pair(text: str, option: str) -> tuple[str, str]:
+    name, sep, value = text.partition("=")
+    if not sep or not name or not value:
+        raise LinkageError(f"{option} {text!r}: expected NAME=VALUE")
+    return name, value
+
+
+def _number(text: str, option: str, name: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise LinkageError(f"{option} {name}={text}: {text!r} is not a number") from None
+
+
+def _inputs(mech: Mechanism, args: argparse.Namespace) -> Inputs:
+    ref = mech.reference_inputs
+    cylinders = dict(ref.get("cylinders", {}))
+    angles = dict(ref.get("angles", {}))
+    pressures = dict(ref.get("pressures", {}))
+    for text in args.stroke:
+        name, value = _pair(text, "--stroke")
+        cylinders[name] = _number(value, "--stroke", name)
+    for text in args.angle:
+        name, value = _pair(text, "--angle")
+        angles[name] = _number(value, "--angle", name)
+    for text in args.pressure:
+        name, value = _pair(text, "--pressure")
+        chambers = dict(zip(("cap", "rod"), value.split(":", 1)))
+        sensors = {ps.chamber: ps.name for ps in mech.measurements.pressures if ps.cylinder == name}
+        if not sensors:
+            gauged = sorted({ps.cylinder for ps in mech.measurements.pressures})
+            raise LinkageError(f"--pressure {text}: cylinder '{name}' has no pressure sensor "
+                               f"(cylinders with sensors: {', '.join(gauged) or 'none'})")
+        for chamber, v in chambers.items():
+            if chamber not in sensors:
+                raise LinkageError(f"--pressure {text}: cylinder '{name}' has no {chamber}-chamber sensor")
+            pressures[sensors[chamber]] = _number(v, "--pressure", name)
+    return Inputs(cylinders=cylinders, angles=angles, pressures=pressures)
+
+
+def result_json(res: Result) -> dict:
+    """The JSON object printed by ``solve --json`` (N, m, Pa)."""
+    return {
+        "hinges": {n: {"fx": h.fx, "fz": h.fz, "magnitude": h.magnitude} for n, h in res.hinges.items()},
+        "cylinders": {n: {"length": c.length, "force": c.force, "cap_pressure": c.cap_pressure_predicted}
+                      for n, c in res.cylinders.items()},
+        "points": {n: [float(p[0]), float(p[1])] for n, p in res.points.items()},
+        "implement": {"cg": [float(v) for v in res.implement_cg], "weight": res.implement_load},
+        "status": res.status,
+        "residual": res.residual,
+    }
+
+
+def _table(res: Result) -> str:
+    lines = ["hinge        fx [kN]   fz [kN]  |F| [kN]  (force on body from body)"]
+    for n, h in res.hinges.items():
+        lines.append(f"{n:<10} {h.fx / 1e3:9.3f} {h.fz / 1e3:9.3f} {h.magnitude / 1e3:9.3f}  ({h.on_body} from {h.from_body})")
+    lines.append("cylinder        length [m]  force [kN]  cap pressure [MPa]")
+    for n, c in res.cylinders.items():
+        lines.append(f"{n:<15} {c.length:10.4f} {c.force / 1e3:11.3f} {c.cap_pressure_predicted / 1e6:19.3f}")
+    for n, c in res.contacts.items():
+        lines.append(f"contact {n}: normal {c.normal / 1e3:.3f} kN, friction {c.tangential / 1e3:.3f} kN")
+    if not math.isnan(res.implement_load):
+        cg = res.implement_cg
+        lines.append(f"implement load {res.implement_load / 1e3:.3f} kN at cg ({cg[0]:.3f}, {cg[1]:.3f}) m")
+    lines.append(f"status {res.status}{': ' + res.message if res.message else ''}; equilibrium residual {res.residual:.2e} N")
+    return "\n".join(lines)
+
+
+def _solve(args: argparse.Namespace) -> int:
+    mech = load_preset(args.preset) if args.preset else load_mechanism(args.mechanism)
+    overrides = {}
+    for text in args.set:
+        key, value = _pair(text, "--set")
+        overrides[key] = yaml.safe_load(value)
+    if overrides:
+        mech = mech.with_overrides(overrides)
+    res = Solver(mech).solve(_inputs(mech, args))
+    print(json.dumps(result_json(res)) if args.json else _table(res))
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit code (0 ok, 2 bad input: one line on stderr)."""
+    args = build_parser().parse_args(argv)
+    try:
+        if args.command == "presets":
+            for name in preset_names():
+                print(f"{name:<24} {preset_description(name)}")
+            return 0
+        return _solve(args)
+    except (LinkageError, yaml.YAMLError) as exc:
+        print(f"linkage-monitor: error: {str(exc).splitlines()[0]}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,135 @@
+"""Result objects of the solver: one pose (:class:`Result`) and a stack of poses (:class:`BatchResult`).
+
+SI units, global frame (x forward, z up, origin at the rear wheels' ground contact B).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+STATUS_OK, STATUS_LIFT_OFF, STATUS_INPUT, STATUS_ASSEMBLY, STATUS_DEAD_CENTRE = 0, 1, 2, 3, 4
+STATUS_NAMES = {STATUS_OK: "ok", STATUS_LIFT_OFF: "lift_off", STATUS_INPUT: "input_error",
+                STATUS_ASSEMBLY: "assembly_error", STATUS_DEAD_CENTRE: "dead_centre"}
+
+
+@dataclass(frozen=True)
+class HingeResult:
+    """Reaction at a hinge: force (N, global frame) on ``on_body`` from ``from_body``."""
+
+    fx: float
+    fz: float
+    magnitude: float
+    on_body: str
+    from_body: str
+
+
+@dataclass(frozen=True)
+class CylinderResult:
+    """Cylinder length (m), axial force (N, + = pushing, all ``count``), pressures (Pa gauge).
+
+    ``cap_pressure_predicted`` = force / (count·A_cap) (rod chamber at 0 gauge); measured
+    pressures are NaN when not measured.
+    """
+
+    length: float
+    force: float
+    cap_pressure_predicted: float
+    cap_pressure_measured: float
+    rod_pressure_measured: float
+
+
+@dataclass(frozen=True)
+class ContactResult:
+    """Ground contact: normal force N (N, ≥ 0 unless lifting off) and friction force magnitude f·N (N)."""
+
+    normal: float
+    tangential: float
+
+
+@dataclass(frozen=True)
+class Result:
+    """Everything solved for one pose.
+
+    ``body_poses[name]`` = [x, z, θ]: position (m) of the body's origin (centroid of its points
+    in the reference pose) and rotation from the reference pose (rad). ``frame_loads`` = list
+    of (point [x, z] m, force [fx, fz] N) that the linkage puts ON the ground body (one per
+    frame-side hinge and cylinder/spring mount; names in ``Solver.frame_load_names``).
+    ``implement_load`` = vertical load (N, + = down) at ``implement_cg``: estimated when a
+    cylinder force is measured, else the configured weight. ``residual`` = norm of the
+    equilibrium residual (N; moments divided by the length scale), ``consistency_residual`` =
+    norm of the kinematic constraint residual (m). ``status`` = "ok" or "lift_off" (a contact
+    pulls: N < 0; ``message`` names it).
+    """
+
+    points: dict[str, np.ndarray]
+    body_poses: dict[str, np.ndarray]
+    hinges: dict[str, HingeResult]
+    cylinders: dict[str, CylinderResult]
+    contacts: dict[str, ContactResult]
+    implement_load: float
+    implement_cg: np.ndarray
+    frame_loads: list[tuple[np.ndarray, np.ndarray]]
+    residual: float
+    consistency_residual: float
+    condition: float
+    status: str
+    message: str = ""
+
+
+@dataclass
+class BatchResult:
+    """The same quantities for N poses as arrays (first axis = pose); failed poses hold NaN.
+
+    ``status`` (N,) int: 0 ok, 1 lift_off, 2 input_error, 3 assembly_error, 4 dead_centre
+    (``STATUS_NAMES``); ``messages[i]`` says what went wrong with pose i ("" when ok).
+    ``hinge_force[name]`` (N, 2) N on bodies[1] from bodies[0]; ``frame_load_points`` and
+    ``frame_load_forces`` (N, K, 2) in the order of ``frame_load_names``.
+    """
+
+    points: dict[str, np.ndarray]
+    body_poses: dict[str, np.ndarray]
+    hinge_force: dict[str, np.ndarray]
+    hinge_bodies: dict[str, tuple[str, str]]
+    cylinder_length: dict[str, np.ndarray]
+    cylinder_force: dict[str, np.ndarray]
+    cap_pressure_predicted: dict[str, np.ndarray]
+    cap_pressure_measured: dict[str, np.ndarray]
+    rod_pressure_measured: dict[str, np.ndarray]
+    contact_normal: dict[str, np.ndarray]
+    contact_tangential: dict[str, np.ndarray]
+    implement_load: np.ndarray
+    implement_cg: np.ndarray
+    frame_load_names: list[str]
+    frame_load_points: np.ndarray
+    frame_load_forces: np.ndarray
+    residual: np.ndarray
+    consistency_residual: np.ndarray
+    condition: np.ndarray
+    status: np.ndarray
+    messages: list[str]
+
+    def __len__(self) -> int:
+        return len(self.status)
+
+    def result(self, i: int) -> Result:
+        """Pose i as a :class:`Result` (its status may be an error: check ``status``/``message``)."""
+        return Result(
+            points={k: v[i].copy() for k, v in self.points.items()},
+            body_poses={k: v[i].copy() for k, v in self.body_poses.items()},
+            hinges={k: HingeResult(fx=float(v[i, 0]), fz=float(v[i, 1]), magnitude=float(np.hypot(*v[i])),
+                                   on_body=self.hinge_bodies[k][1], from_body=self.hinge_bodies[k][0])
+                    for k, v in self.hinge_force.items()},
+            cylinders={k: CylinderResult(length=float(self.cylinder_length[k][i]), force=float(self.cylinder_force[k][i]),
+                                         cap_pressure_predicted=float(self.cap_pressure_predicted[k][i]),
+                                         cap_pressure_measured=float(self.cap_pressure_measured[k][i]),
+                                         rod_pressure_measured=float(self.rod_pressure_measured[k][i]))
+                       for k in self.cylinder_force},
+            contacts={k: ContactResult(normal=float(v[i]), tangential=float(self.contact_tangential[k][i]))
+                      for k, v in self.contact_normal.items()},
+            implement_load=float(self.implement_load[i]), implement_cg=self.implement_cg[i].copy(),
+            frame_loads=[(self.frame_load_points[i, k].copy(), self.frame_load_forces[i, k].copy())
+                         for k in range(len(self.frame_load_names))],
+            residual=float(self.residual[i]), consistency_residual=float(self.consistency_residual[i]),
+            condition=float(self.condition[i]), status=STATUS_NAMES[int(self.status[i])], message=self.messages[i])

@@ -1,0 +1,254 @@
+"""Batched (kineto)statics: 3 equations per moving body, unknown reactions solved per pose.
+
+Equations per moving body: ΣFx = 0, ΣFz = 0, ΣM about the origin B = 0 (moment rows divided by
+the length scale ``lc`` so the matrix is dimensionless). Unknowns: hinge reactions (fx, fz: the
+force on ``bodies[1]`` from ``bodies[0]``), axial forces of cylinders whose force is not measured
+(+ = pushing), contact normal forces (friction T = f·N folded into the column, seed 002), and,
+when measured cylinder forces leave an extra equation, the vertical load at the implement cg.
+The index structure (:class:`StaticsLayout`) is built once per set of measured cylinder forces.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import UnobservableError
+from .kinematics import Kinematics, condition_1
+from .model import Mechanism
+
+_UNIT = {"x": (1.0, 0.0), "z": (0.0, 1.0), "down": (0.0, -1.0)}
+
+
+def generalized(points: np.ndarray, forces: np.ndarray, lc: float) -> np.ndarray:
+    """[Fx, Fz, (x·Fz − z·Fx)/lc] (N, T, 3) of forces (N, T, 2) N acting at points (N, T, 2) m."""
+    moment = points[..., 0] * forces[..., 1] - points[..., 1] * forces[..., 0]
+    return np.concatenate([forces, (moment / lc)[..., None]], axis=-1)
+
+
+@dataclass
+class StaticsSolution:
+    """Unknowns u (N, n_unknowns), equilibrium residual (N,) N, condition number (N,), per-pose member axes."""
+
+    unknowns: np.ndarray
+    residual: np.ndarray
+    condition: np.ndarray
+    cylinder_axis: np.ndarray
+    cylinder_length: np.ndarray
+    spring_force: np.ndarray
+    spring_axis: np.ndarray
+
+
+class StaticsLayout:
+    """Columns, rows and known-load terms of the statics for one set of force-measured cylinders."""
+
+    def __init__(self, mech: Mechanism, kin: Kinematics, force_known: frozenset[str]) -> None:
+        self.mech, self.kin, self.force_known = mech, kin, force_known
+        bi = kin.body_index
+        self.n_eq = kin.n
+        self.columns: list[str] = []
+        terms: list[tuple[int, int, int, str, object]] = []  # (column, attachment, body, kind, parameter)
+
+        def column(name: str, parts: list[tuple[str, str, str, object]]) -> None:
+            col = len(self.columns)
+            self.columns.append(name)
+            for body, key, kind, param in parts:
+                if bi[body] >= 0:
+                    pos = param if kind == "down" else None
+                    terms.append((col, kin.attach(body, key, pos), bi[body], kind, param))
+
+        for h in mech.hinges:
+            a, b = h.bodies
+            for axis in ("x", "z"):
+                column(f"hinge '{h.name}' f{axis}", [(b, h.point, axis, 1.0), (a, h.point, axis, -1.0)])
+        self.hinge_cols = np.arange(2 * len(mech.hinges)).reshape(-1, 2)
+        self.cyl_col = {}
+        for k, c in enumerate(mech.cylinders):
+            if c.name not in force_known:
+                self.cyl_col[c.name] = len(self.columns)
+                column(f"cylinder '{c.name}' force", [(c.rod_end.body, c.rod_end.point, "cyl", (k, 1.0)),
+                                                      (c.base.body, c.base.point, "cyl", (k, -1.0))])
+        self.contact_col = {}
+        for c in mech.contacts:
+            self.contact_col[c.name] = len(self.columns)
+            column(f"contact '{c.name}' normal force", [(c.body, c.point, "dir", c.force_direction)])
+        self.implement_col: int | None = None
+        imp = mech.implement
+        if imp is not None and force_known and len(self.columns) < self.n_eq:
+            self.implement_col = len(self.columns)
+            column(f"implement '{imp.body}' vertical load", [(imp.body, f"cg of {imp.body}", "down", imp.cg)])
+        self.n_unknowns = len(self.columns)
+        # column terms as arrays
+        self.t_col = np.array([t[0] for t in terms], dtype=int)
+        self.t_att = np.array([t[1] for t in terms], dtype=int)
+        self.t_body = np.array([t[2] for t in terms], dtype=int)
+        const = np.zeros((len(terms), 2))
+        cyl_t, cyl_k, cyl_s = [], [], []
+        for i, (_, _, _, kind, param) in enumerate(terms):
+            if kind in ("x", "z"):
+                const[i] = np.array(_UNIT[kind]) * param
+            elif kind == "down":
+                const[i] = _UNIT["down"]
+            elif kind == "dir":
+                const[i] = param
+            else:
+                cyl_t.append(i)
+                cyl_k.append(param[0])
+                cyl_s.append(param[1])
+        self.t_const = const
+        self.t_cyl = (np.array(cyl_t, dtype=int), np.array(cyl_k, dtype=int), np.array(cyl_s))
+        self._build_known_terms()
+        self.null_space_error: UnobservableError | None = self._check_observable()
+
+    # ---- known loads --------------------------------------------------------------------------
+    def _build_known_terms(self) -> None:
+        """Attachments and bodies of gravity, constant loads, springs and measured cylinders."""
+        mech, kin = self.mech, self.kin
+        bi = kin.body_index
+        att, body, force = [], [], []
+        self.mass_terms: list[tuple[int, int, float, float]] = []  # (attachment, body, mass, inertia)
+        for b in mech.moving_bodies:
+            mass, cg, inertia = b.mass, b.cg, b.inertia
+            if mech.implement is not None and b.name == mech.implement.body:
+                mass, cg = mech.implement.mass, mech.implement.cg
+            if cg is None:
+                cg = kin.q_ref[3 * bi[b.name]:3 * bi[b.name] + 2]
+            k = kin.attach(b.name, f"cg of {b.name}", cg)
+            self.mass_terms.append((k, bi[b.name], mass, inertia))
+            if mass > 0.0 and not (self.implement_col is not None and b.name == mech.implement.body):
+                att.append(k)
+                body.append(bi[b.name])
+                force.append((0.0, -mass * mech.gravity))
+        for ld in mech.loads:
+            att.append(kin.attach(ld.body, f"load {ld.name}", ld.position))
+            body.append(bi[ld.body])
+            force.append(tuple(ld.force))
+        self.const_att, self.const_body = np.array(att, dtype=int), np.array(body, dtype=int)
+        self.const_force = np.array(force, dtype=float).reshape(-1, 2)
+        # two-force members with known force: springs and force-measured cylinders
+        self.member_ends: list[tuple[int, int, int, float]] = []  # (member, attachment, body, sign)
+        members = [(s.a, s.b) for s in mech.springs] + [(c.base, c.rod_end) for c in mech.cylinders]
+        self.n_springs = len(mech.springs)
+        self.member_att = np.array([[kin.attach(a.body, a.point) for a, _ in members],
+                                    [kin.attach(b.body, b.point) for _, b in members]], dtype=int).reshape(2, -1)
+        for m, (a, b) in enumerate(members):
+            for end, sign in ((b, 1.0), (a, -1.0)):
+                if bi[end.body] >= 0:
+                    self.member_ends.append((m, kin.attach(end.body, end.point), bi[end.body], sign))
+
+    def _scatter(self, bodies: np.ndarray) -> np.ndarray:
+        """0/1 matrix (3T, n_eq) adding generalized forces of T terms into their body's rows."""
+        s = np.zeros((3 * len(bodies), self.n_eq))
+        for t, b in enumerate(bodies):
+            s[3 * t:3 * t + 3, 3 * b:3 * b + 3] = np.eye(3)
+        return s
+
+    # ---- assembly and solution ----------------------------------------------------------------
+    def member_axes(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Unit axes (N, M, 2) from end a to end b and lengths (N, M) of springs then cylinders."""
+        d = p[:, self.member_att[1]] - p[:, self.member_att[0]]
+        length = np.sqrt(np.sum(d * d, axis=-1))
+        return d / length[..., None], length
+
+    def matrix(self, p: np.ndarray, axes: np.ndarray) -> np.ndarray:
+        """Equilibrium matrix A (N, n_eq, n_unknowns) at attachment positions p (N, K, 2)."""
+        n_pose = p.shape[0]
+        d = np.broadcast_to(self.t_const, (n_pose,) + self.t_const.shape).copy()
+        ti, tk, ts = self.t_cyl
+        d[:, ti] = ts[:, None] * axes[:, self.n_springs + tk]
+        g = generalized(p[:, self.t_att], d, self.kin.lc)
+        a = np.zeros((n_pose, self.n_eq, self.n_unknowns))
+        for j in range(3):
+            a[:, 3 * self.t_body + j, self.t_col] = g[:, :, j]
+        return a
+
+    def known(self, p: np.ndarray, axes: np.ndarray, member_force: np.ndarray,
+              accel: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
+        """Generalized known loads b (N, n_eq): gravity, loads, springs, measured cylinders, inertia."""
+        n_pose = p.shape[0]
+        att = list(self.const_att)
+        bodies = list(self.const_body)
+        forces = [np.broadcast_to(self.const_force, (n_pose,) + self.const_force.shape)]
+        if self.member_ends:
+            m, a, b, s = (np.array(x) for x in zip(*self.member_ends))
+            att += list(a)
+            bodies += list(b)
+            forces.append(s[:, None] * member_force[:, m, None] * axes[:, m])
+        moments = np.zeros((n_pose, self.n_eq))
+        if accel is not None:  # kinetostatics (seed 004): −m·a_cg at the cg, −I·α about it
+            a_att, alpha = accel
+            for k, b, mass, inertia in self.mass_terms:
+                att.append(k)
+                bodies.append(b)
+                forces.append(-mass * a_att[:, k][:, None, :])
+                moments[:, 3 * b + 2] -= inertia * alpha[:, b] / self.kin.lc
+        if not att:
+            return moments
+        key = tuple(bodies)
+        if getattr(self, "_scatter_key", None) != key:
+            self._scatter_key, self._scatter_mat = key, self._scatter(np.array(bodies, dtype=int))
+        g = generalized(p[:, np.array(att, dtype=int)], np.concatenate(forces, axis=1), self.kin.lc)
+        return g.reshape(n_pose, -1) @ self._scatter_mat + moments
+
+    def solve(self, p: np.ndarray, cylinder_force: np.ndarray, accel: tuple[np.ndarray, np.ndarray] | None
+              ) -> StaticsSolution:
+        """Unknown reactions for N poses; ``cylinder_force`` (N, n_cyl) N is used where measured."""
+        axes, length = self.member_axes(p)
+        ns = self.n_springs
+        springs = self.mech.springs
+        spring_force = (np.array([s.stiffness for s in springs]) * (np.array([s.free_length for s in springs]) - length[:, :ns])
+                        + np.array([s.preload for s in springs]))
+        member_force = np.concatenate([spring_force, np.nan_to_num(cylinder_force)], axis=1)
+        unmeasured = [k for k, c in enumerate(self.mech.cylinders) if c.name not in self.force_known]
+        member_force[:, ns + np.array(unmeasured, dtype=int)] = 0.0
+        a = self.matrix(p, axes)
+        b = self.known(p, axes, member_force, accel)
+        if self.n_unknowns == self.n_eq:
+            u, cond = solve_with_condition(a, -b)
+        else:
+            at = np.swapaxes(a, 1, 2)
+            u, cond = solve_with_condition(at @ a, -(at @ b[..., None])[..., 0])
+            cond = np.sqrt(cond)
+        res = np.einsum("nij,nj->ni", a, u) + b
+        res[:, 2::3] *= self.kin.lc
+        return StaticsSolution(unknowns=u, residual=np.linalg.norm(res, axis=1), condition=cond,
+                               cylinder_axis=axes[:, ns:], cylinder_length=length[:, ns:],
+                               spring_force=spring_force, spring_axis=axes[:, :ns])
+
+    def _check_observable(self) -> UnobservableError | None:
+        """Structural rank check; the error names the undetermined unknowns.
+
+        The reference positions are jittered (fixed seed, 10 % of the length scale) so that a
+        reference pose which happens to be a dead centre is not mistaken for a structural defect.
+        """
+        p, _ = self.kin.positions(self.kin.q_ref[None])
+        p = p + 0.1 * self.kin.lc * np.random.default_rng(0).standard_normal(p.shape)
+        axes, _ = self.member_axes(p)
+        a = self.matrix(p, axes)[0]
+        if self.n_unknowns > self.n_eq:
+            _, s, vt = np.linalg.svd(a)
+            null = vt[self.n_eq:]
+        else:
+            _, s, vt = np.linalg.svd(a)
+            null = vt[s < 1e-10 * s[0]]
+        if null.shape[0] == 0:
+            return None
+        weight = np.sqrt(np.sum(null**2, axis=0))
+        names = [self.columns[i] for i in np.flatnonzero(weight > 1e-6)]
+        known = ", ".join(sorted(self.force_known)) or "none"
+        return UnobservableError(
+            f"{self.mech.file}: the statics leave {null.shape[0]} load(s) undetermined ({self.n_unknowns} unknowns, "
+            f"{self.n_eq} equations, rank {self.n_unknowns - null.shape[0]}); unknowns in the null space: "
+            f"{', '.join(names)}. Measure a cylinder force (pressures; measured now: {known}) or remove a member.")
+
+
+def solve_with_condition(a: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Solve stacked square systems a x = rhs; returns x (N, k) and the 1-norm condition number (N,)."""
+    try:
+        inv = np.linalg.inv(a)
+    except np.linalg.LinAlgError:
+        inv = np.linalg.pinv(a)
+        return np.einsum("nij,nj->ni", inv, rhs), condition_1(a)
+    cond = np.max(np.sum(np.abs(a), axis=1), axis=1) * np.max(np.sum(np.abs(inv), axis=1), axis=1)
+    return np.einsum("nij,nj->ni", inv, rhs), cond
