@@ -15,7 +15,10 @@ from typing import Sequence
 import yaml
 
 from .mechanics import Inputs, LinkageError, Mechanism, Result, Solver, load_mechanism, load_preset, preset_names
+from .capacity_cli import add_capacity_parser, run_capacity
+from .mechanics.machine import machine_summary
 from .mechanics.presets import preset_description
+from .simulate_cli import add_simulate_parser, run_simulate
 
 
 class _Parser(argparse.ArgumentParser):
@@ -24,7 +27,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argparse parser with the ``presets`` and ``solve`` subcommands."""
+    """The argparse parser with the ``presets``, ``solve``, ``capacity`` and ``simulate`` subcommands."""
     parser = _Parser(prog="linkage-monitor", description="Loads in a tractor hitch linkage from cylinder "
                      "strokes, joint angles and pressures (SI units: m, rad, N, Pa).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -45,6 +48,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="override a scalar of the file, e.g. implement.mass=1530 or "
                             "cylinders.lift_cylinder.bore=0.11 (repeatable)")
     solve.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    add_capacity_parser(sub)
+    add_simulate_parser(sub)
     return parser
 
 
@@ -101,6 +106,20 @@ def result_json(res: Result) -> dict:
     }
 
 
+def _machine_lines(summary: dict) -> list[str]:
+    lines = []
+    cap = summary.get("lift_capacity")
+    if cap:
+        lines.append("lift capacity [kN]: " + ", ".join(
+            f"{k} {v / 1e3:.2f}" if v is not None else f"{k} n/a" for k, v in cap.items()))
+    steer = summary.get("steerability")
+    if steer:
+        lines.append(f"axle loads [kN]: front {steer['front_axle_load'] / 1e3:.2f}, rear {steer['rear_axle_load'] / 1e3:.2f}; "
+                     f"steerability ratio {steer['ratio']:.3f} (min {steer['ratio_min']:.2f}, margin {steer['margin']:+.3f}); "
+                     f"front ballast needed {steer['front_ballast_needed']:.0f} kg")
+    return lines
+
+
 def _table(res: Result) -> str:
     lines = ["hinge        fx [kN]   fz [kN]  |F| [kN]  (force on body from body)"]
     for n, h in res.hinges.items():
@@ -125,8 +144,13 @@ def _solve(args: argparse.Namespace) -> int:
         overrides[key] = yaml.safe_load(value)
     if overrides:
         mech = mech.with_overrides(overrides)
-    res = Solver(mech).solve(_inputs(mech, args))
-    print(json.dumps(result_json(res)) if args.json else _table(res))
+    solver = Solver(mech)
+    res = solver.solve(_inputs(mech, args))
+    summary = machine_summary(solver, res)
+    if args.json:
+        print(json.dumps({**result_json(res), **{k: v or {} for k, v in summary.items()}}))
+    else:
+        print("\n".join([_table(res), *_machine_lines(summary)]))
     return 0
 
 
@@ -138,6 +162,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             for name in preset_names():
                 print(f"{name:<24} {preset_description(name)}")
             return 0
+        if args.command == "capacity":
+            return run_capacity(args)
+        if args.command == "simulate":
+            return run_simulate(args)
         return _solve(args)
     except (LinkageError, yaml.YAMLError) as exc:
         print(f"linkage-monitor: error: {str(exc).splitlines()[0]}", file=sys.stderr)

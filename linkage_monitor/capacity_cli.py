@@ -1,0 +1,118 @@
+"""``linkage-monitor capacity``: lift capacity and steerability limit over the lift cylinder's stroke.
+
+Transport poses (implement raised, weights only), solved batched. SI units in JSON (m, N, kg);
+the table and the plot use kN. Frame x forward, z up, origin at the rear wheels' ground contact.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+
+from .mechanics import LinkageError, Mechanism, Solver, load_mechanism, load_preset
+from .mechanics.capacity import lift_cylinder, reference_length, stroke_mechanism
+from .mechanics.machine import MachineBatch, MachineModel
+
+SCAN_POINTS = 401  # cylinder lengths tried between 0.5 and 1.5 × the reference length to find the stroke
+
+
+def add_capacity_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Add the ``capacity`` subcommand to ``subparsers``; returns its parser."""
+    p = subparsers.add_parser(
+        "capacity", help="lift capacity (hitch axis, 610 mm, implement cg) and steerability limit over the stroke",
+        description="Lift capacity at p_max*eta over the lift cylinder's stroke (transport poses) with the "
+                    "largest implement weight the tractor can steer with (seed 003 Fig. 4-5).")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--preset", metavar="NAME", help="bundled mechanism (see `linkage-monitor presets`)")
+    src.add_argument("--mechanism", metavar="FILE", help="mechanism YAML (docs/mechanism-schema.md)")
+    p.add_argument("--stroke", nargs=2, type=float, metavar=("MIN_M", "MAX_M"),
+                   help="lift cylinder lengths to sweep, m (default: the range around the reference length in "
+                        "which the linkage assembles and the implement rises)")
+    p.add_argument("--points", type=int, default=101, help="number of cylinder lengths (default 101)")
+    p.add_argument("--plot", metavar="FILE.png", help="write the capacity curve as a PNG")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    return p
+
+
+def lifting_stroke(model: MachineModel, cylinder: str, length: float) -> tuple[float, float]:
+    """Shortest and longest length (m) of ``cylinder`` around ``length`` over which the linkage
+    assembles and lengthening the cylinder raises the implement's cg (past that the lower links toggle)."""
+    lengths = np.linspace(0.5, 1.5, SCAN_POINTS) * length
+    batch = model.stroke_poses(cylinder, lengths)
+    ok = (batch.status == 0) & (np.gradient(batch.implement_cg[:, 1], lengths) > 0.0)
+    start = int(np.argmin(np.abs(lengths - length)))
+    if not ok[start]:
+        raise LinkageError(f"cylinder '{cylinder}': at its reference length {length:.4f} m the linkage "
+                           f"does not assemble or does not lift the implement; give --stroke MIN MAX")
+    lo, hi = start, start
+    while lo > 0 and ok[lo - 1]:
+        lo -= 1
+    while hi < len(ok) - 1 and ok[hi + 1]:
+        hi += 1
+    return float(lengths[lo]), float(lengths[hi])
+
+
+def capacity_curve(mech: Mechanism, stroke: tuple[float, float] | None, points: int) -> tuple[dict, MachineBatch]:
+    """The capacity curve as a JSON-ready dict (m, N, kg: lengths, capacities, steerability limit,
+    ratio axis/610 mm) and the machine-level results it came from."""
+    if points < 2:
+        raise LinkageError(f"--points {points}: at least 2 cylinder lengths are needed")
+    cyl = lift_cylinder(mech)
+    sweep = stroke_mechanism(mech)
+    solver = Solver(sweep)
+    model = MachineModel(sweep, solver, cyl.name)
+    if stroke is None:
+        stroke = lifting_stroke(model, cyl.name, reference_length(mech, cyl.name))
+    if not 0.0 < stroke[0] < stroke[1]:
+        raise LinkageError(f"--stroke {stroke[0]} {stroke[1]}: expected 0 < MIN < MAX (m)")
+    lengths = np.linspace(stroke[0], stroke[1], points)
+    batch, machine = model.capacity_curve(cyl.name, lengths)
+    listed = lambda a: [None if np.isnan(v) else float(v) for v in a]  # noqa: E731
+    out = {"mechanism": mech.name, "cylinder": cyl.name, "capacity_force": model.capacity_force,
+           "implement_weight": mech.implement.mass * mech.gravity, "length": listed(lengths),
+           "status": [int(s) for s in batch.status],
+           "lift_capacity": {k: listed(v) for k, v in machine.lift_capacity.items() if k != "reserve"}}
+    cap = machine.lift_capacity
+    if "behind_610mm" in cap:
+        out["ratio_axis_to_610mm"] = listed(cap["hitch_axis"] / cap["behind_610mm"])
+    if machine.steerability:
+        out["max_implement_mass"] = listed(machine.steerability["max_implement_mass"])
+        out["max_implement_weight"] = listed(machine.steerability["max_implement_mass"] * mech.gravity)
+    return out, machine
+
+
+def _table(curve: dict, rows: int = 11) -> str:
+    idx = np.unique(np.linspace(0, len(curve["length"]) - 1, rows).round().astype(int))
+    cols = [("S [m]", curve["length"], 1.0, "{:8.4f}")]
+    names = {"hitch_axis": "axis [kN]", "behind_610mm": "610mm [kN]", "implement_cg": "cg [kN]"}
+    cols += [(names[k], v, 1e-3, "{:10.2f}") for k, v in curve["lift_capacity"].items()]
+    if "max_implement_weight" in curve:
+        cols.append(("steer max [kN]", curve["max_implement_weight"], 1e-3, "{:14.2f}"))
+    lines = [f"{curve['mechanism']}: lift capacity at p_max*eta*A = {curve['capacity_force'] / 1e3:.2f} kN, "
+             f"implement weight {curve['implement_weight'] / 1e3:.2f} kN (transport poses)",
+             "  ".join(f"{c[0]:>{max(8, len(c[0]))}}" for c in cols)]
+    for i in idx:
+        cells = []
+        for head, values, scale, fmt in cols:
+            v = values[i]
+            cells.append(f"{'-':>{max(8, len(head))}}" if v is None else fmt.format(v * scale).rjust(max(8, len(head))))
+        lines.append("  ".join(cells))
+    return "\n".join(lines)
+
+
+def run_capacity(args: argparse.Namespace) -> int:
+    """Run ``linkage-monitor capacity``; returns the exit code (LinkageError propagates to the caller)."""
+    from .capacity_plot import plot_capacity  # matplotlib only when this subcommand runs
+
+    mech = load_preset(args.preset) if args.preset else load_mechanism(args.mechanism)
+    curve, machine = capacity_curve(mech, tuple(args.stroke) if args.stroke else None, args.points)
+    if args.plot:
+        cyl = mech.cylinder(curve["cylinder"])
+        title = (f"{mech.name}: lift capacity at p_max {cyl.relief_pressure / 1e6:.1f} MPa × η {cyl.efficiency:.2f}"
+                 f" (transport)")
+        plot_capacity(np.array(curve["length"], dtype=float), machine, mech.gravity, curve["implement_weight"],
+                      title, args.plot, mech.tractor.steerability_reference if mech.tractor else "unit")
+    print(json.dumps(curve) if args.json else _table(curve))
+    return 0

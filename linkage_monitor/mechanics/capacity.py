@@ -1,0 +1,117 @@
+"""Mechanism copies that turn lift capacity and stroke sweeps into ordinary solver runs.
+
+Lift capacity (seed 003: G = p_max·η·A / I): a copy of the mechanism whose implement load acts
+at the point of interest and whose lift cylinder's cap pressure is "measured" at p_max·η; the
+solver's implement-load estimate in that copy is the vertical load (N) the cylinder holds there.
+SI units; frame x forward, z up, origin at the rear wheels' ground contact B.
+"""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+
+from .errors import MechanismFileError, UnobservableError
+from .model import Cylinder, Mechanism
+from .schema import mechanism_from_dict
+from .solver import Solver
+
+CAPACITY_SENSOR = "capacity_cap_pressure"
+BEHIND_DISTANCE = 0.610  # m, ISO 730 / seed 003: "610 mm behind the hitch axis"
+
+
+def lift_cylinder(mech: Mechanism, name: str | None = None) -> Cylinder:
+    """The cylinder that lifts the implement: ``name``, else the first with a ``relief_pressure``."""
+    if name is not None:
+        if name not in [c.name for c in mech.cylinders]:
+            raise MechanismFileError(mech.file, "cylinders", f"lift cylinder '{name}' is not defined "
+                                     f"(cylinders: {', '.join(c.name for c in mech.cylinders) or 'none'})")
+        cyl = mech.cylinder(name)
+    else:
+        cyl = next((c for c in mech.cylinders if c.relief_pressure is not None), None)
+        if cyl is None:
+            raise MechanismFileError(mech.file, "cylinders", "no cylinder has a 'relief_pressure': set it "
+                                     "(Pa) on the lift cylinder to compute lift capacity")
+    if cyl.relief_pressure is None:
+        raise MechanismFileError(mech.file, f"cylinders.{cyl.name}.relief_pressure",
+                                 "required for lift capacity (Pa, the relief valve setting p_max)")
+    return cyl
+
+
+def reference_length(mech: Mechanism, cylinder: str) -> float:
+    """Pin-to-pin length (m) of ``cylinder`` in the reference pose."""
+    cyl = mech.cylinder(cylinder)
+    return float(np.hypot(*(np.asarray(mech.points[cyl.rod_end.point]) - np.asarray(mech.points[cyl.base.point]))))
+
+
+def capacity_force(cyl: Cylinder) -> float:
+    """Largest pushing force of the lift cylinder(s), N: count·p_max·η·A_cap (seed 003, G·I = p_max·η·A)."""
+    return cyl.count * cyl.relief_pressure * cyl.efficiency * cyl.cap_area
+
+
+def capacity_points(mech: Mechanism, distance: float = BEHIND_DISTANCE) -> dict[str, np.ndarray]:
+    """Reference-pose [x, z] (m) of the points where capacity is reported, fixed on the implement.
+
+    ``hitch_axis`` = implement.hitch_point; ``behind_610mm`` = ``distance`` from the hitch point,
+    perpendicular to the mast line hitch_point → mast_point, on the side away from the tractor
+    frame (ISO 730 measures it with the mast vertical: then it is horizontally behind the axis);
+    ``implement_cg`` = implement.cg. Missing hitch/mast points leave their entries out.
+    """
+    imp = mech.implement
+    if imp is None:
+        raise MechanismFileError(mech.file, "implement", "required for lift capacity (body, mass, cg)")
+    out: dict[str, np.ndarray] = {}
+    if imp.hitch_point is not None:
+        hitch = np.asarray(mech.points[imp.hitch_point], dtype=float)
+        out["hitch_axis"] = hitch
+        if imp.mast_point is not None:
+            mast = np.asarray(mech.points[imp.mast_point], dtype=float) - hitch
+            normal = np.array([-mast[1], mast[0]]) / np.hypot(*mast)
+            frame_centre = np.mean([mech.points[p] for p in mech.ground.points], axis=0)
+            if np.dot(normal, hitch - frame_centre) < 0.0:
+                normal = -normal
+            out["behind_610mm"] = hitch + distance * normal
+    out["implement_cg"] = np.asarray(imp.cg, dtype=float)
+    return out
+
+
+def capacity_mechanism(mech: Mechanism, cyl: Cylinder, point: np.ndarray) -> Mechanism:
+    """Copy of ``mech`` for lift capacity at ``point`` ([x, z] m, reference pose, on the implement).
+
+    The implement load acts at ``point``; the only pressure sensor is the lift cylinder's cap at
+    p_max·η (``CAPACITY_SENSOR``, rod chamber at 0 gauge); extra loads and ground contacts are
+    removed (capacity is a transport-pose rating, ISO 730). Measured lengths and angles are kept.
+    """
+    raw = copy.deepcopy(dict(mech.raw))
+    raw["implement"]["cg"] = [float(point[0]), float(point[1])]
+    raw.pop("loads", None)
+    raw.pop("contacts", None)
+    meas = raw.setdefault("measurements", {})
+    meas["pressures"] = [{"name": CAPACITY_SENSOR, "cylinder": cyl.name, "chamber": "cap"}]
+    ref = raw.setdefault("reference_inputs", {}) or {}
+    ref["pressures"] = {CAPACITY_SENSOR: cyl.relief_pressure * cyl.efficiency}
+    raw["reference_inputs"] = ref
+    return mechanism_from_dict(raw, file=f"{mech.file} (lift capacity copy)")
+
+
+def stroke_mechanism(mech: Mechanism) -> Mechanism:
+    """Copy of ``mech`` driven by its measured cylinder lengths only (angle and pressure sensors dropped).
+
+    For sweeping a cylinder over its stroke; UnobservableError if the cylinder lengths alone do
+    not close the linkage's degrees of freedom.
+    """
+    raw = copy.deepcopy(dict(mech.raw))
+    meas = raw.setdefault("measurements", {})
+    meas["angles"], meas["pressures"] = [], []
+    ref = raw.get("reference_inputs") or {}
+    ref.pop("angles", None)
+    ref.pop("pressures", None)
+    raw["reference_inputs"] = ref
+    stroke = mechanism_from_dict(raw, file=mech.file)
+    try:
+        Solver(stroke)
+    except UnobservableError as exc:
+        raise UnobservableError(f"{mech.file}: the measured cylinder lengths alone do not fix the pose, so "
+                                f"the stroke cannot be swept ({exc})") from exc
+    return stroke

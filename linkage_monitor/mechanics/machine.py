@@ -1,0 +1,276 @@
+"""Machine-level results: axle loads, steerability and lift capacity, per pose and batched.
+
+Axle loads come from the free body of the tractor (seed 003's moment balance about B, done on
+the tractor alone so that soil forces on the implement count correctly): tractor weight at its
+cg, the front ballast, and every force the linkage puts on the frame (``Result.frame_loads``);
+the wheel traction forces act at ground level (z = 0) and have no moment about B.
+SI units (m, N, kg, Pa); frame x forward, z up, origin at the rear wheels' ground contact B;
+moments M = x·Fz − z·Fx (positive turns +x towards +z).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .capacity import capacity_force, capacity_mechanism, capacity_points, lift_cylinder, reference_length
+from .errors import LinkageError
+from .model import Mechanism, Tractor
+from .results import STATUS_INPUT, BatchResult, Result
+from .solver import Inputs, Solver
+
+STEERABILITY_KEYS = ("front_axle_load", "rear_axle_load", "total_weight", "wheelbase", "ratio", "ratio_min",
+                     "margin", "front_ballast_needed", "ratio_unit", "ratio_tractor", "max_implement_mass")
+CAPACITY_KEYS = ("hitch_axis", "behind_610mm", "implement_cg")
+
+
+@dataclass
+class MachineBatch:
+    """Machine-level results for N poses (arrays of shape (N,); NaN where a pose or a part failed).
+
+    ``steerability`` keys = ``STEERABILITY_KEYS`` (N, N, N, m, -, -, -, kg, -, -, kg);
+    ``lift_capacity`` keys = the capacity points (``hitch_axis``, ``behind_610mm``,
+    ``implement_cg``; N, vertical load the cylinder holds at p_max·η) plus ``reserve``
+    (capacity at the implement cg / present implement load, -). Empty dicts when the mechanism
+    has no ``tractor`` block / no lift cylinder. ``warnings[i]`` lists pose i's limit violations.
+    """
+
+    steerability: dict[str, np.ndarray]
+    lift_capacity: dict[str, np.ndarray]
+    warnings: list[list[str]]
+
+    def summary(self, i: int) -> dict:
+        """Pose i as ``{"lift_capacity": {...} | None, "steerability": {...} | None}`` of floats (JSON-ready)."""
+        return _summary({k: v[i] for k, v in self.lift_capacity.items()}, {k: v[i] for k, v in self.steerability.items()})
+
+
+@dataclass(frozen=True)
+class MachineResult:
+    """Machine-level results of one pose: dicts as in :class:`MachineBatch` (floats) and warnings."""
+
+    steerability: dict[str, float] = field(default_factory=dict)
+    lift_capacity: dict[str, float] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+
+def _summary(capacity: dict, steer: dict) -> dict:
+    """The ``solve --json`` dicts: CAPACITY_KEYS / STEERABILITY_KEYS as floats (NaN → None), None when absent."""
+    def pick(group: dict, keys: tuple[str, ...]) -> dict | None:
+        return {k: (None if np.isnan(float(group[k])) else float(group[k])) for k in keys if k in group} if group else None
+
+    return {"lift_capacity": pick(capacity, CAPACITY_KEYS), "steerability": pick(steer, STEERABILITY_KEYS)}
+
+
+def axle_loads(tractor: Tractor, gravity: float, frame_load_points: np.ndarray,
+               frame_load_forces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Front and rear axle loads (N, + = ground pushes up), shape (N,), from the tractor's free body.
+
+    frame_load_points / _forces (N, K, 2): m / N, forces the linkage puts ON the frame. Moment
+    balance about B: L·R_A − m_tr·g·x_tr − m_cw·g·x_cw + Σ(x·Fz − z·Fx) = 0 (seed 003's balance,
+    applied to the tractor alone); vertical balance gives R_B.
+    """
+    g, L = gravity, tractor.wheelbase
+    ballast_mass, ballast_x = _ballast(tractor)
+    moment = np.sum(frame_load_points[..., 0] * frame_load_forces[..., 1]
+                    - frame_load_points[..., 1] * frame_load_forces[..., 0], axis=-1)
+    front = (tractor.mass * g * tractor.cg[0] + ballast_mass * g * ballast_x - moment) / L
+    rear = (tractor.mass + ballast_mass) * g - np.sum(frame_load_forces[..., 1], axis=-1) - front
+    return front, rear
+
+
+def _ballast(tractor: Tractor) -> tuple[float, float]:
+    """Front ballast mass (kg) and x (m); with none configured, 0 kg at the front axle (x = wheelbase)."""
+    fb = tractor.front_ballast
+    return (fb.mass, fb.x) if fb is not None else (0.0, tractor.wheelbase)
+
+
+def steerability(tractor: Tractor, gravity: float, front: np.ndarray, rear: np.ndarray,
+                 implement_load: np.ndarray, implement_x: np.ndarray) -> dict[str, np.ndarray]:
+    """Steerability quantities (``STEERABILITY_KEYS``) from the axle loads (N) and the implement load (N) at x (m).
+
+    seed 003: k = R_A / W ≥ ratio_min with W the unit's weight on the wheels (R_A + R_B; in
+    transport = P_tr + P_cw + P_6) or the empty tractor's weight (``steerability_reference``).
+    By global equilibrium R_A grows by g·x/L per kg at x, so (with c = 1 for the unit, 0 for the
+    tractor reference, as W then does not change): front ballast for k = ratio_min
+    m_cw = m_cw0 + (r·W − R_A)/(g·(x_cw/L − r·c)); largest implement mass
+    m_6 = P_6/g + (R_A − r·W)/(g·(r·c − x_S6/L)) (inf if the denominator is ≤ 0).
+    """
+    g, L, r = gravity, tractor.wheelbase, tractor.ratio_min
+    total = front + rear
+    tractor_weight = tractor.mass * g
+    ratio_unit, ratio_tractor = front / total, front / tractor_weight
+    unit = tractor.steerability_reference == "unit"
+    ref_weight, c = (total, 1.0) if unit else (np.full_like(front, tractor_weight), 0.0)
+    ratio = ratio_unit if unit else ratio_tractor
+    ballast_mass, ballast_x = _ballast(tractor)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ballast_slope = g * (ballast_x / L - r * c)
+        ballast = np.where(ballast_slope > 0.0, np.maximum(0.0, ballast_mass + (r * ref_weight - front) / ballast_slope),
+                           np.inf)
+        implement_slope = g * (r * c - implement_x / L)
+        max_mass = np.where(implement_slope > 0.0,
+                            np.maximum(0.0, implement_load / g + (front - r * ref_weight) / implement_slope), np.inf)
+    return {"front_axle_load": front, "rear_axle_load": rear, "total_weight": total,
+            "wheelbase": np.full_like(front, L), "ratio": ratio, "ratio_min": np.full_like(front, r),
+            "margin": ratio - r, "front_ballast_needed": ballast, "ratio_unit": ratio_unit,
+            "ratio_tractor": ratio_tractor, "max_implement_mass": max_mass}
+
+
+def limit_warnings(steer: dict[str, np.ndarray], capacity: dict[str, np.ndarray], implement_load: np.ndarray,
+                   reference: str) -> list[list[str]]:
+    """Per pose: a sentence for each limit violated (steerability margin < 0, lift reserve < 1)."""
+    out: list[list[str]] = [[] for _ in range(len(implement_load))]
+    if steer:
+        for i in np.flatnonzero(steer["margin"] < 0.0):
+            out[i].append(f"steerability margin {steer['margin'][i]:+.3f} < 0: the front axle carries "
+                          f"{steer['ratio'][i]:.1%} of the {reference} weight, below ratio_min "
+                          f"{steer['ratio_min'][i]:.0%}; front ballast needed {steer['front_ballast_needed'][i]:.0f} kg")
+    if capacity:
+        for i in np.flatnonzero(capacity["reserve"] < 1.0):
+            out[i].append(f"lift reserve {capacity['reserve'][i]:.2f} < 1: implement load "
+                          f"{implement_load[i] / 1e3:.2f} kN exceeds the lift capacity "
+                          f"{capacity['implement_cg'][i] / 1e3:.2f} kN at its centre of gravity")
+    return out
+
+
+class MachineModel:
+    """Everything machine-level that depends only on the mechanism, built once.
+
+    ``solver`` solves the present poses (its mechanism must be ``mech``); for lift capacity one
+    solver per capacity point (``capacity_points``) runs a copy of the mechanism with the lift
+    cylinder at p_max·η (``capacity.capacity_mechanism``). ``lift_cylinder``: name, default the
+    first cylinder with a ``relief_pressure``. Parts the file cannot support are left out:
+    ``has_steerability`` needs a ``tractor`` block, ``has_capacity`` an implement and a cylinder
+    with ``relief_pressure``.
+    """
+
+    def __init__(self, mech: Mechanism, solver: Solver, lift_cylinder_name: str | None = None) -> None:
+        self.mech, self.solver = mech, solver
+        self.has_steerability = mech.tractor is not None
+        self.capacity_solvers: dict[str, Solver] = {}
+        self.capacity_points: dict[str, np.ndarray] = {}
+        self.capacity_force = float("nan")
+        self.capacity_error = ""
+        if mech.implement is None or not any(c.relief_pressure is not None for c in mech.cylinders):
+            self.capacity_error = "no implement or no cylinder with relief_pressure: lift capacity not computed"
+        else:
+            cyl = lift_cylinder(mech, lift_cylinder_name)
+            self.capacity_force = capacity_force(cyl)
+            self.capacity_points = capacity_points(mech)
+            self.capacity_solvers = {k: Solver(capacity_mechanism(mech, cyl, pt), solver.dead_centre_cond,
+                                               solver.consistency_tol)
+                                     for k, pt in self.capacity_points.items()}
+            self._capacity_pressure = {k: {s.mech.measurements.pressures[0].name: cyl.relief_pressure * cyl.efficiency}
+                                       for k, s in self.capacity_solvers.items()}
+
+    @property
+    def has_capacity(self) -> bool:
+        """True when lift capacity is computed (implement and a cylinder with relief_pressure)."""
+        return bool(self.capacity_solvers)
+
+    # ---- inputs of a solved pose ----------------------------------------------------------
+    def pose_inputs(self, batch: BatchResult) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+        """Measured cylinder lengths (m) and angle-sensor readings (rad) of solved poses, (N,) each.
+
+        Read back from the solution (exact pose, even when the inputs were redundant and noisy):
+        an angle sensor reads reference + θ(bodies[1]) − θ(bodies[0]) (θ: rotation from the reference pose).
+        """
+        mech = self.mech
+        hinges = {h.name: h for h in mech.hinges}
+        n = len(batch)
+
+        def theta(body: str) -> np.ndarray:
+            return batch.body_poses[body][:, 2] if body in batch.body_poses else np.zeros(n)
+
+        cylinders = {c: batch.cylinder_length[c] for c in mech.measurements.cylinders}
+        angles = {a.name: a.reference + theta(hinges[a.hinge].bodies[1]) - theta(hinges[a.hinge].bodies[0])
+                  for a in mech.measurements.angles}
+        return cylinders, angles
+
+    # ---- batched (replay, capacity curve) and one pose (the node) ------------------------------
+    def evaluate_batch(self, batch: BatchResult) -> MachineBatch:
+        """Axle loads, steerability, lift capacity and warnings for every pose of ``batch`` (from ``self.solver``)."""
+        capacity: dict[str, np.ndarray] = {}
+        if self.has_capacity:
+            cylinders, angles = self.pose_inputs(batch)
+            ok = batch.status < STATUS_INPUT
+            cylinders = {k: np.where(ok, v, np.nan) for k, v in cylinders.items()}
+            for name, solver in self.capacity_solvers.items():
+                res = solver.solve_batch(cylinders=cylinders, angles=angles, pressures=self._capacity_pressure[name])
+                capacity[name] = np.where(ok, res.implement_load, np.nan)
+        return self._combine(batch, capacity, [[] for _ in range(len(batch))])
+
+    def evaluate(self, result: Result) -> MachineResult:
+        """Machine-level results of one solved pose (a ``Result`` of ``self.solver``); cheap: the
+        capacity solvers continue from their previous pose."""
+        batch = _as_batch(result, self.solver.frame_load_names)
+        capacity: dict[str, np.ndarray] = {}
+        problems: list[str] = []
+        if self.has_capacity:
+            cylinders, angles = self.pose_inputs(batch)
+            inputs = Inputs(cylinders={k: float(v[0]) for k, v in cylinders.items()},
+                            angles={k: float(v[0]) for k, v in angles.items()})
+            for name, solver in self.capacity_solvers.items():
+                try:
+                    load = solver.solve(replace(inputs, pressures=self._capacity_pressure[name])).implement_load
+                except LinkageError as exc:
+                    load = float("nan")
+                    problems.append(f"lift capacity at {name} not computed: {exc}")
+                capacity[name] = np.array([load])
+        out = self._combine(batch, capacity, [problems])
+        return MachineResult({k: float(v[0]) for k, v in out.steerability.items()},
+                             {k: float(v[0]) for k, v in out.lift_capacity.items()}, out.warnings[0])
+
+    def _combine(self, batch: BatchResult, capacity: dict[str, np.ndarray], problems: list[list[str]]) -> MachineBatch:
+        """Steerability from the frame loads, reserve from the capacity, and all warnings."""
+        mech = self.mech
+        steer: dict[str, np.ndarray] = {}
+        if self.has_steerability:
+            front, rear = axle_loads(mech.tractor, mech.gravity, batch.frame_load_points, batch.frame_load_forces)
+            steer = steerability(mech.tractor, mech.gravity, front, rear, batch.implement_load, batch.implement_cg[:, 0])
+        if capacity:
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                capacity["reserve"] = np.where(batch.implement_load > 0.0,
+                                               capacity["implement_cg"] / batch.implement_load, np.inf)
+        reference = mech.tractor.steerability_reference if mech.tractor else "unit"
+        limits = limit_warnings(steer, capacity, batch.implement_load, reference)
+        return MachineBatch(steer, capacity, [p + w for p, w in zip(problems, limits)])
+
+    def stroke_poses(self, cylinder: str, lengths: np.ndarray) -> BatchResult:
+        """Transport poses with ``cylinder`` at ``lengths`` (m), solved batched by ``self.solver``.
+
+        ``self.solver`` must be driven by cylinder lengths only (``capacity.stroke_mechanism``); other
+        measured cylinders stay at their reference length; no pressures are given, so the implement
+        load is its configured weight.
+        """
+        held = {c: reference_length(self.mech, c) for c in self.mech.measurements.cylinders if c != cylinder}
+        return self.solver.solve_batch(cylinders={**held, cylinder: np.asarray(lengths, dtype=float)})
+
+    def capacity_curve(self, cylinder: str, lengths: np.ndarray) -> tuple[BatchResult, MachineBatch]:
+        """Transport poses over a stroke (``stroke_poses``) and their machine-level results (batched)."""
+        batch = self.stroke_poses(cylinder, lengths)
+        return batch, self.evaluate_batch(batch)
+
+
+def _as_batch(result: Result, frame_load_names: list[str]) -> BatchResult:
+    """A one-pose BatchResult view of ``result`` with the fields machine-level results read."""
+    points = np.array([p for p, _ in result.frame_loads]).reshape(1, -1, 2)
+    forces = np.array([f for _, f in result.frame_loads]).reshape(1, -1, 2)
+    one = lambda v: np.array([v])  # noqa: E731
+    return BatchResult(
+        points={}, body_poses={k: v[None] for k, v in result.body_poses.items()}, hinge_force={}, hinge_bodies={},
+        cylinder_length={k: one(c.length) for k, c in result.cylinders.items()}, cylinder_force={},
+        cap_pressure_predicted={}, cap_pressure_measured={}, rod_pressure_measured={}, contact_normal={},
+        contact_tangential={}, implement_load=one(result.implement_load), implement_cg=result.implement_cg[None],
+        frame_load_names=list(frame_load_names), frame_load_points=points, frame_load_forces=forces,
+        residual=one(result.residual), consistency_residual=one(result.consistency_residual),
+        condition=one(result.condition), status=np.zeros(1, dtype=int), messages=[""])
+
+
+def machine_summary(solver: Solver, result: Result, model: MachineModel | None = None) -> dict:
+    """``{"lift_capacity": {hitch_axis, behind_610mm, implement_cg} N | None, "steerability": {STEERABILITY_KEYS} | None}``
+    for ``linkage-monitor solve --json`` (NaN → None). Pass ``model`` to reuse a built MachineModel."""
+    model = model or MachineModel(solver.mech, solver)
+    res = model.evaluate(result)
+    return _summary(res.lift_capacity, res.steerability)

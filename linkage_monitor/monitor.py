@@ -1,0 +1,132 @@
+"""One monitoring step per sensor message, without rclpy: the core of the live node.
+
+A sensor message updates the latest inputs (inputs.py); if every input is fresh the
+linkage is solved (mechanics), the machine-level results are added, and the three output
+messages are built (outputs.py). Every step ends in a diagnostic level, a message naming
+the input and the reason, and key-values with the numbers. Nothing with garbage values is
+returned: a failed step has `outputs = None`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any, Mapping, Sequence
+
+from . import outputs as out
+from .inputs import InputConfig, InputTracker, StaleInputError
+from .mechanics import (AssemblyError, DeadCentreError, InputError, LinkageError, Mechanism, Result,
+                        Solver)
+from .mechanics.machine import MachineModel
+
+OK, WARN, ERROR = 0, 1, 2  # diagnostic_msgs/DiagnosticStatus levels
+
+
+@dataclass
+class Step:
+    """The outcome of one sensor message: outputs (None if nothing was solved) and a diagnostic."""
+
+    stamp_ns: int
+    level: int
+    message: str
+    values: dict[str, str] = field(default_factory=dict)
+    outputs: out.Outputs | None = None
+    result: Result | None = None
+    machine: dict[str, Any] | None = None
+
+
+class Monitor:
+    """Holds the mechanism, its solver and the latest inputs; turns sensor messages into Steps.
+
+    residual_warn_n: N, equilibrium residual above which a solve is a WARN.
+    """
+
+    def __init__(self, mech: Mechanism, config: InputConfig) -> None:
+        self.config = config
+        self.tracker = InputTracker(mech, config)
+        self.mechanism = mech
+        self._build(mech)
+
+    def _build(self, mech: Mechanism) -> None:
+        self.mechanism = mech
+        self.solver = Solver(mech)
+        self.machine = MachineModel(mech, self.solver)
+        self.overdetermined = self.solver.kin.m > self.solver.kin.n
+        self.estimates_load = bool(self.tracker.pressure_names)
+
+    def apply_overrides(self, overrides: Mapping[str, Any]) -> None:
+        """Change scalars of the description (e.g. {'implement.mass': 1530.0}); from the next step on."""
+        self._build(self.mechanism.with_overrides(overrides))
+
+    def set_staleness_limit(self, seconds: float) -> None:
+        """Largest age (s) of any input relative to the triggering message, from the next step on."""
+        self.config = replace(self.config, staleness_limit_s=float(seconds))
+        self.tracker.config = self.config
+
+    def on_joint_state(self, names: Sequence[str], positions: Sequence[float], stamp_ns: int) -> Step:
+        """A sensor_msgs/JointState arrived (positions rad / m, stamp ns)."""
+        try:
+            self.tracker.update_joint_state(names, positions, stamp_ns)
+        except InputError as exc:
+            return Step(stamp_ns, ERROR, f"malformed input: {exc}", {"input": "joint_states"})
+        return self._solve(stamp_ns, "joint_states")
+
+    def on_pressure(self, topic: str, fluid_pressure: float, stamp_ns: int) -> Step:
+        """A sensor_msgs/FluidPressure arrived on `topic` (Pa, stamp ns)."""
+        try:
+            self.tracker.update_pressure(topic, fluid_pressure, stamp_ns)
+        except InputError as exc:
+            return Step(stamp_ns, ERROR, f"malformed input: {exc}", {"input": topic})
+        return self._solve(stamp_ns, topic)
+
+    def _solve(self, stamp_ns: int, trigger: str) -> Step:
+        try:
+            inputs = self.tracker.inputs_at(stamp_ns)
+        except StaleInputError as exc:
+            return Step(stamp_ns, WARN, f"no solve: {exc}", {"input": trigger})
+        values = {"input": trigger}
+        values.update({f"input {k} [m]": f"{v:.6g}" for k, v in inputs.cylinders.items()})
+        values.update({f"input {k} [rad]": f"{v:.6g}" for k, v in inputs.angles.items()})
+        values.update({f"input {k} [Pa gauge]": f"{v:.6g}" for k, v in inputs.pressures.items()})
+        try:
+            result = self.solver.solve(inputs)
+        except AssemblyError as exc:
+            return Step(stamp_ns, ERROR, f"cannot assemble: {exc}", values)
+        except DeadCentreError as exc:
+            return Step(stamp_ns, ERROR, f"dead centre: {exc}", values)
+        except LinkageError as exc:
+            return Step(stamp_ns, ERROR, f"malformed input: {exc}", values)
+        return self.finish(stamp_ns, result, values)
+
+    def finish(self, stamp_ns: int, result: Result, values: dict[str, str]) -> Step:
+        """Machine-level results, output messages and the diagnostic of one solved pose."""
+        mech = self.mechanism
+        machine = self.machine.evaluate(result)
+        warnings = list(machine.warnings)
+        if result.residual > out.RESIDUAL_WARN_N:
+            warnings.append(f"equilibrium residual {result.residual:.3g} N > {out.RESIDUAL_WARN_N} N")
+        if result.status != "ok":
+            warnings.append(result.message or result.status)
+        reserve = machine.lift_capacity.get("reserve", math.nan)
+        reference = mech.tractor.steerability_reference if mech.tractor else "unit"
+        outputs = out.Outputs(
+            hinge_reactions=out.hinge_reactions(mech, stamp_ns, result, self.overdetermined),
+            hitch_state=out.hitch_state(mech, stamp_ns, result, machine.lift_capacity, reserve,
+                                        self.estimates_load, warnings),
+            steerability=out.steerability(stamp_ns, machine.steerability, reference))
+        steer = machine.steerability
+        values.update({
+            "implement load [N]": f"{result.implement_load:.6g}",
+            "steerability ratio [-]": f"{steer.get('ratio', math.nan):.4f}",
+            "steerability margin [-]": f"{steer.get('margin', math.nan):.4f}",
+            "front axle load [N]": f"{steer.get('front_axle_load', math.nan):.6g}",
+            "lift reserve [-]": f"{reserve:.4f}",
+            "largest hinge reaction [N]": max((f"{h.magnitude:.6g}" for h in result.hinges.values()),
+                                              key=float, default="nan"),
+            "equilibrium residual [N]": f"{result.residual:.3g}",
+            "kinematic residual [m]": f"{result.consistency_residual:.3g}",
+        })
+        level = WARN if warnings else OK
+        scalars = {f"steerability/{k}": v for k, v in steer.items()}
+        scalars.update({f"lift/{k}": v for k, v in machine.lift_capacity.items()})
+        return Step(stamp_ns, level, "; ".join(warnings) or "ok", values, outputs, result, machine=scalars)

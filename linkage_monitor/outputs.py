@@ -1,0 +1,93 @@
+"""Solver results -> the package's output messages (used by the live node and the replay).
+
+Units SI (m, N, Pa, kg); frame x forward, z up, origin at the rear wheels' ground contact.
+Every output carries the header stamp of the triggering input, never wall-clock time.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping
+
+from builtin_interfaces.msg import Time
+from std_msgs.msg import Header
+
+from .mechanics import Mechanism, Result
+from .msg import CylinderState, HingeReaction, HingeReactions, HitchState, Steerability
+
+FRAME_ID = "base_footprint"  # REP 105 frame at the ground below the tractor: x forward, z up
+RESIDUAL_WARN_N = 1e-3       # N, equilibrium residual above which a solve is flagged
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """The three output messages of one solve."""
+
+    hinge_reactions: HingeReactions
+    hitch_state: HitchState
+    steerability: Steerability
+
+
+def header(stamp_ns: int) -> Header:
+    """A std_msgs/Header with the given stamp (ns since the epoch) and FRAME_ID."""
+    return Header(stamp=Time(sec=int(stamp_ns // 1_000_000_000), nanosec=int(stamp_ns % 1_000_000_000)),
+                  frame_id=FRAME_ID)
+
+
+def stamp_ns(msg_header: Header) -> int:
+    """The stamp of a std_msgs/Header in ns since the epoch."""
+    return int(msg_header.stamp.sec) * 1_000_000_000 + int(msg_header.stamp.nanosec)
+
+
+def hinge_reactions(mech: Mechanism, stamp: int, result: Result, overdetermined: bool) -> HingeReactions:
+    """HingeReactions for one solved pose: force on bodies[1] from bodies[0] at every hinge, N.
+
+    overdetermined: more measurements than degrees of freedom (solved by least squares).
+    """
+    hinges = []
+    for hinge in mech.hinges:
+        r = result.hinges[hinge.name]
+        x, z = result.points[hinge.point]
+        hinges.append(HingeReaction(name=hinge.name, on_body=r.on_body, from_body=r.from_body,
+                                    fx=r.fx, fz=r.fz, magnitude=r.magnitude, x=float(x), z=float(z)))
+    status, text = HingeReactions.STATUS_OK, result.message or "ok"
+    if result.residual > RESIDUAL_WARN_N:
+        status, text = HingeReactions.STATUS_HIGH_RESIDUAL, (
+            f"equilibrium residual {result.residual:.3g} N > {RESIDUAL_WARN_N} N")
+    elif overdetermined:
+        status = HingeReactions.STATUS_OVERDETERMINED
+    return HingeReactions(header=header(stamp), mechanism=mech.name, hinges=hinges, status=status,
+                          status_text=text, equilibrium_residual=float(result.residual),
+                          kinematic_residual=float(result.consistency_residual))
+
+
+def hitch_state(mech: Mechanism, stamp: int, result: Result, lift_capacity: Mapping[str, float],
+                lift_reserve: float, estimated: bool, warnings: list[str]) -> HitchState:
+    """HitchState: cylinder states, implement load (N, + down), lift capacities (N), reserve (-)."""
+    cylinders = [CylinderState(name=name, length=c.length, force=c.force,
+                               cap_pressure_measured=c.cap_pressure_measured,
+                               rod_pressure_measured=c.rod_pressure_measured,
+                               cap_pressure_predicted=c.cap_pressure_predicted)
+                 for name, c in result.cylinders.items()]
+    hitch_point = mech.implement.hitch_point if mech.implement else None
+    height = float(result.points[hitch_point][1]) if hitch_point else math.nan
+    status = HitchState.STATUS_WARN if warnings else HitchState.STATUS_OK
+    return HitchState(header=header(stamp), cylinders=cylinders, implement_load=float(result.implement_load),
+                      implement_load_estimated=estimated,
+                      implement_cg_x=float(result.implement_cg[0]), implement_cg_z=float(result.implement_cg[1]),
+                      hitch_axis_height=height,
+                      lift_capacity_hitch_axis=float(lift_capacity.get("hitch_axis", math.nan)),
+                      lift_capacity_610mm=float(lift_capacity.get("behind_610mm", math.nan)),
+                      lift_capacity_implement_cg=float(lift_capacity.get("implement_cg", math.nan)),
+                      lift_reserve=float(lift_reserve), status=status,
+                      status_text="; ".join(warnings) or "ok")
+
+
+def steerability(stamp: int, values: Mapping[str, float], reference: str) -> Steerability:
+    """Steerability message from the machine-level values (N, m, -, kg); reference 'unit'|'tractor'."""
+    ref = Steerability.REFERENCE_TRACTOR if reference == "tractor" else Steerability.REFERENCE_UNIT
+    fields = ("front_axle_load", "rear_axle_load", "total_weight", "wheelbase", "ratio", "ratio_unit",
+              "ratio_tractor", "ratio_min", "margin", "front_ballast_needed", "max_implement_mass")
+    return Steerability(header=header(stamp), reference=ref,
+                        **{name: float(values.get(name, math.nan)) for name in fields})

@@ -1,0 +1,100 @@
+"""Real rclpy plumbing for integration tests: the node in a child process, a test node here."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import FluidPressure, JointState
+from std_msgs.msg import String
+
+from linkage_monitor.msg import HingeReactions, HitchState, Steerability
+from linkage_monitor.outputs import header, stamp_ns
+
+RELIABLE = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def start_node(params: dict[str, Any], log: Path) -> subprocess.Popen:
+    """`python -m linkage_monitor.node` with `-p name:=value` for every parameter."""
+    args = [sys.executable, "-m", "linkage_monitor.node", "--ros-args"]
+    for name, value in params.items():
+        if isinstance(value, bool):
+            value = str(value).lower()
+        elif isinstance(value, list):
+            value = "[" + ",".join(f"'{v}'" for v in value) + "]"
+        args += ["-p", f"{name}:={value}"]
+    return subprocess.Popen(args, stdout=log.open("w"), stderr=subprocess.STDOUT, env=dict(os.environ))
+
+
+def stop(proc: subprocess.Popen, sig: int = signal.SIGINT, timeout: float = 20.0) -> int:
+    """Stop a child process (SIGINT = Ctrl-C) and return its exit code."""
+    if proc.poll() is None:
+        proc.send_signal(sig)
+        try:
+            return proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+    return proc.wait(timeout=timeout)
+
+
+class MonitorClient:
+    """A test-side node: publishes inputs, collects every output of the monitor node."""
+
+    def __init__(self, pressure_topics: tuple[str, ...] = ("pressure/lift_cap_pressure",),
+                 name: str = "test_client") -> None:
+        self.node = rclpy.create_node(name)
+        self.received: dict[str, list] = {k: [] for k in ("hinge_reactions", "hitch_state", "steerability",
+                                                           "diagnostics", "mechanism_description")}
+        for topic, cls in (("hinge_reactions", HingeReactions), ("hitch_state", HitchState),
+                           ("steerability", Steerability)):
+            self.node.create_subscription(cls, topic, self.received[topic].append, RELIABLE)
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.received["diagnostics"].append,
+                                      RELIABLE)
+        self.node.create_subscription(String, "mechanism_description",
+                                      self.received["mechanism_description"].append, LATCHED)
+        self.joint_pub = self.node.create_publisher(JointState, "joint_states", RELIABLE)
+        self._pressure_pubs = {topic: self.node.create_publisher(FluidPressure, topic, RELIABLE)
+                               for topic in pressure_topics}
+
+    def spin_until(self, condition: Callable[[], bool], timeout: float) -> bool:
+        """Spin until `condition()` holds or `timeout` s pass; returns whether it held."""
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if condition():
+                return True
+            rclpy.spin_once(self.node, timeout_sec=0.05)
+        return condition()
+
+    def wait_for_node(self, timeout: float = 30.0) -> None:
+        """Wait until the monitor node is up (its latched mechanism description arrived) and
+        subscribed to our inputs."""
+        publishers = [self.joint_pub, *self._pressure_pubs.values()]
+        ok = self.spin_until(lambda: bool(self.received["mechanism_description"])
+                             and all(p.get_subscription_count() > 0 for p in publishers), timeout)
+        assert ok, "linkage_monitor node did not come up (no mechanism_description / no subscription)"
+        # A publisher sees the match before the subscriber does; messages sent in between are lost.
+        self.spin_until(lambda: False, 0.5)
+
+    def publish_joint_state(self, stamp: int, names: list[str], positions: list[float]) -> None:
+        self.joint_pub.publish(JointState(header=header(stamp), name=names, position=positions))
+
+    def publish_pressure(self, topic: str, stamp: int, pascal: float) -> None:
+        self._pressure_pubs[topic].publish(FluidPressure(header=header(stamp), fluid_pressure=pascal))
+
+    def outputs_at(self, topic: str, stamp: int) -> list:
+        return [m for m in self.received[topic] if stamp_ns(m.header) == stamp]
+
+    def diagnostics_at(self, stamp: int) -> list:
+        return [s for m in self.received["diagnostics"] if stamp_ns(m.header) == stamp for s in m.status]
+
+    def close(self) -> None:
+        self.node.destroy_node()

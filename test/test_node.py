@@ -1,0 +1,145 @@
+"""The live node over real topics: a node process, a test client in this process.
+
+Expected values come from the offline solver (linkage_monitor.mechanics, called here on the
+same inputs), never from the node's own code path.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import rclpy
+
+from linkage_monitor.inputs import ATMOSPHERIC_PRESSURE
+from linkage_monitor.mechanics import Inputs, Solver, load_preset
+from linkage_monitor.mechanics.capacity import stroke_mechanism
+from linkage_monitor.mechanics.machine import MachineModel
+from linkage_monitor.outputs import stamp_ns
+from support.ros_harness import MonitorClient, start_node, stop
+
+T0 = 1_795_000_000_000_000_000  # ns, an arbitrary stamp (2026-11): outputs must carry the inputs' stamps
+JOINTS = ["lift_cylinder", "lift_arm_angle"]
+PRESSURE_TOPIC = "pressure/lift_cap_pressure"
+
+
+@pytest.fixture(scope="module")
+def ros():
+    rclpy.init()
+    yield
+    rclpy.shutdown()
+
+
+@pytest.fixture
+def node(ros, tmp_path):
+    proc = start_node({"mechanism": "belarus_1221", "record_dir": str(tmp_path / "bags"),
+                       "sensor_qos": "reliable", "staleness_limit": 0.5}, tmp_path / "node.log")
+    client = MonitorClient()
+    try:
+        client.wait_for_node()
+        yield client, proc, tmp_path
+    finally:
+        client.close()
+        code = stop(proc)
+        assert code == 0, f"node exit code {code}:\n" + (tmp_path / "node.log").read_text()
+
+
+def _pose(stroke: float) -> tuple[float, float]:
+    """A consistent (stroke m, lift-arm angle rad) pair: the angle from the offline kinematics
+    driven by the stroke alone."""
+    mech = load_preset("belarus_1221")
+    batch = Solver(stroke_mechanism(mech)).solve_batch(cylinders={"lift_cylinder": np.array([stroke])})
+    sensor = mech.measurements.angles[0]
+    hinge = next(h for h in mech.hinges if h.name == sensor.hinge)
+    theta = lambda body: batch.body_poses[body][0, 2] if body in batch.body_poses else 0.0  # noqa: E731
+    return stroke, sensor.reference + theta(hinge.bodies[1]) - theta(hinge.bodies[0])
+
+
+def _send(client: MonitorClient, stamp: int, stroke: float, angle: float, gauge_pa: float) -> None:
+    """Pressure at `stamp`, then (after it has had time to arrive: two DDS writers keep no
+    order between them) the joint state at `stamp` + 1 µs, whose solve uses both."""
+    client.publish_pressure(PRESSURE_TOPIC, stamp, gauge_pa + ATMOSPHERIC_PRESSURE)
+    client.spin_until(lambda: False, 0.3)
+    client.publish_joint_state(stamp + 1000, JOINTS, [stroke, angle])
+
+
+def test_outputs_equal_offline_solver_and_carry_input_stamps(node):
+    client, _, _ = node
+    mech = load_preset("belarus_1221")
+    offline = Solver(mech)
+    machine = MachineModel(mech, offline)
+    cases = []
+    for k, (stroke, gauge) in enumerate([(0.54, 9.9e6), (0.60, 8.7e6), (0.66, 9.4e6), (0.70, 9.2e6)]):
+        s, angle = _pose(stroke)
+        stamp = T0 + k * 100_000_000
+        _send(client, stamp, s, angle, gauge)
+        cases.append((stamp + 1000, s, angle, gauge))
+    assert client.spin_until(lambda: all(client.outputs_at("steerability", c[0]) for c in cases), 30)
+    for stamp, s, angle, gauge in cases:
+        expected = offline.solve(Inputs(cylinders={"lift_cylinder": s}, angles={"lift_arm_angle": angle},
+                                        pressures={"lift_cap_pressure": gauge}))
+        hinges = client.outputs_at("hinge_reactions", stamp)[0]
+        assert stamp_ns(hinges.header) == stamp
+        assert [h.name for h in hinges.hinges] == [h.name for h in mech.hinges]
+        for h in hinges.hinges:
+            ref = expected.hinges[h.name]
+            assert h.fx == pytest.approx(ref.fx, rel=1e-9, abs=1e-6)
+            assert h.fz == pytest.approx(ref.fz, rel=1e-9, abs=1e-6)
+        hitch = client.outputs_at("hitch_state", stamp)[0]
+        assert hitch.implement_load == pytest.approx(expected.implement_load, rel=1e-9)
+        assert hitch.implement_load_estimated
+        cyl = hitch.cylinders[0]
+        assert cyl.force == pytest.approx(expected.cylinders["lift_cylinder"].force, rel=1e-9)
+        assert cyl.cap_pressure_measured == pytest.approx(gauge, rel=1e-12)
+        steer = client.outputs_at("steerability", stamp)[0]
+        ref_machine = machine.evaluate(expected)
+        assert steer.front_axle_load == pytest.approx(ref_machine.steerability["front_axle_load"], rel=1e-9)
+        assert steer.margin == pytest.approx(ref_machine.steerability["margin"], rel=1e-9, abs=1e-12)
+        assert hitch.lift_capacity_implement_cg == pytest.approx(ref_machine.lift_capacity["implement_cg"],
+                                                                  rel=1e-9)
+
+
+@pytest.mark.parametrize("bad, expect", [
+    ("nan_angle", "lift_arm_angle' position is nan"),
+    ("inf_stroke", "lift_cylinder' position is inf"),
+    ("length_mismatch", "2 names but 1 positions"),
+    ("unknown_joint", "'rockshaft' are unknown"),
+    ("negative_pressure", "negative absolute pressure"),
+    ("unassemblable", "cannot assemble"),
+])
+def test_bad_input_gives_error_diagnostic_then_good_input_solves(node, bad, expect):
+    client, proc, _ = node
+    mech = load_preset("belarus_1221")
+    s, angle = _pose(0.60)
+    good = T0 + 5_000_000_000
+    _send(client, good, s, angle, 9.0e6)
+    assert client.spin_until(lambda: client.outputs_at("hitch_state", good + 1000), 20)
+    stamp = good + 50_000_000
+    if bad == "nan_angle":
+        client.publish_joint_state(stamp, JOINTS, [s, math.nan])
+    elif bad == "inf_stroke":
+        client.publish_joint_state(stamp, JOINTS, [math.inf, angle])
+    elif bad == "length_mismatch":
+        client.publish_joint_state(stamp, JOINTS, [s])
+    elif bad == "unknown_joint":
+        client.publish_joint_state(stamp, ["rockshaft"], [0.3])
+    elif bad == "negative_pressure":
+        client.publish_pressure(PRESSURE_TOPIC, stamp, -2.0e5)
+    elif bad == "unassemblable":
+        client.publish_joint_state(stamp, JOINTS, [1.5, angle])
+    assert client.spin_until(lambda: client.diagnostics_at(stamp), 20), "no diagnostic for the bad input"
+    status = client.diagnostics_at(stamp)[0]
+    assert status.level == b"\x02", status
+    assert expect in status.message, status.message
+    assert not client.outputs_at("hitch_state", stamp), "garbage was published"
+    # the node is alive and solves the next good message correctly
+    later = stamp + 50_000_000
+    s2, angle2 = _pose(0.62)
+    _send(client, later, s2, angle2, 9.1e6)
+    assert client.spin_until(lambda: client.outputs_at("hitch_state", later + 1000), 20)
+    assert proc.poll() is None
+    expected = Solver(mech).solve(Inputs(cylinders={"lift_cylinder": s2}, angles={"lift_arm_angle": angle2},
+                                         pressures={"lift_cap_pressure": 9.1e6}))
+    got = client.outputs_at("hitch_state", later + 1000)[0]
+    assert got.implement_load == pytest.approx(expected.implement_load, rel=1e-9)
