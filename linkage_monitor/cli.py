@@ -10,14 +10,18 @@ import argparse
 import json
 import math
 import sys
+from pathlib import Path
 from typing import Sequence
 
 import yaml
 
 from .mechanics import Inputs, LinkageError, Mechanism, Result, Solver, load_mechanism, load_preset, preset_names
+from .calibrate_cli import add_calibrate_parser, run_calibrate
 from .capacity_cli import add_capacity_parser, run_capacity
 from .mechanics.machine import machine_summary
 from .mechanics.presets import preset_description
+from .recording import BagError
+from .replay import mechanism_in_bag, replay
 from .simulate_cli import add_simulate_parser, run_simulate
 
 
@@ -49,7 +53,22 @@ def build_parser() -> argparse.ArgumentParser:
                             "cylinders.lift_cylinder.bore=0.11 (repeatable)")
     solve.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     add_capacity_parser(sub)
+    add_calibrate_parser(sub)
     add_simulate_parser(sub)
+    replay = sub.add_parser("replay", help="re-run the monitor offline over a recorded bag",
+                            description="Replay the JointState + FluidPressure messages of a rosbag2 MCAP bag "
+                                        "(ours or from `ros2 bag record`) through the monitor, batched, and "
+                                        "write the outputs to a new bag and/or a Rerun .rrd; prints a summary.")
+    replay.add_argument("bag", metavar="BAG", help="bag directory (metadata.yaml + .mcap) or .mcap file")
+    src = replay.add_mutually_exclusive_group()
+    src.add_argument("--preset", metavar="NAME", help="bundled mechanism (default: the one stored in the bag)")
+    src.add_argument("--mechanism", metavar="FILE", help="mechanism YAML (default: the one stored in the bag)")
+    replay.add_argument("--out", metavar="DIR", help="write inputs + outputs + /diagnostics to this new bag directory")
+    replay.add_argument("--rrd", metavar="FILE", help="write a Rerun recording (open with `rerun FILE`)")
+    pace = replay.add_mutually_exclusive_group()
+    pace.add_argument("--rate", type=float, metavar="X", help="play at X times real time")
+    pace.add_argument("--max", action="store_true", help="as fast as possible (default)")
+    replay.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
 
 
@@ -154,6 +173,25 @@ def _solve(args: argparse.Namespace) -> int:
     return 0
 
 
+def _replay(args: argparse.Namespace) -> int:
+    bag = Path(args.bag)
+    if args.preset or args.mechanism:
+        mech = load_preset(args.preset) if args.preset else load_mechanism(args.mechanism)
+    else:
+        mech = mechanism_in_bag(bag)
+    if args.rate is not None and args.rate <= 0:
+        raise LinkageError(f"--rate {args.rate}: must be > 0 (times real time)")
+    summary, _ = replay(bag, mech, out_dir=Path(args.out) if args.out else None,
+                        rrd=Path(args.rrd) if args.rrd else None, rate=args.rate,
+                        progress=None if args.quiet else sys.stderr)
+    print(summary.table())
+    if args.out:
+        print(f"\noutputs written to {args.out}")
+    if args.rrd:
+        print(f"Rerun recording written to {args.rrd}: open it with `.venv/bin/rerun {args.rrd}`")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code (0 ok, 2 bad input: one line on stderr)."""
     args = build_parser().parse_args(argv)
@@ -164,10 +202,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 0
         if args.command == "capacity":
             return run_capacity(args)
+        if args.command == "calibrate":
+            return run_calibrate(args)
         if args.command == "simulate":
             return run_simulate(args)
+        if args.command == "replay":
+            return _replay(args)
         return _solve(args)
-    except (LinkageError, yaml.YAMLError) as exc:
+    except (LinkageError, BagError, yaml.YAMLError) as exc:
         print(f"linkage-monitor: error: {str(exc).splitlines()[0]}", file=sys.stderr)
         return 2
 

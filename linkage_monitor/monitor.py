@@ -15,11 +15,29 @@ from typing import Any, Mapping, Sequence
 
 from . import outputs as out
 from .inputs import InputConfig, InputTracker, StaleInputError
-from .mechanics import (AssemblyError, DeadCentreError, InputError, LinkageError, Mechanism, Result,
+from .mechanics import (AssemblyError, DeadCentreError, InputError, Inputs, LinkageError, Mechanism, Result,
                         Solver)
-from .mechanics.machine import MachineModel
+from .mechanics.results import STATUS_ASSEMBLY, STATUS_DEAD_CENTRE, STATUS_INPUT
+from .mechanics.machine import MachineModel, MachineResult
 
 OK, WARN, ERROR = 0, 1, 2  # diagnostic_msgs/DiagnosticStatus levels
+# Redundant measurements (e.g. stroke and lift-arm angle) never agree exactly: up to
+# CONSISTENCY_WARN_M of loop-closure residual is sensor noise, above it a WARN, above
+# ASSEMBLY_LIMIT_M the pose cannot be assembled from the inputs (ERROR).
+CONSISTENCY_WARN_M = 1e-3
+ASSEMBLY_LIMIT_M = 20e-3
+WARNING_JOIN = " | "  # between several warnings of one step (a warning itself may contain "; ")
+FAILURE_STATUS = {AssemblyError: STATUS_ASSEMBLY, DeadCentreError: STATUS_DEAD_CENTRE, InputError: STATUS_INPUT}
+FAILURE_TEXT = {STATUS_ASSEMBLY: "cannot assemble", STATUS_DEAD_CENTRE: "dead centre", STATUS_INPUT: "malformed input"}
+
+
+@dataclass(frozen=True)
+class Pending:
+    """A solve that is due: the trigger's stamp (ns), the inputs, their values for the diagnostic."""
+
+    stamp_ns: int
+    inputs: Inputs
+    values: dict[str, str]
 
 
 @dataclass
@@ -32,7 +50,7 @@ class Step:
     values: dict[str, str] = field(default_factory=dict)
     outputs: out.Outputs | None = None
     result: Result | None = None
-    machine: dict[str, Any] | None = None
+    machine: MachineResult | None = None
 
 
 class Monitor:
@@ -49,7 +67,7 @@ class Monitor:
 
     def _build(self, mech: Mechanism) -> None:
         self.mechanism = mech
-        self.solver = Solver(mech)
+        self.solver = Solver(mech, consistency_tol=ASSEMBLY_LIMIT_M)
         self.machine = MachineModel(mech, self.solver)
         self.overdetermined = self.solver.kin.m > self.solver.kin.n
         self.estimates_load = bool(self.tracker.pressure_names)
@@ -64,22 +82,31 @@ class Monitor:
         self.tracker.config = self.config
 
     def on_joint_state(self, names: Sequence[str], positions: Sequence[float], stamp_ns: int) -> Step:
-        """A sensor_msgs/JointState arrived (positions rad / m, stamp ns)."""
+        """A sensor_msgs/JointState arrived (positions rad / m, stamp ns): accept, solve, finish."""
+        return self._solve(self.accept_joint_state(names, positions, stamp_ns))
+
+    def on_pressure(self, topic: str, fluid_pressure: float, stamp_ns: int) -> Step:
+        """A sensor_msgs/FluidPressure arrived on `topic` (Pa, stamp ns): accept, solve, finish."""
+        return self._solve(self.accept_pressure(topic, fluid_pressure, stamp_ns))
+
+    # ---- the stages, shared with the batched replay ----------------------------------------------
+    def accept_joint_state(self, names: Sequence[str], positions: Sequence[float], stamp_ns: int) -> Pending | Step:
+        """Update the latest inputs from a JointState; the pending solve, or an ERROR/WARN Step."""
         try:
             self.tracker.update_joint_state(names, positions, stamp_ns)
         except InputError as exc:
             return Step(stamp_ns, ERROR, f"malformed input: {exc}", {"input": "joint_states"})
-        return self._solve(stamp_ns, "joint_states")
+        return self._pending(stamp_ns, "joint_states")
 
-    def on_pressure(self, topic: str, fluid_pressure: float, stamp_ns: int) -> Step:
-        """A sensor_msgs/FluidPressure arrived on `topic` (Pa, stamp ns)."""
+    def accept_pressure(self, topic: str, fluid_pressure: float, stamp_ns: int) -> Pending | Step:
+        """Update the latest inputs from a FluidPressure; the pending solve, or an ERROR/WARN Step."""
         try:
             self.tracker.update_pressure(topic, fluid_pressure, stamp_ns)
         except InputError as exc:
             return Step(stamp_ns, ERROR, f"malformed input: {exc}", {"input": topic})
-        return self._solve(stamp_ns, topic)
+        return self._pending(stamp_ns, topic)
 
-    def _solve(self, stamp_ns: int, trigger: str) -> Step:
+    def _pending(self, stamp_ns: int, trigger: str) -> Pending | Step:
         try:
             inputs = self.tracker.inputs_at(stamp_ns)
         except StaleInputError as exc:
@@ -88,21 +115,29 @@ class Monitor:
         values.update({f"input {k} [m]": f"{v:.6g}" for k, v in inputs.cylinders.items()})
         values.update({f"input {k} [rad]": f"{v:.6g}" for k, v in inputs.angles.items()})
         values.update({f"input {k} [Pa gauge]": f"{v:.6g}" for k, v in inputs.pressures.items()})
-        try:
-            result = self.solver.solve(inputs)
-        except AssemblyError as exc:
-            return Step(stamp_ns, ERROR, f"cannot assemble: {exc}", values)
-        except DeadCentreError as exc:
-            return Step(stamp_ns, ERROR, f"dead centre: {exc}", values)
-        except LinkageError as exc:
-            return Step(stamp_ns, ERROR, f"malformed input: {exc}", values)
-        return self.finish(stamp_ns, result, values)
+        return Pending(stamp_ns, inputs, values)
 
-    def finish(self, stamp_ns: int, result: Result, values: dict[str, str]) -> Step:
-        """Machine-level results, output messages and the diagnostic of one solved pose."""
-        mech = self.mechanism
-        machine = self.machine.evaluate(result)
+    def _solve(self, pending: Pending | Step) -> Step:
+        if isinstance(pending, Step):
+            return pending
+        try:
+            result = self.solver.solve(pending.inputs)
+        except LinkageError as exc:
+            return self.failed(pending, FAILURE_STATUS.get(type(exc), STATUS_INPUT), str(exc))
+        return self.finish(pending, result, self.machine.evaluate(result))
+
+    @staticmethod
+    def failed(pending: Pending, status: int, message: str) -> Step:
+        """The ERROR Step of a pose the solver rejected (status: results.STATUS_*)."""
+        return Step(pending.stamp_ns, ERROR, f"{FAILURE_TEXT[status]}: {message}", pending.values)
+
+    def finish(self, pending: Pending, result: Result, machine: MachineResult) -> Step:
+        """Output messages and the diagnostic of one solved pose with its machine-level results."""
+        mech, stamp_ns, values = self.mechanism, pending.stamp_ns, dict(pending.values)
         warnings = list(machine.warnings)
+        if result.consistency_residual > CONSISTENCY_WARN_M:
+            warnings.append(f"measurements disagree: kinematic residual {result.consistency_residual * 1e3:.2f} mm "
+                            f"> {CONSISTENCY_WARN_M * 1e3:.1f} mm (check sensor calibration)")
         if result.residual > out.RESIDUAL_WARN_N:
             warnings.append(f"equilibrium residual {result.residual:.3g} N > {out.RESIDUAL_WARN_N} N")
         if result.status != "ok":
@@ -127,6 +162,4 @@ class Monitor:
             "kinematic residual [m]": f"{result.consistency_residual:.3g}",
         })
         level = WARN if warnings else OK
-        scalars = {f"steerability/{k}": v for k, v in steer.items()}
-        scalars.update({f"lift/{k}": v for k, v in machine.lift_capacity.items()})
-        return Step(stamp_ns, level, "; ".join(warnings) or "ok", values, outputs, result, machine=scalars)
+        return Step(stamp_ns, level, WARNING_JOIN.join(warnings) or "ok", values, outputs, result, machine=machine)

@@ -17,7 +17,7 @@ from typing import Any
 
 import rclpy
 import yaml
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import (FloatingPointRange, ParameterDescriptor, ParameterType,
                                 SetParametersResult)
 from rclpy.executors import ExternalShutdownException
@@ -27,11 +27,13 @@ from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import String
 
 from . import outputs as out
+from .diagnostics import DiagnosticGate, diagnostic_array
 from .inputs import ATMOSPHERIC_PRESSURE, InputConfig
 from .mechanics import LinkageError, load_mechanism, load_preset, preset_names
-from .monitor import ERROR, OK, WARN, Monitor, Step
+from .monitor import ERROR, WARN, Monitor, Step
 from .msg import HingeReactions, HitchState, Steerability
 from .recording import BagWriter
+from .rerun_view import RerunView, machine_series
 
 NODE_NAME = "linkage_monitor"
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -65,6 +67,7 @@ PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
                   False, (-1.0, 1.0)),
     "record": (True, "Record every input and output to a rosbag2 MCAP bag", True, None),
     "record_dir": ("out/bags", "Directory under which each run's bag directory is created", True, None),
+    "record_name": ("", "Name of this run's bag directory; empty: <mechanism>_<YYYYmmdd_HHMMSS>", True, None),
     "rerun": ("off", "Rerun logging: 'off', 'save' (to rerun_path) or 'connect' (to a running viewer)", True,
               None),
     "rerun_path": ("out/linkage_monitor.rrd", "The .rrd file written when rerun = 'save'", True, None),
@@ -122,7 +125,7 @@ class LinkageMonitorNode(Node):
                              staleness_limit_s=float(p["staleness_limit"]))
         self.monitor = Monitor(mech, config)
         self.status_name = f"{NODE_NAME}: {mech.name}"
-        self._last_level: tuple[int, str] | None = None
+        self.diagnostic_gate = DiagnosticGate()
         self._last_diag = 0.0
         self._last_step: Step | None = None
 
@@ -136,14 +139,17 @@ class LinkageMonitorNode(Node):
 
         self.recorder: BagWriter | None = None
         if p["record"]:
-            bag_dir = Path(p["record_dir"]) / time.strftime(f"{mech.name}_%Y%m%d_%H%M%S")
+            bag_dir = Path(p["record_dir"]) / (p["record_name"] or time.strftime(f"{mech.name}_%Y%m%d_%H%M%S"))
             self.recorder = BagWriter(bag_dir)
             self.recorder.record_mechanism(description, time.time_ns())
             self.get_logger().info(f"recording to {bag_dir}")
         self.rerun = None
-        if p["rerun"] != "off":
-            from .rerun_view import RerunView
-            self.rerun = RerunView.create(mech, mode=p["rerun"], path=p["rerun_path"])
+        if p["rerun"] == "save":
+            self.rerun = RerunView.to_file(mech, p["rerun_path"])
+        elif p["rerun"] == "connect":
+            self.rerun = RerunView.to_viewer(mech)
+        elif p["rerun"] != "off":
+            raise ValueError(f"parameter rerun = '{p['rerun']}': expected 'off', 'save' or 'connect'")
 
         input_qos = qos_profile_sensor_data if p["sensor_qos"] == "sensor_data" else QoSProfile(
             depth=100, reliability=ReliabilityPolicy.RELIABLE)
@@ -199,11 +205,12 @@ class LinkageMonitorNode(Node):
                 pub.publish(msg)
                 self._record(self.resolve_topic_name(topic), msg, step.stamp_ns, OUTPUT_QOS)
             if self.rerun is not None:
-                self.rerun.log_pose(step.stamp_ns, step.result, step.machine or {})
-        key = (step.level, step.message)
-        if step.level != OK or key != self._last_level or self._last_step is None:
+                m = step.machine
+                self.rerun.log_pose(step.stamp_ns, step.result, machine_series(m.steerability, m.lift_capacity))
+        elif self.rerun is not None and step.level == ERROR:
+            self.rerun.log_status(step.stamp_ns, step.message)
+        if self.diagnostic_gate.due(step):
             self._publish_diagnostic(step)
-        self._last_level = key
         self._last_step = step
         if step.level == ERROR:
             self.get_logger().error(step.message, throttle_duration_sec=1.0)
@@ -211,11 +218,7 @@ class LinkageMonitorNode(Node):
             self.get_logger().warning(step.message, throttle_duration_sec=1.0)
 
     def _publish_diagnostic(self, step: Step) -> None:
-        status = DiagnosticStatus(level=bytes([step.level]), name=self.status_name,
-                                  message=step.message, hardware_id=self.monitor.mechanism.name,
-                                  values=[KeyValue(key=k, value=v) for k, v in step.values.items()])
-        status.values.append(KeyValue(key="input stamp [ns]", value=str(step.stamp_ns)))
-        msg = DiagnosticArray(header=out.header(step.stamp_ns), status=[status])
+        msg = diagnostic_array(step, self.status_name, self.monitor.mechanism.name)
         self.pub_diag.publish(msg)
         self._record("/diagnostics", msg, step.stamp_ns, OUTPUT_QOS)
         self._last_diag = time.monotonic()

@@ -81,7 +81,7 @@ def hitch_state(mech: Mechanism, stamp: int, result: Result, lift_capacity: Mapp
                       lift_capacity_610mm=float(lift_capacity.get("behind_610mm", math.nan)),
                       lift_capacity_implement_cg=float(lift_capacity.get("implement_cg", math.nan)),
                       lift_reserve=float(lift_reserve), status=status,
-                      status_text="; ".join(warnings) or "ok")
+                      status_text=" | ".join(warnings) or "ok")
 
 
 def steerability(stamp: int, values: Mapping[str, float], reference: str) -> Steerability:

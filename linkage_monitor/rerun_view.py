@@ -20,7 +20,7 @@ Time is the ROS header stamp on the ``ros_time`` timeline, never wall time.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 import rerun as rr
@@ -54,6 +54,14 @@ _SERIES_STYLES: dict[str, tuple[str, tuple[int, int, int], float]] = {
     "lift/reserve_limit": ("1.0 = at capacity", (255, 70, 70), 1.5),
 }
 _REFERENCE_LINES = {"lift/reserve": ("lift/reserve_limit", 1.0)}  # series -> (reference series, value)
+
+
+def machine_series(steerability: Mapping[str, Any], lift_capacity: Mapping[str, Any]) -> dict[str, Any]:
+    """The machine-level series the blueprint plots, by entity path (floats or (N,) arrays):
+    steerability ratio and its minimum (-), lift reserve (-). Missing values are left out."""
+    series = {"steerability/ratio": steerability.get("ratio"), "steerability/ratio_min": steerability.get("ratio_min"),
+              "lift/reserve": lift_capacity.get("reserve")}
+    return {path: value for path, value in series.items() if value is not None}
 
 
 def drawing_xy(points_xz: np.ndarray) -> np.ndarray:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .linalg import condition_1, det_sign_and_condition, solve_square
 from .model import Mechanism
 
 OK, ASSEMBLY, DEAD_CENTRE = 0, 3, 4  # status codes shared with solver.py (1 = lift-off, 2 = input)
@@ -20,17 +21,26 @@ OK, ASSEMBLY, DEAD_CENTRE = 0, 3, 4  # status codes shared with solver.py (1 = l
 
 @dataclass
 class KinematicState:
-    """Solved poses: q (N, n), constraint residual phi (N, m) m, status (N,), messages, condition (N,)."""
+    """Solved poses for inputs s (N, n_inputs): q (N, n), constraint residual phi (N, m) m and
+    Jacobian jac (N, m, n) at q, status (N,), messages, condition (N,)."""
 
+    s: np.ndarray
     q: np.ndarray
     phi: np.ndarray
+    jac: np.ndarray
     status: np.ndarray
     messages: list[str]
     condition: np.ndarray
 
 
 class Kinematics:
-    """Constraint equations of one mechanism; index structure built once."""
+    """Constraint equations of one mechanism; index structure built once.
+
+    Inside, points are complex numbers x + i·z: rotating an offset by θ is a multiplication by
+    e^{iθ}, which keeps the per-pose work to a few whole-array operations (what makes a single
+    pose cheap). The ground is the body index −1; its (x, z, θ) are three zero columns appended
+    to q (``_padded``), so ground attachments need no special case.
+    """
 
     def __init__(self, mech: Mechanism) -> None:
         self.mech = mech
@@ -44,7 +54,7 @@ class Kinematics:
         self.q_ref = np.column_stack([origins, np.zeros(len(moving))]).ravel()
         self._origins = origins
         self._att: dict[tuple[str, str], int] = {}
-        self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._arrays: tuple[np.ndarray, np.ndarray] | None = None
         self._att_body: list[int] = []
         self._att_ref: list[np.ndarray] = []
         # constraint rows
@@ -67,8 +77,17 @@ class Kinematics:
                           + [f"cylinder '{c.name}' length" for c in cyls]
                           + [f"angle '{a.name}'" for a in mech.measurements.angles])
         self.input_names = [c.name for c in cyls] + [a.name for a in mech.measurements.angles]
+        self._angle_theta = np.where(self.angle_bodies >= 0, 3 * self.angle_bodies + 2, self.n + 2)
+        self._constraint_arrays = self._attachment_arrays()  # only these enter Φ: Newton skips the rest
         self._build_jacobian_template(nh, nc)
-        self._ref_sign: float | None = None
+        self._column_scale = np.tile([1.0, 1.0, 1.0 / self.lc], self.n // 3)
+        p, _ = self._complex_positions(self._padded(self.q_ref[None]), self._constraint_arrays)
+        self._s_ref = np.concatenate([np.abs(p[0, self.cyl_att[1]] - p[0, self.cyl_att[0]]), self.angle_reference])
+        phi_ref, jac_ref = self.residual_jacobian(self.q_ref[None], self._s_ref[None])
+        ref_sign, ref_cond = self._branch_and_condition(jac_ref)
+        self._ref_sign = float(ref_sign[0])   # the assembly branch every solved pose must stay on
+        self._reference = KinematicState(s=self._s_ref[None], q=self.q_ref[None], phi=phi_ref, jac=jac_ref,
+                                         status=np.zeros(1, dtype=int), messages=[""], condition=ref_cond)
 
     # ---- attachments: points fixed on bodies ------------------------------------------------
     def attach(self, body: str, key: str, position: np.ndarray | None = None) -> int:
@@ -83,200 +102,228 @@ class Kinematics:
             self._arrays = None
         return self._att[ident]
 
-    def _attachment_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _attachment_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Columns of each attachment's body x, z, θ in the padded q (K,) each, and its reference
+        offset x + i·z (K,)."""
         if self._arrays is None:
             body = np.array(self._att_body, dtype=int)
-            self._arrays = (body, np.array(self._att_ref).reshape(-1, 2), body >= 0)
+            ref = np.array(self._att_ref).reshape(-1, 2)
+            col = np.where(body >= 0, 3 * body, self.n)
+            self._arrays = (col, col + 1, col + 2, ref[:, 0] + 1j * ref[:, 1])
         return self._arrays
 
-    def positions(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Positions P (N, K, 2) m of all attachments and their offsets from their body origin."""
-        body, ref, moving = self._attachment_arrays()
-        bi = np.where(moving, body, 0)
-        th = q[:, 3 * bi + 2]
-        c, s = np.cos(th), np.sin(th)
-        rel = np.stack([c * ref[:, 0] - s * ref[:, 1], s * ref[:, 0] + c * ref[:, 1]], axis=-1)
-        rel = np.where(moving[None, :, None], rel, 0.0)
-        origin = np.stack([q[:, 3 * bi], q[:, 3 * bi + 1]], axis=-1)
-        p = np.where(moving[None, :, None], origin + rel, ref[None, :, :])
+    def _padded(self, q: np.ndarray) -> np.ndarray:
+        """q (N, n) with the ground's (x, z, θ) = 0 appended as columns n..n+2."""
+        return np.concatenate([q, np.zeros((q.shape[0], 3))], axis=1)
+
+    @staticmethod
+    def _complex_positions(qp: np.ndarray, arrays: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """Positions and offsets from their body's origin, x + i·z (N, K), of the attachments in
+        ``arrays`` (from ``_attachment_arrays``), for padded q."""
+        cx, cz, ct, ref = arrays
+        theta = qp.take(ct, axis=1)             # take: a fraction of the cost of fancy indexing
+        turn = np.empty(theta.shape, dtype=complex)
+        np.cos(theta, out=turn.real)             # cheaper than exp(iθ) on large batches
+        np.sin(theta, out=turn.imag)
+        rel = ref * turn
+        p = rel + qp.take(cx, axis=1)
+        p.imag += qp.take(cz, axis=1)
         return p, rel
+
+    def positions(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Positions P (N, K, 2) m of all attachments and their offsets from their body's origin.
+
+        Ground attachments are offset from the global origin B, i.e. the offset is their position.
+        """
+        p, rel = self._complex_positions(self._padded(q), self._attachment_arrays())
+        return as_xz(p), as_xz(rel)
 
     # ---- constraints ----------------------------------------------------------------------
     def _build_jacobian_template(self, nh: int, nc: int) -> None:
-        body, _, _ = self._attachment_arrays()
-        rows, cols, vals = [], [], []          # constant entries (±1, ±lc)
-        trows, tcols, tatt, tcomp, tsign = [], [], [], [], []  # hinge θ entries: tsign·rel[comp]
-        for h in range(nh):
+        """Constant Jacobian entries (±1, ±lc) and flat indices of the pose-dependent ones."""
+        col = self._attachment_arrays()[0]
+        moving = col < self.n
+        n = self.n
+        jac0 = np.zeros((self.m, n))
+        theta_att, theta_sign, flat = [], [], []
+        for h in range(nh):  # gap = P(bodies[0]) − P(bodies[1]); ∂P/∂(x, z) = I, ∂P/∂θ = i·rel
             for sign, att in ((1.0, self.hinge_att[0, h]), (-1.0, self.hinge_att[1, h])):
-                b = body[att]
-                if b < 0:
-                    continue
-                rows += [2 * h, 2 * h + 1]
-                cols += [3 * b, 3 * b + 1]
-                vals += [sign, sign]
-                trows += [2 * h, 2 * h + 1]
-                tcols += [3 * b + 2, 3 * b + 2]
-                tatt += [att, att]
-                tcomp += [1, 0]
-                tsign += [-sign, sign]
+                if moving[att]:
+                    jac0[2 * h, col[att]] = jac0[2 * h + 1, col[att] + 1] = sign
+                    theta_att.append(att)
+                    theta_sign.append(sign)
+                    flat += [2 * h * n + col[att] + 2, (2 * h + 1) * n + col[att] + 2]
         r0 = 2 * nh + nc
         for k in range(self.angle_bodies.shape[1]):
             for sign, b in ((-1.0, self.angle_bodies[0, k]), (1.0, self.angle_bodies[1, k])):
                 if b >= 0:
-                    rows.append(r0 + k)
-                    cols.append(3 * b + 2)
-                    vals.append(sign * self.lc)
-        self._const = (np.array(rows, dtype=int), np.array(cols, dtype=int), np.array(vals))
-        self._theta = tuple(np.array(a, dtype=int) for a in (trows, tcols, tatt, tcomp)) + (np.array(tsign),)
-        crow, cbody, catt, ccyl, csign = [], [], [], [], []
+                    jac0[r0 + k, 3 * b + 2] = sign * self.lc
+        cyl_end, cyl_att, cyl_sign, cyl_flat = [], [], [], []  # length = |rod end − base|; ∂/∂(x, z, θ) = ±(u, u·(i·rel))
         for k in range(nc):
             for sign, att in ((-1.0, self.cyl_att[0, k]), (1.0, self.cyl_att[1, k])):
-                if body[att] >= 0:
-                    crow.append(2 * nh + k)
-                    cbody.append(body[att])
-                    catt.append(att)
-                    ccyl.append(k)
-                    csign.append(sign)
-        self._cyl = tuple(np.array(a, dtype=int) for a in (crow, cbody, catt, ccyl)) + (np.array(csign),)
+                if moving[att]:
+                    cyl_end.append(k)
+                    cyl_att.append(att)
+                    cyl_sign.append(sign)
+                    cyl_flat += [(2 * nh + k) * n + col[att] + j for j in range(3)]
+        self._jac0 = jac0
+        self._theta = (np.array(theta_att, dtype=int), 1j * np.array(theta_sign))
+        self._cyl = (np.array(cyl_end, dtype=int), np.array(cyl_att, dtype=int), np.array(cyl_sign))
+        cyl_flat = np.array(cyl_flat, dtype=int).reshape(-1, 3)
+        # pose-dependent entries in the order ``_jacobian`` concatenates them: hinge θ (x row, z row)
+        # per term, then the cylinder x, z and θ entries, each for all terms
+        self._jac_flat = np.concatenate([np.array(flat, dtype=int), cyl_flat.T.ravel()])
+        # gap = P(hinge bodies[0]) − P(bodies[1]) and cylinder vector = P(rod end) − P(base): P(a) − P(b)
+        self._diff_att = (np.concatenate([self.hinge_att[0], self.cyl_att[1]]),
+                          np.concatenate([self.hinge_att[1], self.cyl_att[0]]))
 
     def residual_jacobian(self, q: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Constraint residual Φ (N, m) m and Jacobian ∂Φ/∂q (N, m, n) for inputs s (N, n_inputs)."""
         n_pose = q.shape[0]
-        p, rel = self.positions(q)
         nh = self.hinge_att.shape[1]
         nc = self.cyl_att.shape[1]
-        gap = p[:, self.hinge_att[0]] - p[:, self.hinge_att[1]]
-        d = p[:, self.cyl_att[1]] - p[:, self.cyl_att[0]]
-        length = np.sqrt(np.sum(d * d, axis=-1))
-        u = d / length[..., None]
-        ang = (q[:, 3 * self.angle_bodies[1] + 2] * (self.angle_bodies[1] >= 0)
-               - q[:, 3 * self.angle_bodies[0] + 2] * (self.angle_bodies[0] >= 0) + self.angle_reference)
-        phi = np.concatenate([gap.reshape(n_pose, 2 * nh), length - s[:, :nc], self.lc * (ang - s[:, nc:])], axis=1)
-        jac = np.zeros((n_pose, self.m, self.n))
-        r, c, v = self._const
-        jac[:, r, c] = v
-        tr, tc, ta, tco, ts = self._theta
-        jac[:, tr, tc] = ts * rel[:, ta, tco]
-        cr, cb, ca, ck, cs = self._cyl
-        ux, uz = u[:, ck, 0], u[:, ck, 1]
-        jac[:, cr, 3 * cb] = cs * ux
-        jac[:, cr, 3 * cb + 1] = cs * uz
-        jac[:, cr, 3 * cb + 2] = cs * (uz * rel[:, ca, 0] - ux * rel[:, ca, 1])
-        return phi, jac
+        qp = self._padded(q)
+        p, rel = self._complex_positions(qp, self._constraint_arrays)
+        diff = p.take(self._diff_att[0], axis=1) - p.take(self._diff_att[1], axis=1)
+        d = diff[:, nh:]
+        length = np.abs(d)
+        ang = qp.take(self._angle_theta[1], axis=1) - qp.take(self._angle_theta[0], axis=1) + self.angle_reference
+        phi = np.concatenate([as_xz(diff[:, :nh]).reshape(n_pose, -1), length - s[:, :nc],
+                              self.lc * (ang - s[:, nc:])], axis=1)
+        return phi, self._jacobian(rel, d / length)
+
+    def _jacobian(self, rel: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """∂Φ/∂q (N, m, n) from constraint offsets rel (N, K) and cylinder unit axes u (N, nc), x + i·z."""
+        n_pose = rel.shape[0]
+        t_att, t_sign = self._theta
+        hinge_theta = as_xz(t_sign * rel.take(t_att, axis=1))            # (x row, z row) per term
+        c_end, c_att, c_sign = self._cyl
+        uc = c_sign * u.take(c_end, axis=1)
+        # u · (i·rel) = −Im(conj(u)·rel): the length change per unit rotation of the body
+        cyl_theta = -(uc.conj() * rel.take(c_att, axis=1)).imag
+        jac = np.repeat(self._jac0[None], n_pose, axis=0)
+        jac.reshape(n_pose, -1)[:, self._jac_flat] = np.concatenate(
+            [hinge_theta.reshape(n_pose, -1), uc.real, uc.imag, cyl_theta], axis=1)
+        return jac
 
     def reference_inputs(self) -> np.ndarray:
         """Inputs (cylinder lengths m, angles rad) that the reference pose satisfies, shape (n_inputs,)."""
-        p, _ = self.positions(self.q_ref[None])
-        d = p[0, self.cyl_att[1]] - p[0, self.cyl_att[0]]
-        return np.concatenate([np.hypot(d[:, 0], d[:, 1]), self.angle_reference])
+        return self._s_ref.copy()
 
     # ---- solving --------------------------------------------------------------------------
-    def _step(self, phi: np.ndarray, jac: np.ndarray, damping: np.ndarray | None = None) -> np.ndarray:
-        """Gauss-Newton (or Levenberg-Marquardt with ``damping``) step dq (N, n)."""
-        if damping is None and self.m == self.n:
-            a, rhs = jac, -phi
-        else:
-            a = np.einsum("nmi,nmj->nij", jac, jac)
-            rhs = -np.einsum("nmi,nm->ni", jac, phi)
-            if damping is not None:
-                diag = np.einsum("nii->ni", a)
-                a = a + (damping[:, None] * (diag + 1e-12))[:, :, None] * np.eye(self.n)
-        try:
-            return np.linalg.solve(a, rhs[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            return np.einsum("nij,nj->ni", np.linalg.pinv(a), rhs)
+    def _step(self, phi: np.ndarray, jac: np.ndarray) -> np.ndarray:
+        """Newton step (Gauss-Newton on the normal equations when overdetermined) dq (N, n)."""
+        if self.m == self.n:
+            return solve_square(jac, -phi)
+        jt = np.swapaxes(jac, 1, 2)
+        return solve_square(jt @ jac, -(jt @ phi[..., None])[..., 0])
 
-    def newton(self, q: np.ndarray, s: np.ndarray, max_iter: int = 25) -> tuple[np.ndarray, np.ndarray]:
-        """Newton / Gauss-Newton iterations from q (N, n); returns q and its residual Φ (N, m)."""
+    def newton(self, q: np.ndarray, s: np.ndarray, max_iter: int = 25) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Newton / Gauss-Newton iterations from q (N, n).
+
+        Returns q, its residual Φ (N, m) and Jacobian (N, m, n), both evaluated at the returned q
+        (callers reuse the Jacobian for the branch and condition checks). A pose stops when
+        |Φ| ≤ 1e-13·lc, or one evaluation after its step vanished (overdetermined: the residual
+        need not reach 0) or became non-finite (singular).
+        """
+        n_pose = q.shape[0]
         q = q.copy()
         tol = 1e-13 * self.lc
-        active = np.ones(q.shape[0], dtype=bool)
-        phi = np.zeros((q.shape[0], self.m))
-        for _ in range(max_iter):
-            idx = np.flatnonzero(active)
-            phi_a, jac = self.residual_jacobian(q[idx], s[idx])
-            phi[idx] = phi_a
-            done = np.max(np.abs(phi_a), axis=1) <= tol
-            dq = self._step(phi_a[~done], jac[~done])
-            q[idx[~done]] += dq
-            still = np.max(np.abs(dq), axis=1) > tol if self.m > self.n else np.isfinite(dq).all(axis=1)
-            active[idx[done]] = False
-            active[idx[~done][~still]] = False
-            if not active.any():
+        idx = np.arange(n_pose)            # poses still iterating
+        last = np.zeros(n_pose, dtype=bool)  # their step vanished: this evaluation is their last
+        phi = jac = None
+        for it in range(max_iter + 1):
+            everyone = idx.size == n_pose  # skip fancy indexing in the common (and N = 1) case
+            phi_a, jac_a = self.residual_jacobian(q if everyone else q[idx], s if everyone else s[idx])
+            if everyone:
+                phi, jac = phi_a, jac_a
+            else:
+                phi[idx], jac[idx] = phi_a, jac_a
+            go = ~(np.abs(phi_a).max(axis=1) <= tol) & ~last[idx]
+            if it == max_iter or not go.any():
                 break
-        phi, _ = self.residual_jacobian(q, s)
-        return q, phi
+            if not go.all():
+                idx, phi_a, jac_a = idx[go], phi_a[go], jac_a[go]
+            dq = self._step(phi_a, jac_a)
+            q[idx] += dq
+            last[idx] = ~(np.abs(dq).max(axis=1) > tol) if self.m > self.n else ~np.isfinite(dq).all(axis=1)
+        return q, phi, jac
 
     def reachable_fraction(self, s: np.ndarray, steps: int = 30) -> np.ndarray:
         """Largest t in [0, 1] (N,) such that inputs s_ref + t·(s − s_ref) still assemble (bisection)."""
-        s_ref = self.reference_inputs()
+        s_ref = self._s_ref
         n_pose = s.shape[0]
         lo, hi = np.zeros(n_pose), np.ones(n_pose)
         q_lo = np.broadcast_to(self.q_ref, (n_pose, self.n)).copy()
         tol = 1e-9 * self.lc
         for _ in range(steps):
             mid = 0.5 * (lo + hi)
-            q, phi = self.newton(q_lo, s_ref + mid[:, None] * (s - s_ref))
+            q, phi, _ = self.newton(q_lo, s_ref + mid[:, None] * (s - s_ref))
             ok = np.max(np.abs(phi), axis=1) <= tol
             lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
             q_lo[ok] = q[ok]
         return lo
 
-    def condition(self, jac: np.ndarray) -> np.ndarray:
-        """1-norm condition number (N,) of the Jacobian made dimensionless (θ columns / lc)."""
-        scale = np.tile([1.0, 1.0, 1.0 / self.lc], self.n // 3)
-        js = jac * scale
+    def _branch_and_condition(self, jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Assembly branch (sign of det ∂Φ/∂q; 1 when overdetermined) (N,) and the 1-norm condition
+        number (N,) of the Jacobian made dimensionless (θ columns / lc; positive scaling keeps the sign)."""
+        js = jac * self._column_scale
         if self.m != self.n:
-            js = np.einsum("nmi,nmj->nij", js, js)
-        cond = condition_1(js)
-        return np.sqrt(cond) if self.m != self.n else cond
+            return np.ones(jac.shape[0]), np.sqrt(condition_1(np.swapaxes(js, 1, 2) @ js))
+        return det_sign_and_condition(js)
 
-    def _branch_sign(self, jac: np.ndarray) -> np.ndarray:
-        if self.m != self.n:
-            return np.ones(jac.shape[0])
-        return np.linalg.slogdet(jac)[0]
+    def predict(self, previous: KinematicState, s: np.ndarray) -> np.ndarray:
+        """Poses q (N, n) predicted for inputs s (N, n_inputs) along the tangent at one solved pose.
 
-    def solve(self, s: np.ndarray, q_start: np.ndarray | None, dead_centre_cond: float,
+        This is the first Newton step from ``previous.q`` using ``previous.jac`` (no new evaluation,
+        one factorization for all N): only the input rows of Φ change with s, ∂Φ/∂s = −1
+        (cylinders) or −lc (angles).
+        """
+        nc = self.cyl_att.shape[1]
+        r0 = self.m - self.n_inputs            # input rows follow the hinge rows
+        ds = s - previous.s
+        phi = np.zeros((s.shape[0], self.m))
+        phi[:, r0:r0 + nc] = -ds[:, :nc]
+        phi[:, r0 + nc:] = -self.lc * ds[:, nc:]
+        return previous.q + self._step(phi, previous.jac)
+
+    def solve(self, s: np.ndarray, previous: KinematicState | None, dead_centre_cond: float,
               consistency_tol: float) -> KinematicState:
-        """Assemble N poses for inputs s (N, n_inputs), keeping the reference pose's assembly branch."""
-        n_pose = s.shape[0]
-        q0 = np.broadcast_to(self.q_ref if q_start is None else q_start, (n_pose, self.n))
-        q, phi = self.newton(q0, s)
-        if self._ref_sign is None:
-            _, jac_ref = self.residual_jacobian(self.q_ref[None], self.reference_inputs()[None])
-            self._ref_sign = float(self._branch_sign(jac_ref)[0])
-        tol = 1e-9 * self.lc
-        limit = tol if self.m == self.n else consistency_tol
+        """Assemble N poses for inputs s (N, n_inputs), keeping the reference pose's assembly branch.
 
-        _, jac = self.residual_jacobian(q, s)
-        off_branch = self._branch_sign(jac) != self._ref_sign
-        retry = np.flatnonzero(off_branch | ~(np.max(np.abs(phi), axis=1) <= limit))
+        Newton starts from the tangent prediction off ``previous`` (one solved pose: a live node
+        passes its last one, 2 iterations for a slowly moving stroke) or off the reference pose;
+        poses that fail or land on another branch are redone by continuation from the reference pose.
+        """
+        n_pose = s.shape[0]
+        q, phi, jac = self.newton(self.predict(previous or self._reference, s), s)
+        sign, cond = self._branch_and_condition(jac)
+        limit = 1e-9 * self.lc if self.m == self.n else consistency_tol
+        retry = np.flatnonzero((sign != self._ref_sign) | ~(np.abs(phi).max(axis=1) <= limit))
         still = np.zeros(0, dtype=int)
         if retry.size:  # continuation from the reference pose along a straight input path
-            s_ref = self.reference_inputs()
+            s_ref = self._s_ref
             qr = np.broadcast_to(self.q_ref, (retry.size, self.n)).copy()
             for t in np.linspace(0.1, 1.0, 10):
-                qr, phir = self.newton(qr, s_ref + t * (s[retry] - s_ref), max_iter=12)
-            qr, phir = self.newton(qr, s[retry])
-            q[retry], phi[retry] = qr, phir
-            still = retry[~(np.max(np.abs(phir), axis=1) <= limit)]
+                qr, _, _ = self.newton(qr, s_ref + t * (s[retry] - s_ref), max_iter=12)
+            qr, phir, jacr = self.newton(qr, s[retry])
+            q[retry], phi[retry], jac[retry] = qr, phir, jacr
+            cond[retry] = self._branch_and_condition(jacr)[1]
+            still = retry[~(np.abs(phir).max(axis=1) <= limit)]
         status = np.zeros(n_pose, dtype=int)
         messages = [""] * n_pose
         if still.size and self.m == self.n:  # say how far the inputs are out of reach
             reach = self.reachable_fraction(s[still])
             for i, t in zip(still, reach):
                 status[i], messages[i] = ASSEMBLY, self.reach_message(s[i], t)
-        worst = np.max(np.abs(phi), axis=1)
-        for i in np.flatnonzero(~(worst <= limit) & (status == OK)):
+        for i in np.flatnonzero(~(np.abs(phi).max(axis=1) <= limit) & (status == OK)):
             status[i] = ASSEMBLY
             messages[i] = self.assembly_message(phi[i], s[i])
-        _, jac = self.residual_jacobian(q, s)
-        cond = self.condition(jac)
         for i in np.flatnonzero((status == OK) & ~(cond <= dead_centre_cond)):
             status[i] = DEAD_CENTRE
             messages[i] = (f"kinematic dead centre at {self.describe_inputs(s[i])}: constraint Jacobian "
                            f"condition number {cond[i]:.3g} > {dead_centre_cond:.3g}")
-        return KinematicState(q=q, phi=phi, status=status, messages=messages, condition=cond)
+        return KinematicState(s=s, q=q, phi=phi, jac=jac, status=status, messages=messages, condition=cond)
 
     def describe_inputs(self, s: np.ndarray) -> str:
         """``lift_cylinder = 0.6100 m, ...`` for messages."""
@@ -285,7 +332,7 @@ class Kinematics:
 
     def reach_message(self, s: np.ndarray, t: float) -> str:
         """Which inputs are out of reach and by how much (mm, deg), given the reachable fraction t."""
-        s_ref = self.reference_inputs()
+        s_ref = self._s_ref
         nc = self.cyl_att.shape[1]
         miss = (1.0 - t) * (s - s_ref)
         parts = [f"{name} by {1e3 * abs(d):.1f} mm" if j < nc else f"{name} by {np.degrees(abs(d)):.2f} deg"
@@ -331,25 +378,20 @@ class Kinematics:
 
     def point_rates(self, q_dot: np.ndarray, rel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Velocities (N, K, 2) of all attachments and their centripetal accelerations −θ̇²·rel."""
-        body, _, moving = self._attachment_arrays()
-        bi = np.where(moving, body, 0)
-        w = q_dot[:, 3 * bi + 2][..., None]
-        v = np.stack([q_dot[:, 3 * bi], q_dot[:, 3 * bi + 1]], axis=-1) + w * np.stack([-rel[..., 1], rel[..., 0]], axis=-1)
-        mask = moving[None, :, None]
-        return np.where(mask, v, 0.0), np.where(mask, -w * w * rel, 0.0)
+        cx, cz, ct, _ = self._attachment_arrays()
+        qp = self._padded(q_dot)        # the ground's rates are the appended zeros
+        w = qp[:, ct]
+        relc = rel[..., 0] + 1j * rel[..., 1]
+        v = qp[:, cx] + 1j * qp[:, cz] + 1j * w * relc
+        return as_xz(v), as_xz(-w * w * relc)
 
     def _lsq(self, jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         if self.m == self.n:
-            return np.linalg.solve(jac, rhs[..., None])[..., 0]
-        return np.linalg.solve(np.einsum("nmi,nmj->nij", jac, jac), np.einsum("nmi,nm->ni", jac, rhs)[..., None])[..., 0]
+            return solve_square(jac, rhs)
+        jt = np.swapaxes(jac, 1, 2)
+        return solve_square(jt @ jac, (jt @ rhs[..., None])[..., 0])
 
 
-def condition_1(a: np.ndarray) -> np.ndarray:
-    """1-norm condition number of each square matrix in a stack (N, k, k); inf if singular."""
-    try:
-        inv = np.linalg.inv(a)
-    except np.linalg.LinAlgError:
-        sv = np.linalg.svd(a, compute_uv=False)
-        with np.errstate(divide="ignore"):
-            return np.where(sv[:, -1] > 0, sv[:, 0] / sv[:, -1], np.inf) * a.shape[-1]
-    return np.max(np.sum(np.abs(a), axis=1), axis=1) * np.max(np.sum(np.abs(inv), axis=1), axis=1)
+def as_xz(z: np.ndarray) -> np.ndarray:
+    """(..., 2) real array [x, z] of a complex array x + i·z (a view when z is C-contiguous)."""
+    return np.ascontiguousarray(z).view(np.float64).reshape(z.shape + (2,))

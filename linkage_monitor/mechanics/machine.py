@@ -40,6 +40,11 @@ class MachineBatch:
     lift_capacity: dict[str, np.ndarray]
     warnings: list[list[str]]
 
+    def result(self, i: int) -> "MachineResult":
+        """Pose i as a :class:`MachineResult` (floats), as ``MachineModel.evaluate`` returns it."""
+        return MachineResult({k: float(v[i]) for k, v in self.steerability.items()},
+                             {k: float(v[i]) for k, v in self.lift_capacity.items()}, list(self.warnings[i]))
+
     def summary(self, i: int) -> dict:
         """Pose i as ``{"lift_capacity": {...} | None, "steerability": {...} | None}`` of floats (JSON-ready)."""
         return _summary({k: v[i] for k, v in self.lift_capacity.items()}, {k: v[i] for k, v in self.steerability.items()})
@@ -218,9 +223,7 @@ class MachineModel:
                     load = float("nan")
                     problems.append(f"lift capacity at {name} not computed: {exc}")
                 capacity[name] = np.array([load])
-        out = self._combine(batch, capacity, [problems])
-        return MachineResult({k: float(v[0]) for k, v in out.steerability.items()},
-                             {k: float(v[0]) for k, v in out.lift_capacity.items()}, out.warnings[0])
+        return self._combine(batch, capacity, [problems]).result(0)
 
     def _combine(self, batch: BatchResult, capacity: dict[str, np.ndarray], problems: list[list[str]]) -> MachineBatch:
         """Steerability from the frame loads, reserve from the capacity, and all warnings."""

@@ -5,6 +5,7 @@ SI units, global frame (x forward, z up, origin at the rear wheels' ground conta
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -118,9 +119,7 @@ class BatchResult:
         return Result(
             points={k: v[i].copy() for k, v in self.points.items()},
             body_poses={k: v[i].copy() for k, v in self.body_poses.items()},
-            hinges={k: HingeResult(fx=float(v[i, 0]), fz=float(v[i, 1]), magnitude=float(np.hypot(*v[i])),
-                                   on_body=self.hinge_bodies[k][1], from_body=self.hinge_bodies[k][0])
-                    for k, v in self.hinge_force.items()},
+            hinges={k: _hinge(*v[i].tolist(), *self.hinge_bodies[k]) for k, v in self.hinge_force.items()},
             cylinders={k: CylinderResult(length=float(self.cylinder_length[k][i]), force=float(self.cylinder_force[k][i]),
                                          cap_pressure_predicted=float(self.cap_pressure_predicted[k][i]),
                                          cap_pressure_measured=float(self.cap_pressure_measured[k][i]),
@@ -133,3 +132,8 @@ class BatchResult:
                          for k in range(len(self.frame_load_names))],
             residual=float(self.residual[i]), consistency_residual=float(self.consistency_residual[i]),
             condition=float(self.condition[i]), status=STATUS_NAMES[int(self.status[i])], message=self.messages[i])
+
+
+def _hinge(fx: float, fz: float, from_body: str, on_body: str) -> HingeResult:
+    """HingeResult of the force (fx, fz) N on ``on_body`` from ``from_body`` (Python floats: cheap per pose)."""
+    return HingeResult(fx=fx, fz=fz, magnitude=math.hypot(fx, fz), on_body=on_body, from_body=from_body)

@@ -11,7 +11,7 @@ from typing import Mapping
 import numpy as np
 
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
-from .kinematics import Kinematics
+from .kinematics import Kinematics, KinematicState
 from .model import Mechanism
 from .results import (STATUS_ASSEMBLY, STATUS_DEAD_CENTRE, STATUS_INPUT, STATUS_LIFT_OFF, STATUS_OK,
                       BatchResult, Result)
@@ -75,18 +75,18 @@ class Solver:
                 if end.body == ground:
                     self._frame_members.append((m, kin.attach(ground, end.point), sign))
                     self.frame_load_names.append(f"{name} {end.point}")
-        self._last_q: np.ndarray | None = None
+        self._previous: KinematicState | None = None  # last solved single pose: where the next one starts
 
     # ---- public API -------------------------------------------------------------------------
     def solve(self, inputs: Inputs) -> Result:
         """Solve one pose (continuing from the previous one); raises a LinkageError subclass on failure."""
         arrays = {kind: {k: np.array([v], dtype=float) for k, v in getattr(inputs, kind).items()}
                   for kind in ("cylinders", "angles", "pressures", "rates", "accelerations")}
-        batch, q = self._solve(q_start=self._last_q, **arrays)
+        batch, ks = self._solve(self._previous, **arrays)
         res = batch.result(0)
         code = int(batch.status[0])
         if code in (STATUS_OK, STATUS_LIFT_OFF):
-            self._last_q = q[0]
+            self._previous = ks
             return res
         raise {STATUS_INPUT: InputError, STATUS_ASSEMBLY: AssemblyError, STATUS_DEAD_CENTRE: DeadCentreError}[code](res.message)
 
@@ -175,6 +175,11 @@ class Solver:
         kin = self.kin
         nc = kin.cyl_att.shape[1]
         problems = [""] * s.shape[0]
+        pressures = list(arrays["pressures"].values())
+        rates = list(arrays["rates"].values()) + list(arrays["accelerations"].values())
+        if (np.isfinite(s).all() and (s[:, :nc] > 0.0).all() and all(np.isfinite(v).all() for v in rates)
+                and all((v >= -ATMOSPHERE).all() and np.isfinite(v).all() for v in pressures)):
+            return problems  # the usual case, checked whole-array; below: which pose, which input
         checks = [(f"cylinder '{n}' length" if j < nc else f"angle '{n}'", s[:, j], "m", j < nc)
                   for j, n in enumerate(kin.input_names)]
         checks += [(f"pressure '{n}'", v, "Pa", False) for n, v in arrays["pressures"].items()]
@@ -192,15 +197,15 @@ class Solver:
                                               f"absolute pressure: check the sensor and its zero offset")
         return problems
 
-    def _solve(self, q_start: np.ndarray | None, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap,
-               rates: ArrayMap, accelerations: ArrayMap) -> tuple[BatchResult, np.ndarray]:
+    def _solve(self, previous: KinematicState | None, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap,
+               rates: ArrayMap, accelerations: ArrayMap) -> tuple[BatchResult, KinematicState]:
         mech, kin = self.mech, self.kin
         n_pose, arrays = self._arrays(cylinders, angles, pressures, rates, accelerations)
         s = self._input_matrix(arrays, n_pose, "inputs")
         problems = self._input_problems(s, arrays)
         bad = np.array([bool(p) for p in problems])
         s_clean = np.where(bad[:, None], kin.reference_inputs(), s)
-        ks = kin.solve(s_clean, q_start, self.dead_centre_cond, self.consistency_tol)
+        ks = kin.solve(s_clean, previous, self.dead_centre_cond, self.consistency_tol)
         status, messages = ks.status.copy(), list(ks.messages)
         for i in np.flatnonzero(bad):
             status[i], messages[i] = STATUS_INPUT, problems[i]
@@ -250,7 +255,7 @@ class Solver:
         batch.status, batch.messages = status, messages
         batch.consistency_residual = np.where(failed, np.nan, np.linalg.norm(ks.phi, axis=1))
         batch.condition = np.maximum(sol.condition, ks.condition)
-        return batch, q
+        return batch, ks
 
     def _assemble(self, n_pose: int, q: np.ndarray, p: np.ndarray, u: np.ndarray, sol, layout: StaticsLayout,
                   measured_force: np.ndarray, cap: dict, rod: dict, failed: np.ndarray) -> BatchResult:

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import UnobservableError
-from .kinematics import Kinematics, condition_1
+from .kinematics import Kinematics
+from .linalg import inverse_and_condition
 from .model import Mechanism
 
 _UNIT = {"x": (1.0, 0.0), "z": (0.0, 1.0), "down": (0.0, -1.0)}
@@ -98,6 +99,9 @@ class StaticsLayout:
                 cyl_s.append(param[1])
         self.t_const = const
         self.t_cyl = (np.array(cyl_t, dtype=int), np.array(cyl_k, dtype=int), np.array(cyl_s))
+        # where term t's (Fx, Fz, M/lc) lands in the flattened matrix: rows 3·body + j, its column
+        rows = 3 * self.t_body[:, None] + np.arange(3)
+        self._matrix_flat = (rows * self.n_unknowns + self.t_col[:, None]).ravel()
         self._build_known_terms()
         self.null_space_error: UnobservableError | None = self._check_observable()
 
@@ -107,7 +111,7 @@ class StaticsLayout:
         mech, kin = self.mech, self.kin
         bi = kin.body_index
         att, body, force = [], [], []
-        self.mass_terms: list[tuple[int, int, float, float]] = []  # (attachment, body, mass, inertia)
+        mass_att, mass_body, masses, inertias = [], [], [], []  # every moving body, for inertia loads
         for b in mech.moving_bodies:
             mass, cg, inertia = b.mass, b.cg, b.inertia
             if mech.implement is not None and b.name == mech.implement.body:
@@ -115,7 +119,10 @@ class StaticsLayout:
             if cg is None:
                 cg = kin.q_ref[3 * bi[b.name]:3 * bi[b.name] + 2]
             k = kin.attach(b.name, f"cg of {b.name}", cg)
-            self.mass_terms.append((k, bi[b.name], mass, inertia))
+            mass_att.append(k)
+            mass_body.append(bi[b.name])
+            masses.append(mass)
+            inertias.append(inertia)
             if mass > 0.0 and not (self.implement_col is not None and b.name == mech.implement.body):
                 att.append(k)
                 body.append(bi[b.name])
@@ -124,18 +131,34 @@ class StaticsLayout:
             att.append(kin.attach(ld.body, f"load {ld.name}", ld.position))
             body.append(bi[ld.body])
             force.append(tuple(ld.force))
-        self.const_att, self.const_body = np.array(att, dtype=int), np.array(body, dtype=int)
         self.const_force = np.array(force, dtype=float).reshape(-1, 2)
         # two-force members with known force: springs and force-measured cylinders
-        self.member_ends: list[tuple[int, int, int, float]] = []  # (member, attachment, body, sign)
         members = [(s.a, s.b) for s in mech.springs] + [(c.base, c.rod_end) for c in mech.cylinders]
         self.n_springs = len(mech.springs)
         self.member_att = np.array([[kin.attach(a.body, a.point) for a, _ in members],
                                     [kin.attach(b.body, b.point) for _, b in members]], dtype=int).reshape(2, -1)
+        end_member, end_sign = [], []
         for m, (a, b) in enumerate(members):
             for end, sign in ((b, 1.0), (a, -1.0)):
                 if bi[end.body] >= 0:
-                    self.member_ends.append((m, kin.attach(end.body, end.point), bi[end.body], sign))
+                    end_member.append(m)
+                    end_sign.append(sign)
+                    att.append(kin.attach(end.body, end.point))
+                    body.append(bi[end.body])
+        self.end_member, self.end_sign = np.array(end_member, dtype=int), np.array(end_sign).reshape(-1, 1)
+        # known-load terms in the order ``known`` stacks them: constant loads, member ends, then
+        # (kinetostatics only) the inertia loads at each cg
+        self.mass_att, self.mass_body = np.array(mass_att, dtype=int), np.array(mass_body, dtype=int)
+        self.mass, self.inertia = np.array(masses, dtype=float), np.array(inertias, dtype=float)
+        self.known_att = np.array(att, dtype=int)
+        self.known_att_accel = np.concatenate([self.known_att, self.mass_att])
+        self._scatter_static = self._scatter(np.array(body, dtype=int))
+        self._scatter_accel = self._scatter(np.concatenate([np.array(body, dtype=int), self.mass_body]))
+        self.spring_stiffness = np.array([s.stiffness for s in mech.springs])
+        self.spring_free_length = np.array([s.free_length for s in mech.springs])
+        self.spring_preload = np.array([s.preload for s in mech.springs])
+        self.unmeasured = self.n_springs + np.array([k for k, c in enumerate(mech.cylinders)
+                                                      if c.name not in self.force_known], dtype=int)
 
     def _scatter(self, bodies: np.ndarray) -> np.ndarray:
         """0/1 matrix (3T, n_eq) adding generalized forces of T terms into their body's rows."""
@@ -147,7 +170,7 @@ class StaticsLayout:
     # ---- assembly and solution ----------------------------------------------------------------
     def member_axes(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Unit axes (N, M, 2) from end a to end b and lengths (N, M) of springs then cylinders."""
-        d = p[:, self.member_att[1]] - p[:, self.member_att[0]]
+        d = p.take(self.member_att[1], axis=1) - p.take(self.member_att[0], axis=1)
         length = np.sqrt(np.sum(d * d, axis=-1))
         return d / length[..., None], length
 
@@ -157,51 +180,36 @@ class StaticsLayout:
         d = np.broadcast_to(self.t_const, (n_pose,) + self.t_const.shape).copy()
         ti, tk, ts = self.t_cyl
         d[:, ti] = ts[:, None] * axes[:, self.n_springs + tk]
-        g = generalized(p[:, self.t_att], d, self.kin.lc)
+        g = generalized(p.take(self.t_att, axis=1), d, self.kin.lc)
         a = np.zeros((n_pose, self.n_eq, self.n_unknowns))
-        for j in range(3):
-            a[:, 3 * self.t_body + j, self.t_col] = g[:, :, j]
+        a.reshape(n_pose, -1)[:, self._matrix_flat] = g.reshape(n_pose, -1)
         return a
 
     def known(self, p: np.ndarray, axes: np.ndarray, member_force: np.ndarray,
               accel: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
         """Generalized known loads b (N, n_eq): gravity, loads, springs, measured cylinders, inertia."""
         n_pose = p.shape[0]
-        att = list(self.const_att)
-        bodies = list(self.const_body)
-        forces = [np.broadcast_to(self.const_force, (n_pose,) + self.const_force.shape)]
-        if self.member_ends:
-            m, a, b, s = (np.array(x) for x in zip(*self.member_ends))
-            att += list(a)
-            bodies += list(b)
-            forces.append(s[:, None] * member_force[:, m, None] * axes[:, m])
-        moments = np.zeros((n_pose, self.n_eq))
+        forces = [np.broadcast_to(self.const_force, (n_pose,) + self.const_force.shape),
+                  self.end_sign * member_force.take(self.end_member, axis=1)[..., None] * axes.take(self.end_member, axis=1)]
+        att, scatter = self.known_att, self._scatter_static
+        moments = 0.0
         if accel is not None:  # kinetostatics (seed 004): −m·a_cg at the cg, −I·α about it
             a_att, alpha = accel
-            for k, b, mass, inertia in self.mass_terms:
-                att.append(k)
-                bodies.append(b)
-                forces.append(-mass * a_att[:, k][:, None, :])
-                moments[:, 3 * b + 2] -= inertia * alpha[:, b] / self.kin.lc
-        if not att:
-            return moments
-        key = tuple(bodies)
-        if getattr(self, "_scatter_key", None) != key:
-            self._scatter_key, self._scatter_mat = key, self._scatter(np.array(bodies, dtype=int))
-        g = generalized(p[:, np.array(att, dtype=int)], np.concatenate(forces, axis=1), self.kin.lc)
-        return g.reshape(n_pose, -1) @ self._scatter_mat + moments
+            forces.append(-self.mass[:, None] * a_att[:, self.mass_att])
+            att, scatter = self.known_att_accel, self._scatter_accel
+            moments = np.zeros((n_pose, self.n_eq))
+            moments[:, 3 * self.mass_body + 2] -= self.inertia * alpha[:, self.mass_body] / self.kin.lc
+        g = generalized(p.take(att, axis=1), np.concatenate(forces, axis=1), self.kin.lc)
+        return g.reshape(n_pose, -1) @ scatter + moments
 
     def solve(self, p: np.ndarray, cylinder_force: np.ndarray, accel: tuple[np.ndarray, np.ndarray] | None
               ) -> StaticsSolution:
         """Unknown reactions for N poses; ``cylinder_force`` (N, n_cyl) N is used where measured."""
         axes, length = self.member_axes(p)
         ns = self.n_springs
-        springs = self.mech.springs
-        spring_force = (np.array([s.stiffness for s in springs]) * (np.array([s.free_length for s in springs]) - length[:, :ns])
-                        + np.array([s.preload for s in springs]))
-        member_force = np.concatenate([spring_force, np.nan_to_num(cylinder_force)], axis=1)
-        unmeasured = [k for k, c in enumerate(self.mech.cylinders) if c.name not in self.force_known]
-        member_force[:, ns + np.array(unmeasured, dtype=int)] = 0.0
+        spring_force = self.spring_stiffness * (self.spring_free_length - length[:, :ns]) + self.spring_preload
+        member_force = np.concatenate([spring_force, cylinder_force], axis=1)
+        member_force[:, self.unmeasured] = 0.0   # their force is an unknown (NaN on input)
         a = self.matrix(p, axes)
         b = self.known(p, axes, member_force, accel)
         if self.n_unknowns == self.n_eq:
@@ -210,9 +218,9 @@ class StaticsLayout:
             at = np.swapaxes(a, 1, 2)
             u, cond = solve_with_condition(at @ a, -(at @ b[..., None])[..., 0])
             cond = np.sqrt(cond)
-        res = np.einsum("nij,nj->ni", a, u) + b
+        res = (a @ u[..., None])[..., 0] + b
         res[:, 2::3] *= self.kin.lc
-        return StaticsSolution(unknowns=u, residual=np.linalg.norm(res, axis=1), condition=cond,
+        return StaticsSolution(unknowns=u, residual=np.sqrt(np.sum(res * res, axis=1)), condition=cond,
                                cylinder_axis=axes[:, ns:], cylinder_length=length[:, ns:],
                                spring_force=spring_force, spring_axis=axes[:, :ns])
 
@@ -245,10 +253,5 @@ class StaticsLayout:
 
 def solve_with_condition(a: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Solve stacked square systems a x = rhs; returns x (N, k) and the 1-norm condition number (N,)."""
-    try:
-        inv = np.linalg.inv(a)
-    except np.linalg.LinAlgError:
-        inv = np.linalg.pinv(a)
-        return np.einsum("nij,nj->ni", inv, rhs), condition_1(a)
-    cond = np.max(np.sum(np.abs(a), axis=1), axis=1) * np.max(np.sum(np.abs(inv), axis=1), axis=1)
-    return np.einsum("nij,nj->ni", inv, rhs), cond
+    inv, cond = inverse_and_condition(a)
+    return (inv @ rhs[..., None])[..., 0], cond

@@ -98,3 +98,50 @@ class MonitorClient:
 
     def close(self) -> None:
         self.node.destroy_node()
+
+
+def start_simulator(args: list[str], log: Path) -> subprocess.Popen:
+    """`python -m linkage_monitor.simulator_node <args>` (the options of `linkage-monitor simulate`);
+    it exits by itself once the scenario has been published."""
+    return subprocess.Popen([sys.executable, "-m", "linkage_monitor.simulator_node", *args],
+                            stdout=log.open("w"), stderr=subprocess.STDOUT, env=dict(os.environ))
+
+
+def wait_exit(proc: subprocess.Popen, log: Path, timeout: float) -> None:
+    """Wait for a child that ends by itself; fail with its log if it does not, or exits non-zero."""
+    try:
+        code = proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        stop(proc)
+        raise AssertionError(f"{proc.args} did not end within {timeout} s:\n{log.read_text()}") from None
+    assert code == 0, f"{proc.args} exit code {code}:\n{log.read_text()}"
+
+
+def settle(client: "MonitorClient", topic: str, quiet: float = 1.0, timeout: float = 30.0) -> int:
+    """Spin until no new message has arrived on `topic` for `quiet` s; returns the count received."""
+    end = time.monotonic() + timeout
+    count, last_change = -1, time.monotonic()
+    while time.monotonic() < end:
+        rclpy.spin_once(client.node, timeout_sec=0.05)
+        if len(client.received[topic]) != count:
+            count, last_change = len(client.received[topic]), time.monotonic()
+        elif time.monotonic() - last_change >= quiet:
+            break
+    return count
+
+
+def node_bag(record_dir: Path) -> Path:
+    """The one bag directory the node created under its `record_dir` parameter."""
+    bags = sorted(p.parent for p in record_dir.glob("*/metadata.yaml"))
+    assert len(bags) == 1, f"expected one bag under {record_dir}, found {bags}"
+    return bags[0]
+
+
+def read_bag_rosbags(bag: Path) -> list[tuple[str, int, Any]]:
+    """Every message of a bag directory as (topic, log time ns, message), in the reader's order
+    (log time), decoded by rosbags AnyReader from the schemas embedded in the bag only."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    with AnyReader([bag], default_typestore=get_typestore(Stores.EMPTY)) as reader:
+        return [(c.topic, t, reader.deserialize(raw, c.msgtype)) for c, t, raw in reader.messages()]

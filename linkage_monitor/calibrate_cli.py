@@ -1,0 +1,168 @@
+"""``linkage-monitor calibrate``: fit geometry parameters of a mechanism to a CSV file or a bag.
+
+Thin adapter: reads the data into columns (CSV header names, or a rosbag2 MCAP bag's JointState
+and FluidPressure topics), hands them to :func:`linkage_monitor.mechanics.calibration.calibrate`
+and writes the fitted description. Column names and units: docs/calibration.md. SI units (m,
+rad, N, gauge Pa); frame x forward, z up, origin at the rear wheels' ground contact.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from .mechanics import InputError, LinkageError, Mechanism, load_mechanism, load_preset
+from .mechanics.calibration import UNITS, FitResult, calibrate, fitted_yaml
+
+ATMOSPHERE = 101325.0  # Pa, ISO 2533; sensor_msgs/FluidPressure carries absolute pressure
+
+
+def add_calibrate_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Add the ``calibrate`` subcommand to ``subparsers``; returns its parser."""
+    p = subparsers.add_parser(
+        "calibrate", help="fit geometry parameters (pivots, cg, bore, mass) to measured kinematics and pressures",
+        description="Bounded nonlinear least squares of the --free parameters of the start mechanism to the "
+                    "data; reports the residual per column, each parameter's uncertainty and the parameters "
+                    "the data cannot determine (docs/calibration.md).")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--preset", metavar="NAME", help="start from a bundled mechanism")
+    src.add_argument("--mechanism", metavar="START.yaml", help="start from a mechanism YAML")
+    p.add_argument("--data", required=True, metavar="FILE.csv|BAG",
+                   help="CSV with a header of column names, or a rosbag2 MCAP bag (directory or .mcap)")
+    p.add_argument("--free", required=True, action="append", metavar="PARAM[,PARAM...]",
+                   help="parameters to fit, dotted keys: points.P05.x, points.S6.z, implement.mass, "
+                        "cylinders.lift_cylinder.bore, measurements.angles.NAME.reference (repeatable)")
+    p.add_argument("--out", required=True, metavar="FITTED.yaml", help="write the fitted mechanism here")
+    p.add_argument("--inputs", metavar="NAME[,NAME...]",
+                   help="data columns that drive the linkage (default: the measured cylinders, plus the "
+                        "angle sensors if the cylinders do not fix the pose)")
+    p.add_argument("--sigma", action="append", default=[], metavar="COLUMN=VALUE",
+                   help="standard deviation of a measured column in its unit (default: 1 mm, 1 mrad, "
+                        "0.05 MPa, 500 N by kind)")
+    p.add_argument("--bound", action="append", default=[], metavar="PARAM=HALF_WIDTH",
+                   help="fit PARAM within start ± HALF_WIDTH (default: 0.05 m for coordinates, 0.2 rad for "
+                        "angle references, 50 %% of the start value otherwise)")
+    p.add_argument("--gauge-pressure", action="store_true",
+                   help="the bag's FluidPressure values are gauge (default: absolute, as the message defines)")
+    return p
+
+
+def _pairs(texts: list[str], option: str) -> dict[str, float]:
+    out = {}
+    for text in texts:
+        name, sep, value = text.partition("=")
+        try:
+            out[name] = float(value)
+        except ValueError:
+            raise InputError(f"{option} {text!r}: expected NAME=NUMBER") from None
+        if not sep or not name:
+            raise InputError(f"{option} {text!r}: expected NAME=NUMBER")
+    return out
+
+
+def read_csv_columns(path: Path) -> dict[str, np.ndarray]:
+    """Columns of a CSV file: header row of names, then numbers; lines starting with # are skipped."""
+    try:
+        with open(path, newline="", encoding="utf-8") as stream:
+            rows = [r for r in csv.reader(line for line in stream if not line.lstrip().startswith("#")) if r]
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"--data {path}: cannot read the file ({getattr(exc, 'strerror', None) or exc})") from None
+    if len(rows) < 2:
+        raise InputError(f"--data {path}: expected a header row of column names and at least one row of numbers")
+    header = [h.strip() for h in rows[0]]
+    repeated = sorted({h for h in header if header.count(h) > 1 or not h})
+    if repeated:
+        raise InputError(f"--data {path}: the header names column {repeated[0]!r} twice or not at all: "
+                         f"give every column one unique name")
+    values = np.empty((len(rows) - 1, len(header)))
+    for i, row in enumerate(rows[1:], start=2):
+        if len(row) != len(header):
+            raise InputError(f"--data {path}: data row {i} has {len(row)} values, the header names {len(header)}")
+        for j, cell in enumerate(row):
+            try:
+                values[i - 2, j] = float(cell)
+            except ValueError:
+                raise InputError(f"--data {path}: data row {i}, column '{header[j]}': {cell!r} is not a number") from None
+    return {name: values[:, j] for j, name in enumerate(header)}
+
+
+def read_bag_columns(path: Path, mech: Mechanism, gauge: bool = False) -> dict[str, np.ndarray]:
+    """Columns of a bag: the JointState positions of the measured cylinders (m) and angle sensors (rad),
+    one row per message, and each ``.../pressure/<sensor>`` FluidPressure topic as ``pressure:<sensor>``
+    (gauge Pa, interpolated at the JointState stamps; rows outside the pressure record are dropped)."""
+    from .bag_reader import JointStateColumns, read_inputs  # rclpy only when a bag is read
+    from .recording import BagError
+
+    try:
+        topics = read_inputs(path)
+    except BagError as exc:
+        raise InputError(f"--data {path}: {exc}") from None
+    wanted = set(mech.measurements.cylinders) | {a.name for a in mech.measurements.angles}
+    joints = {t: c for t, c in topics.items() if isinstance(c, JointStateColumns) and wanted & set(c.names)}
+    if len(joints) != 1:
+        raise InputError(f"--data {path}: expected one JointState topic with the joints {', '.join(sorted(wanted))}, "
+                         f"found {len(joints)} ({', '.join(joints) or 'none'})")
+    js = next(iter(joints.values()))
+    columns = {n: js.position[:, k] for k, n in enumerate(js.names) if n in wanted}
+    stamps = js.stamp_ns.astype(float)
+    keep = np.all(np.isfinite(np.column_stack(list(columns.values()))), axis=1)
+    for sensor in mech.measurements.pressures:
+        match = [c for t, c in topics.items() if t.rstrip("/").endswith(f"pressure/{sensor.name}")
+                 and not isinstance(c, JointStateColumns)]
+        if not match:
+            continue
+        pc = match[0]
+        order = np.argsort(pc.stamp_ns)
+        p_stamps = pc.stamp_ns[order].astype(float)
+        value = pc.fluid_pressure[order] - (0.0 if gauge else ATMOSPHERE)
+        columns[f"pressure:{sensor.name}"] = np.interp(stamps, p_stamps, value)
+        keep &= (stamps >= p_stamps[0]) & (stamps <= p_stamps[-1])
+    if not np.any(keep):
+        raise InputError(f"--data {path}: no JointState message has all of {', '.join(columns)} inside the "
+                         f"pressure record")
+    return {n: v[keep] for n, v in columns.items()}
+
+
+def report(result: FitResult) -> str:
+    """Human-readable fit report: parameters (start, fitted, uncertainty, bounds), residuals per column."""
+    lines = [f"{result.n_poses} poses, driving inputs {', '.join(result.inputs)}; {result.message}",
+             f"{'parameter':<46} {'start':>11} {'fitted':>11} {'± 1 sigma':>10}  bounds"]
+    for p, v, u in zip(result.parameters, result.values, result.uncertainty):
+        notes = (["UNDETERMINED"] if p.key in result.undetermined else []) + (["at bound"] if p.key in result.at_bound else [])
+        lines.append(f"{p.key:<46} {p.start:11.6g} {v:11.6g} {u:10.2g}  [{p.lower:.6g}, {p.upper:.6g}]"
+                     f"{'  ' + ', '.join(notes) if notes else ''}")
+    lines.append(f"{'measured column':<46} {'RMS start':>11} {'RMS fitted':>11}  unit")
+    for c in result.columns:
+        lines.append(f"{c.name:<46} {result.rms_start[c.name]:11.4g} {result.rms[c.name]:11.4g}  {UNITS[c.kind]}")
+    if result.undetermined:
+        lines.append(f"the data cannot determine: {', '.join(result.undetermined)} (fix them or add data that "
+                     f"depends on them)")
+    if result.failed_poses:
+        lines.append(f"warning: {result.failed_poses} pose(s) do not solve with the fitted values")
+    return "\n".join(lines)
+
+
+def run_calibrate(args: argparse.Namespace) -> int:
+    """Run ``linkage-monitor calibrate``; returns the exit code (LinkageError propagates to the caller)."""
+    start = load_preset(args.preset) if args.preset else load_mechanism(args.mechanism)
+    data_path = Path(args.data)
+    if data_path.is_dir() or data_path.suffix == ".mcap":
+        columns = read_bag_columns(data_path, start, args.gauge_pressure)
+    else:
+        columns = read_csv_columns(data_path)
+    free = [k.strip() for text in args.free for k in text.split(",") if k.strip()]
+    inputs = [k.strip() for k in args.inputs.split(",") if k.strip()] if args.inputs else None
+    result = calibrate(start, columns, free, inputs=inputs, sigma=_pairs(args.sigma, "--sigma"),
+                       half_widths=_pairs(args.bound, "--bound"))
+    text = fitted_yaml(result, args.mechanism or f"preset {args.preset}", str(data_path))
+    try:
+        Path(args.out).write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise LinkageError(f"--out {args.out}: cannot write the file ({exc.strerror})") from None
+    print(report(result))
+    print(f"wrote {args.out}")
+    return 0
+
