@@ -25,11 +25,14 @@ def sensor_messages(bag: Path) -> list[tuple[str, str, int, int, object]]:
 
 
 def play(node: Node, messages: list[tuple[str, str, int, int, object]], rate: float = 1.0,
-         wait_for_subscribers: float = 10.0) -> int:
+         wait_for_subscribers: float = 10.0, min_gap_s: float = 0.0) -> int:
     """Publish `messages` from `node` at `rate` × recorded speed; returns the number published.
 
     Waits up to `wait_for_subscribers` s until every topic has a subscriber, so nothing is
-    sent before the receiving node listens.
+    sent before the receiving node listens. min_gap_s: s, least time between two messages;
+    messages on different topics travel through different DDS writers, which keep no order
+    between them, so a gap keeps the recorded order when it matters (e.g. a joint state and
+    a pressure with the same stamp).
     """
     publishers = {}
     for topic, type_name, *_ in messages:
@@ -42,8 +45,10 @@ def play(node: Node, messages: list[tuple[str, str, int, int, object]], rate: fl
     if not messages:
         return 0
     t0_log, t0_wall = messages[0][3], time.monotonic()
+    due = -min_gap_s
     for topic, _, _, log_time, msg in messages:
-        delay = (log_time - t0_log) * 1e-9 / rate - (time.monotonic() - t0_wall)
+        due = max((log_time - t0_log) * 1e-9 / rate, due + min_gap_s)
+        delay = due - (time.monotonic() - t0_wall)
         if delay > 0:
             time.sleep(delay)
         publishers[topic].publish(msg)

@@ -1,0 +1,51 @@
+"""Every shipped parameter file starts the node, which declares its parameters with
+descriptors and publishes its mechanism description (transient local, for late joiners)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import rclpy
+import yaml
+from rcl_interfaces.srv import DescribeParameters
+
+from linkage_monitor.mechanics import preset_names
+from support.ros_harness import MonitorClient, stop
+
+CONFIG = Path(__file__).resolve().parent.parent / "config"
+LAUNCH = Path(__file__).resolve().parent.parent / "launch" / "monitor.launch.py"
+
+
+def test_a_config_file_per_preset():
+    assert sorted(p.stem for p in CONFIG.glob("*.yaml")) == sorted(preset_names())
+
+
+@pytest.mark.parametrize("preset", ["belarus_1221", "ksu1_mower_adapter"])
+def test_launch_file_starts_node_with_params_and_descriptors(preset, tmp_path):
+    params = yaml.safe_load((CONFIG / f"{preset}.yaml").read_text())["/linkage_monitor"]["ros__parameters"]
+    params["record_dir"] = str(tmp_path)
+    params_file = tmp_path / "params.yaml"
+    params_file.write_text(yaml.safe_dump({"/linkage_monitor": {"ros__parameters": params}}))
+    proc = subprocess.Popen([sys.executable, str(LAUNCH), "--params", str(params_file)],
+                            stdout=(tmp_path / "node.log").open("w"), stderr=subprocess.STDOUT)
+    rclpy.init()
+    try:
+        client = MonitorClient(pressure_topics=())
+        assert client.spin_until(lambda: bool(client.received["mechanism_description"]), 30), \
+            (tmp_path / "node.log").read_text()
+        description = yaml.safe_load(client.received["mechanism_description"][0].data)
+        assert description["name"] == preset
+        describe = client.node.create_client(DescribeParameters, "/linkage_monitor/describe_parameters")
+        assert describe.wait_for_service(timeout_sec=10)
+        future = describe.call_async(DescribeParameters.Request(names=["mechanism", "staleness_limit"]))
+        client.spin_until(future.done, 10)
+        mech, staleness = future.result().descriptors
+        assert mech.read_only and "preset" in mech.description.lower()
+        assert not staleness.read_only and staleness.floating_point_range[0].to_value > 0
+        client.close()
+    finally:
+        rclpy.shutdown()
+        assert stop(proc) == 0, (tmp_path / "node.log").read_text()

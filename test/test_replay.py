@@ -1,0 +1,158 @@
+"""Replay: a bag recorded by `ros2 bag record`'s layout (rosbags.rosbag2.Writer, MCAP) goes
+through `linkage-monitor replay`; its outputs equal what the live node publishes for the same
+inputs, and every file it writes is read back by readers we did not write."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rerun.chunk import McapReader, RrdReader
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+
+from linkage_monitor.cli import main as cli_main
+from linkage_monitor.mechanics import load_preset
+from linkage_monitor.msg import HingeReactions
+from linkage_monitor.outputs import stamp_ns
+from linkage_monitor.bag_reader import message_class
+from linkage_monitor.player import sensor_messages
+from linkage_monitor.replay import replay
+from linkage_monitor.simulator import Noise, simulate
+from support.ros_harness import RELIABLE
+
+T0 = 1_795_100_000_000_000_000  # ns, arbitrary header stamp of the first sample
+
+
+@pytest.fixture(scope="module")
+def ros2_bag(tmp_path_factory) -> Path:
+    """A lift cycle of belarus_1221 (simulator, with sensor noise) written by rosbags in the
+    `ros2 bag record` MCAP layout, with Kilted's own type definitions (not ours)."""
+    stream = simulate(load_preset("belarus_1221"), "lift", rate_hz=10.0, noise=Noise(0.001, 0.0002, 2e4),
+                      seed=3, start_ns=T0)
+    store = get_typestore(Stores.ROS2_KILTED)
+    JointStateT, FluidPressureT = (store.types[t] for t in ("sensor_msgs/msg/JointState",
+                                                            "sensor_msgs/msg/FluidPressure"))
+    HeaderT, TimeT = store.types["std_msgs/msg/Header"], store.types["builtin_interfaces/msg/Time"]
+    path = tmp_path_factory.mktemp("ros2") / "lift"
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        joints = writer.add_connection("/joint_states", JointStateT.__msgtype__, typestore=store)
+        pressures = {name: writer.add_connection(f"/pressure/{name}", FluidPressureT.__msgtype__, typestore=store)
+                     for name in stream.pressure_names}
+        for i, stamp in enumerate(stream.stamps_ns.tolist()):
+            header = HeaderT(stamp=TimeT(sec=stamp // 10**9, nanosec=stamp % 10**9), frame_id="")
+            js = JointStateT(header=header, name=list(stream.joint_names),
+                             position=np.asarray(stream.joint_positions[i], dtype=float),
+                             velocity=np.array([], dtype=float), effort=np.array([], dtype=float))
+            writer.write(joints, stamp + 100, store.serialize_cdr(js, JointStateT.__msgtype__))
+            for k, name in enumerate(stream.pressure_names):
+                fp = FluidPressureT(header=header, fluid_pressure=float(stream.pressure_values[i, k]) + 101325.0,
+                                    variance=0.0)
+                writer.write(pressures[name], stamp + 200 + k, store.serialize_cdr(fp, FluidPressureT.__msgtype__))
+    return path
+
+
+@pytest.fixture(scope="module")
+def replayed(ros2_bag, tmp_path_factory):
+    out = tmp_path_factory.mktemp("replay")
+    code = cli_main(["replay", str(ros2_bag), "--preset", "belarus_1221", "--out", str(out / "bag"),
+                     "--rrd", str(out / "replay.rrd"), "--quiet"])
+    assert code == 0
+    return out
+
+
+def _spin(node, condition, timeout: float) -> bool:
+    end = time.monotonic() + timeout
+    while not condition() and time.monotonic() < end:
+        rclpy.spin_once(node, timeout_sec=0.02)
+    return condition()
+
+
+def test_replay_equals_live_node_for_the_same_inputs(ros2_bag, tmp_path):
+    node = subprocess.Popen([sys.executable, "-m", "linkage_monitor.node", "--ros-args", "-p", "sensor_qos:=reliable",
+                             "-p", f"record_dir:={tmp_path}", "-p", "record_name:=live"],
+                            stdout=(tmp_path / "node.log").open("w"), stderr=subprocess.STDOUT)
+    rclpy.init()
+    received: list[HingeReactions] = []
+    problems: list = []  # WARN/ERROR diagnostics: one per input that produced no outputs
+    try:
+        client = rclpy.create_node("replay_test_player")
+        client.create_subscription(HingeReactions, "hinge_reactions", received.append, RELIABLE)
+        client.create_subscription(DiagnosticArray, "/diagnostics",
+                                   lambda m: problems.extend(s for s in m.status if s.level != b"\x00"), RELIABLE)
+        messages = sensor_messages(ros2_bag)
+        publishers = {topic: client.create_publisher(message_class(kind), topic, RELIABLE)
+                      for topic, kind, *_ in messages}
+        assert _spin(client, lambda: all(p.get_subscription_count() for p in publishers.values()), 30)
+        _spin(client, lambda: False, 0.5)
+        # Lockstep: each input yields exactly one HingeReactions or one WARN/ERROR diagnostic;
+        # waiting for it keeps the node's processing order equal to the bag's order (two
+        # topics have no order between them, and a busy executor may take either first).
+        for k, (topic, _, _, _, msg) in enumerate(messages):
+            publishers[topic].publish(msg)
+            assert _spin(client, lambda: len(received) + len(problems) > k, 10), f"no reaction to input {k}"
+        client.destroy_node()
+    finally:
+        rclpy.shutdown()
+        node.send_signal(signal.SIGINT)
+        node.wait(timeout=30)
+    _, offline_steps = replay(ros2_bag, load_preset("belarus_1221"), progress=None)
+    expected = [s.outputs.hinge_reactions for s in offline_steps if s.outputs is not None]
+    assert len(expected) > 0.9 * len(messages) / 2
+    assert [stamp_ns(m.header) for m in received] == [stamp_ns(m.header) for m in expected], \
+        "the live node solved a different sequence of inputs than the replay"
+    for live, offline in zip(received, expected):
+        for a, b in zip(live.hinges, offline.hinges):
+            assert (a.name, a.on_body) == (b.name, b.on_body)
+            assert a.fx == pytest.approx(b.fx, rel=1e-9, abs=1e-6 * max(b.magnitude, 1.0))
+            assert a.fz == pytest.approx(b.fz, rel=1e-9, abs=1e-6 * max(b.magnitude, 1.0))
+
+
+def test_replay_bag_is_read_by_rosbags_mcap_ros2_and_rerun(replayed):
+    bag = replayed / "bag"
+    typestore = get_typestore(Stores.EMPTY)
+    with AnyReader([bag], default_typestore=typestore) as reader:
+        counts: dict[str, int] = {}
+        for connection, _, raw in reader.messages():
+            reader.deserialize(raw, connection.msgtype)
+            counts[connection.topic] = counts.get(connection.topic, 0) + 1
+    assert {"/joint_states", "/pressure/lift_cap_pressure", "/hinge_reactions", "/hitch_state",
+            "/steerability", "/diagnostics", "/linkage_monitor/mechanism"} <= set(counts)
+    assert counts["/hinge_reactions"] == counts["/hitch_state"] == counts["/steerability"] > 0
+    with open(next(bag.glob("*.mcap")), "rb") as f:
+        decoded = sum(1 for _ in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages())
+    assert decoded == sum(counts.values())
+    rerun_entities = {str(chunk.entity_path) for chunk in McapReader(next(bag.glob("*.mcap"))).stream()}
+    assert "/hinge_reactions" in rerun_entities and "/joint_states" in {e.split("/position")[0] for e in rerun_entities}
+
+
+def test_replay_rrd_holds_one_sample_per_solved_pose(replayed):
+    solved = 0
+    with AnyReader([replayed / "bag"], default_typestore=get_typestore(Stores.EMPTY)) as reader:
+        solved = sum(1 for c, _, _ in reader.messages() if c.topic == "/hinge_reactions")
+    rows: dict[str, int] = {}
+    for chunk in RrdReader(replayed / "replay.rrd").stream().to_chunks():
+        batch = chunk.to_record_batch()
+        if "ros_time" in batch.schema.names:
+            path = chunk.entity_path.lstrip("/")
+            rows[path] = rows.get(path, 0) + batch.num_rows
+    assert rows["forces/cylinders/lift_cylinder"] == solved
+    assert rows["steerability/ratio"] == solved
+    assert rows["linkage/links"] == solved
+    assert {"forces/hinges/P03", "lift/reserve", "linkage/hinges/forces"} <= set(rows)
+
+
+def test_replay_cli_errors_name_the_bag(tmp_path, capsys):
+    assert cli_main(["replay", str(tmp_path / "missing"), "--preset", "belarus_1221", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "missing" in err[0]
