@@ -12,6 +12,7 @@ the node's current time (so a live monitor does not see the samples as stale).
 from __future__ import annotations
 
 import sys
+import time
 from typing import Sequence
 
 import rclpy
@@ -22,6 +23,9 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from .mechanics import Mechanism
 from .simulator import Noise, SimulatedStream, simulate
+
+
+SUBSCRIBER_WAIT_S = 5.0  # s
 
 
 class SimulatorNode(Node):
@@ -40,7 +44,13 @@ class SimulatorNode(Node):
         self.pressure_pubs = {name: self.create_publisher(FluidPressure, f"{prefix}pressure/{name}",
                                                           qos_profile_sensor_data)
                               for name in self.stream.pressure_names}
-        self.timer = self.create_timer(1.0 / rate_hz, self._tick)
+        self.timer = None
+        self._t0_ns = int(self.stream.stamps_ns[0])
+
+    def start(self) -> None:
+        """Start publishing, stamping from now."""
+        self._t0_ns = self.get_clock().now().nanoseconds
+        self.timer = self.create_timer(1.0 / self.stream.rate_hz, self._tick)
 
     def _tick(self) -> None:
         stream = self.stream
@@ -49,7 +59,7 @@ class SimulatorNode(Node):
             self.done = True
             return
         i = self.count % n
-        stamp = int(stream.stamps_ns[0]) + round(self.count * 1e9 / stream.rate_hz)   # continues over passes
+        stamp = self._t0_ns + round(self.count * 1e9 / stream.rate_hz)   # continues over passes
         self.joint_pub.publish(stream.joint_state(i, stamp_ns=stamp))
         for name, msg in stream.pressures(i, gauge=self.gauge, stamp_ns=stamp).items():
             self.pressure_pubs[name].publish(msg)
@@ -68,6 +78,13 @@ def run(mechanism: Mechanism, scenario: str = "lift", rate_hz: float = 50.0, noi
     try:
         node = SimulatorNode(mechanism, scenario, rate_hz, noise, duration_s, gauge, prefix, loop, seed)
         topics = ", ".join([node.joint_pub.topic_name] + [p.topic_name for p in node.pressure_pubs.values()])
+        # Best-effort samples sent before a subscriber has matched are lost: give a monitor that
+        # is already running up to SUBSCRIBER_WAIT_S to be found (then publish anyway).
+        end = time.monotonic() + SUBSCRIBER_WAIT_S
+        publishers = [node.joint_pub, *node.pressure_pubs.values()]
+        while time.monotonic() < end and not all(p.get_subscription_count() for p in publishers):
+            rclpy.spin_once(node, timeout_sec=0.05)
+        node.start()
         node.get_logger().info(f"simulating '{scenario}' of {mechanism.name}: {len(node.stream)} samples at "
                                f"{rate_hz:g} Hz{' (looping)' if loop else ''} on {topics}")
         while rclpy.ok() and not node.done:

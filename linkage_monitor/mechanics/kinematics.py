@@ -188,7 +188,7 @@ class Kinematics:
         d = diff[:, nh:]
         length = np.abs(d)
         ang = qp.take(self._angle_theta[1], axis=1) - qp.take(self._angle_theta[0], axis=1) + self.angle_reference
-        phi = np.concatenate([as_xz(diff[:, :nh]).reshape(n_pose, -1), length - s[:, :nc],
+        phi = np.concatenate([as_xz(diff[:, :nh]).reshape(n_pose, 2 * nh), length - s[:, :nc],
                               self.lc * (ang - s[:, nc:])], axis=1)
         return phi, self._jacobian(rel, d / length)
 
@@ -202,8 +202,8 @@ class Kinematics:
         # u · (i·rel) = −Im(conj(u)·rel): the length change per unit rotation of the body
         cyl_theta = -(uc.conj() * rel.take(c_att, axis=1)).imag
         jac = np.repeat(self._jac0[None], n_pose, axis=0)
-        jac.reshape(n_pose, -1)[:, self._jac_flat] = np.concatenate(
-            [hinge_theta.reshape(n_pose, -1), uc.real, uc.imag, cyl_theta], axis=1)
+        jac.reshape(n_pose, self.m * self.n)[:, self._jac_flat] = np.concatenate(
+            [hinge_theta.reshape(n_pose, 2 * t_att.size), uc.real, uc.imag, cyl_theta], axis=1)
         return jac
 
     def reference_inputs(self) -> np.ndarray:
@@ -211,42 +211,32 @@ class Kinematics:
         return self._s_ref.copy()
 
     # ---- solving --------------------------------------------------------------------------
-    def _step(self, phi: np.ndarray, jac: np.ndarray) -> np.ndarray:
-        """Newton step (Gauss-Newton on the normal equations when overdetermined) dq (N, n)."""
-        if self.m == self.n:
-            return solve_square(jac, -phi)
-        jt = np.swapaxes(jac, 1, 2)
-        return solve_square(jt @ jac, -(jt @ phi[..., None])[..., 0])
-
     def newton(self, q: np.ndarray, s: np.ndarray, max_iter: int = 25) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Newton / Gauss-Newton iterations from q (N, n).
 
         Returns q, its residual Φ (N, m) and Jacobian (N, m, n), both evaluated at the returned q
         (callers reuse the Jacobian for the branch and condition checks). A pose stops when
-        |Φ| ≤ 1e-13·lc, or one evaluation after its step vanished (overdetermined: the residual
-        need not reach 0) or became non-finite (singular).
+        |Φ| ≤ 1e-13·lc, or before a step that is not finite (singular) or, overdetermined, below
+        1e-13·lc (the least-squares residual need not reach 0).
         """
-        n_pose = q.shape[0]
         q = q.copy()
         tol = 1e-13 * self.lc
-        idx = np.arange(n_pose)            # poses still iterating
-        last = np.zeros(n_pose, dtype=bool)  # their step vanished: this evaluation is their last
-        phi = jac = None
-        for it in range(max_iter + 1):
-            everyone = idx.size == n_pose  # skip fancy indexing in the common (and N = 1) case
-            phi_a, jac_a = self.residual_jacobian(q if everyone else q[idx], s if everyone else s[idx])
-            if everyone:
-                phi, jac = phi_a, jac_a
-            else:
-                phi[idx], jac[idx] = phi_a, jac_a
-            go = ~(np.abs(phi_a).max(axis=1) <= tol) & ~last[idx]
-            if it == max_iter or not go.any():
+        phi, jac = self.residual_jacobian(q, s)
+        idx = np.flatnonzero(np.abs(phi).max(axis=1) > tol)   # poses still iterating
+        for _ in range(max_iter):
+            if not idx.size:
                 break
-            if not go.all():
-                idx, phi_a, jac_a = idx[go], phi_a[go], jac_a[go]
-            dq = self._step(phi_a, jac_a)
-            q[idx] += dq
-            last[idx] = ~(np.abs(dq).max(axis=1) > tol) if self.m > self.n else ~np.isfinite(dq).all(axis=1)
+            every = idx.size == q.shape[0]   # then plain arrays: fancy indexing costs µs per call
+            dq = self._solve_linear(jac, -phi) if every else self._solve_linear(jac[idx], -phi[idx])
+            moves = np.abs(dq).max(axis=1) > tol if self.m > self.n else np.isfinite(dq).all(axis=1)
+            if every and moves.all():
+                q += dq
+                phi, jac = self.residual_jacobian(q, s)
+            else:
+                idx, dq = idx[moves], dq[moves]
+                q[idx] += dq
+                phi[idx], jac[idx] = self.residual_jacobian(q[idx], s[idx])
+            idx = idx[np.abs(phi[idx]).max(axis=1) > tol]
         return q, phi, jac
 
     def reachable_fraction(self, s: np.ndarray, steps: int = 30) -> np.ndarray:
@@ -275,17 +265,17 @@ class Kinematics:
     def predict(self, previous: KinematicState, s: np.ndarray) -> np.ndarray:
         """Poses q (N, n) predicted for inputs s (N, n_inputs) along the tangent at one solved pose.
 
-        This is the first Newton step from ``previous.q`` using ``previous.jac`` (no new evaluation,
-        one factorization for all N): only the input rows of Φ change with s, ∂Φ/∂s = −1
-        (cylinders) or −lc (angles).
+        This is the first Newton step from ``previous.q`` with ``previous.jac`` (no new evaluation,
+        one factorization for all N): only the input rows of Φ depend on s (∂Φ/∂s = −1 for
+        cylinders, −lc for angles), so J·dq = E·(s − s_prev) with E those unit / lc entries.
         """
         nc = self.cyl_att.shape[1]
         r0 = self.m - self.n_inputs            # input rows follow the hinge rows
         ds = s - previous.s
-        phi = np.zeros((s.shape[0], self.m))
-        phi[:, r0:r0 + nc] = -ds[:, :nc]
-        phi[:, r0 + nc:] = -self.lc * ds[:, nc:]
-        return previous.q + self._step(phi, previous.jac)
+        shift = np.zeros((s.shape[0], self.m))
+        shift[:, r0:r0 + nc] = ds[:, :nc]
+        shift[:, r0 + nc:] = self.lc * ds[:, nc:]
+        return previous.q + self._solve_linear(previous.jac, shift)
 
     def solve(self, s: np.ndarray, previous: KinematicState | None, dead_centre_cond: float,
               consistency_tol: float) -> KinematicState:
@@ -296,7 +286,7 @@ class Kinematics:
         poses that fail or land on another branch are redone by continuation from the reference pose.
         """
         n_pose = s.shape[0]
-        q, phi, jac = self.newton(self.predict(previous or self._reference, s), s)
+        q, phi, jac = self.newton(self.predict(self._reference if previous is None else previous, s), s)
         sign, cond = self._branch_and_condition(jac)
         limit = 1e-9 * self.lc if self.m == self.n else consistency_tol
         retry = np.flatnonzero((sign != self._ref_sign) | ~(np.abs(phi).max(axis=1) <= limit))
@@ -360,10 +350,10 @@ class Kinematics:
         rhs = np.zeros((n_pose, self.m))
         rhs[:, 2 * nh:2 * nh + nc] = s_dot[:, :nc]
         rhs[:, 2 * nh + nc:] = self.lc * s_dot[:, nc:]
-        q_dot = self._lsq(jac, rhs)
+        q_dot = self._solve_linear(jac, rhs)
         v, centripetal = self.point_rates(q_dot, rel)
         gamma = np.zeros((n_pose, self.m))
-        gamma[:, :2 * nh] = (centripetal[:, self.hinge_att[0]] - centripetal[:, self.hinge_att[1]]).reshape(n_pose, -1)
+        gamma[:, :2 * nh] = (centripetal[:, self.hinge_att[0]] - centripetal[:, self.hinge_att[1]]).reshape(n_pose, 2 * nh)
         d = p[:, self.cyl_att[1]] - p[:, self.cyl_att[0]]
         length = np.linalg.norm(d, axis=-1)
         u = d / length[..., None]
@@ -374,7 +364,7 @@ class Kinematics:
         rhs2 = np.zeros((n_pose, self.m))
         rhs2[:, 2 * nh:2 * nh + nc] = s_ddot[:, :nc]
         rhs2[:, 2 * nh + nc:] = self.lc * s_ddot[:, nc:]
-        return q_dot, self._lsq(jac, rhs2 - gamma)
+        return q_dot, self._solve_linear(jac, rhs2 - gamma)
 
     def point_rates(self, q_dot: np.ndarray, rel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Velocities (N, K, 2) of all attachments and their centripetal accelerations −θ̇²·rel."""
@@ -385,7 +375,9 @@ class Kinematics:
         v = qp[:, cx] + 1j * qp[:, cz] + 1j * w * relc
         return as_xz(v), as_xz(-w * w * relc)
 
-    def _lsq(self, jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    def _solve_linear(self, jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+        """x (N, n) with jac·x = rhs (N, m), least squares (normal equations) when overdetermined;
+        jac (N, m, n), or (1, m, n) shared by all N right-hand sides."""
         if self.m == self.n:
             return solve_square(jac, rhs)
         jt = np.swapaxes(jac, 1, 2)

@@ -75,11 +75,16 @@ class Solver:
                 if end.body == ground:
                     self._frame_members.append((m, kin.attach(ground, end.point), sign))
                     self.frame_load_names.append(f"{name} {end.point}")
+        self._sensors = {ps.name: ps for ps in mech.measurements.pressures}
         self._previous: KinematicState | None = None  # last solved single pose: where the next one starts
 
     # ---- public API -------------------------------------------------------------------------
     def solve(self, inputs: Inputs) -> Result:
-        """Solve one pose (continuing from the previous one); raises a LinkageError subclass on failure."""
+        """Solve one pose; raises a LinkageError subclass on failure.
+
+        Newton starts from the tangent prediction off the previous solved pose (a live node's
+        inputs change little between messages: 2 iterations), or off the reference pose.
+        """
         arrays = {kind: {k: np.array([v], dtype=float) for k, v in getattr(inputs, kind).items()}
                   for kind in ("cylinders", "angles", "pressures", "rates", "accelerations")}
         batch, ks = self._solve(self._previous, **arrays)
@@ -89,6 +94,11 @@ class Solver:
             self._previous = ks
             return res
         raise {STATUS_INPUT: InputError, STATUS_ASSEMBLY: AssemblyError, STATUS_DEAD_CENTRE: DeadCentreError}[code](res.message)
+
+    def restart(self) -> None:
+        """Forget the previous pose: the next ``solve`` starts from the reference pose (after a jump
+        in the inputs, e.g. a sensor fault, starting there is as good as anywhere)."""
+        self._previous = None
 
     def solve_batch(self, cylinders: ArrayMap | None = None, angles: ArrayMap | None = None,
                     pressures: ArrayMap | None = None, rates: ArrayMap | None = None,
@@ -221,7 +231,7 @@ class Solver:
             _, centripetal = kin.point_rates(q_dot, rel)
             accel = (linear + centripetal, q_ddot[:, 2::3])
         # measured cylinder forces: F = count·(p_cap·A_cap − p_rod·A_rod) (schema, cylinders[])
-        sensors = {ps.name: ps for ps in mech.measurements.pressures}
+        sensors = self._sensors
         nan = np.full(n_pose, np.nan)
         cap = {c.name: nan for c in mech.cylinders}
         rod = {c.name: nan for c in mech.cylinders}

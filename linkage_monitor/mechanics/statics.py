@@ -177,12 +177,12 @@ class StaticsLayout:
     def matrix(self, p: np.ndarray, axes: np.ndarray) -> np.ndarray:
         """Equilibrium matrix A (N, n_eq, n_unknowns) at attachment positions p (N, K, 2)."""
         n_pose = p.shape[0]
-        d = np.broadcast_to(self.t_const, (n_pose,) + self.t_const.shape).copy()
+        d = np.repeat(self.t_const[None], n_pose, axis=0)
         ti, tk, ts = self.t_cyl
-        d[:, ti] = ts[:, None] * axes[:, self.n_springs + tk]
+        d[:, ti] = ts[:, None] * axes.take(self.n_springs + tk, axis=1)
         g = generalized(p.take(self.t_att, axis=1), d, self.kin.lc)
         a = np.zeros((n_pose, self.n_eq, self.n_unknowns))
-        a.reshape(n_pose, -1)[:, self._matrix_flat] = g.reshape(n_pose, -1)
+        a.reshape(n_pose, self.n_eq * self.n_unknowns)[:, self._matrix_flat] = g.reshape(n_pose, 3 * g.shape[1])
         return a
 
     def known(self, p: np.ndarray, axes: np.ndarray, member_force: np.ndarray,
@@ -200,7 +200,7 @@ class StaticsLayout:
             moments = np.zeros((n_pose, self.n_eq))
             moments[:, 3 * self.mass_body + 2] -= self.inertia * alpha[:, self.mass_body] / self.kin.lc
         g = generalized(p.take(att, axis=1), np.concatenate(forces, axis=1), self.kin.lc)
-        return g.reshape(n_pose, -1) @ scatter + moments
+        return g.reshape(n_pose, scatter.shape[0]) @ scatter + moments
 
     def solve(self, p: np.ndarray, cylinder_force: np.ndarray, accel: tuple[np.ndarray, np.ndarray] | None
               ) -> StaticsSolution:
