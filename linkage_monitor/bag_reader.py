@@ -84,17 +84,18 @@ def mcap_files(path: str | os.PathLike[str]) -> list[Path]:
     return files
 
 
-def read_bag(path: str | os.PathLike[str], topics: Collection[str] | None = None
-             ) -> Iterator[tuple[str, str, int, int, Any]]:
+def read_bag(path: str | os.PathLike[str], topics: Collection[str] | None = None,
+             types: Collection[str] | None = None) -> Iterator[tuple[str, str, int, int, Any]]:
     """Yield (topic, type_name, stamp_ns, log_time_ns, msg) for every message of the bag.
 
     msg is the rclpy message (class found from type_name `pkg/msg/Type`). stamp_ns is the
     header stamp (ns since the epoch) for messages with a header, else the MCAP publish_time;
     log_time_ns is the receive time. Messages come in log-time order per file (in write
     order for a file without index, e.g. from a killed writer).
-    topics: only these topics (default: all).
+    topics: only these topics; types: only these `pkg/msg/Type`s (default: all; others are
+    skipped before they are decoded).
     """
-    yield from _messages(path, topics=topics, types=None)
+    yield from _messages(path, topics=topics, types=types)
 
 
 def read_inputs(path: str | os.PathLike[str]) -> dict[str, JointStateColumns | PressureColumns]:

@@ -19,7 +19,10 @@ import tempfile
 import time
 from pathlib import Path
 
-# (bag name, preset, scenarios played one after the other, simulator options)
+CONFIG = Path(__file__).resolve().parent.parent / "config"
+# (bag name, preset, scenarios played one after the other, simulator options); the node runs
+# with config/<preset>.yaml (e.g. damping_hitch reads only the lift cylinder's pressure: its
+# damping element also pulls, which one cap-side sensor cannot measure).
 SAMPLES: list[tuple[str, str, tuple[str, ...], tuple[str, ...]]] = [
     ("belarus_1221_lift_transport", "belarus_1221", ("lift", "transport"), ()),
     ("belarus_1221_overload", "belarus_1221", ("overload",), ()),
@@ -37,7 +40,8 @@ def record(name: str, preset: str, scenarios: tuple[str, ...], options: tuple[st
     """Record one sample bag into out/name (replacing it); returns its directory."""
     target = out / name
     with tempfile.TemporaryDirectory() as tmp:
-        node = subprocess.Popen(_module("linkage_monitor.node", "--ros-args", "-p", f"mechanism:={preset}",
+        node = subprocess.Popen(_module("linkage_monitor.node", "--ros-args",
+                                        "--params-file", str(CONFIG / f"{preset}.yaml"),
                                         "-p", f"record_dir:={tmp}", "-p", f"record_name:={name}"))
         try:
             time.sleep(3.0)  # node up and subscribed

@@ -138,8 +138,8 @@ class Monitor:
         if result.consistency_residual > CONSISTENCY_WARN_M:
             warnings.append(f"measurements disagree: kinematic residual {result.consistency_residual * 1e3:.2f} mm "
                             f"> {CONSISTENCY_WARN_M * 1e3:.1f} mm (check sensor calibration)")
-        if result.residual > out.RESIDUAL_WARN_N:
-            warnings.append(f"equilibrium residual {result.residual:.3g} N > {out.RESIDUAL_WARN_N} N")
+        if out.residual_too_high(result):
+            warnings.append(out.residual_too_high(result))
         if result.status != "ok":
             warnings.append(result.message or result.status)
         reserve = machine.lift_capacity.get("reserve", math.nan)

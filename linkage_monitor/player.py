@@ -21,7 +21,7 @@ PLAYER_QOS = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
 
 def sensor_messages(bag: Path) -> list[tuple[str, str, int, int, object]]:
     """(topic, type, header stamp ns, log time ns, message) of every sensor message, in order."""
-    return [m for m in read_bag(bag) if m[1] in (JOINT_STATE, FLUID_PRESSURE)]
+    return list(read_bag(bag, types=(JOINT_STATE, FLUID_PRESSURE)))
 
 
 def play(node: Node, messages: list[tuple[str, str, int, int, object]], rate: float = 1.0,

@@ -15,7 +15,7 @@ import re
 import sys
 import time
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Iterator, TextIO
 
@@ -82,9 +82,8 @@ def mechanism_in_bag(path: Path) -> Mechanism:
 
 
 def _events(path: Path) -> Iterator[tuple[str, str, int, object]]:
-    for topic, type_name, stamp, _, msg in read_bag(path):
-        if type_name in (JOINT_STATE, FLUID_PRESSURE):
-            yield topic, type_name, stamp, msg
+    for topic, type_name, stamp, _, msg in read_bag(path, types=(JOINT_STATE, FLUID_PRESSURE)):
+        yield topic, type_name, stamp, msg
 
 
 def replay(bag: Path, mech: Mechanism, out_dir: Path | None = None, rrd: Path | None = None,
@@ -92,17 +91,23 @@ def replay(bag: Path, mech: Mechanism, out_dir: Path | None = None, rrd: Path | 
            ) -> tuple[Summary, list[Step]]:
     """Re-run the monitor over `bag`; write outputs to `out_dir` (a new bag) and/or `rrd`.
 
+    config: how topics map to the mechanism's sensors; default: identity joint names and the
+    pressure sensors whose `pressure/<sensor>` topics the bag holds.
     rate: play at this multiple of real time (None: as fast as possible). Returns the summary
     and every Step (one per input message, in recording order).
     """
     started = time.perf_counter()
-    config = config or InputConfig.default(mech)
+    events = list(_events(bag))
+    if config is None:  # the pressure sensors whose default topics were recorded
+        recorded = {topic.lstrip("/") for topic, *_ in events}
+        default = InputConfig.default(mech)
+        config = replace(default, pressure_topics={t: s for t, s in default.pressure_topics.items() if t in recorded})
     monitor = Monitor(mech, config)
     writer = BagWriter(out_dir) if out_dir is not None else None
     summary = Summary()
     stages: list[Pending | Step] = []
     raw: list[tuple[str, int, object]] = []
-    for topic, type_name, stamp, msg in _events(bag):
+    for topic, type_name, stamp, msg in events:
         if type_name == JOINT_STATE:
             stages.append(monitor.accept_joint_state(list(msg.name), list(msg.position), stamp))
         else:

@@ -1,0 +1,56 @@
+"""Replay throughput against the raw decode rate of the same bag (issue 6).
+
+Run: .venv/bin/python bench/bench_replay.py [BAG]   (default: the bundled belarus_1221 bag)
+Prints messages per second of
+- raw decode: mcap + mcap-ros2-support decoding every message of the bag (the floor of any
+  reader in Python, measured in the same run),
+- replay: `linkage_monitor.replay.replay` over the same bag (read, solve batched, machine-level
+  results, output messages), without and with writing the output bag,
+and the ratios to the raw decode (goal >= 0.5).
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+
+from linkage_monitor.replay import mechanism_in_bag, replay
+
+BAG = Path(__file__).resolve().parent.parent / "bags" / "belarus_1221_lift_transport"
+
+
+def raw_decode(bag: Path) -> tuple[int, float]:
+    """(messages, seconds) to decode every message of the bag with mcap-ros2-support."""
+    start, count = time.perf_counter(), 0
+    for path in sorted(bag.glob("*.mcap")):
+        with open(path, "rb") as f:
+            for _ in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+                count += 1
+    return count, time.perf_counter() - start
+
+
+def main() -> int:
+    bag = Path(sys.argv[1]) if len(sys.argv) > 1 else BAG
+    mech = mechanism_in_bag(bag)
+    n_raw, t_raw = raw_decode(bag)
+    summary, _ = replay(bag, mech, progress=None)
+    with tempfile.TemporaryDirectory() as tmp:
+        summary_out, _ = replay(bag, mech, out_dir=Path(tmp) / "out", progress=None)
+    raw_rate = n_raw / t_raw
+    rows = [("raw decode (mcap-ros2-support), all messages", n_raw, t_raw),
+            ("replay, input messages, no output files", summary.inputs, summary.seconds),
+            ("replay, input messages, writing the output bag", summary_out.inputs, summary_out.seconds)]
+    print(f"bag: {bag} ({mech.name})")
+    print(f"{'':50} {'messages':>9} {'seconds':>8} {'msg/s':>9} {'ratio':>6}")
+    for name, n, t in rows:
+        print(f"{name:50} {n:9d} {t:8.3f} {n / t:9.0f} {n / t / raw_rate:6.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
