@@ -12,7 +12,7 @@ import json
 import numpy as np
 
 from .mechanics import LinkageError, Mechanism, Solver, load_mechanism, load_preset
-from .mechanics.capacity import lift_cylinder, reference_length, stroke_mechanism
+from .mechanics.capacity import interval_around, lift_cylinder, reference_length, stroke_mechanism
 from .mechanics.machine import MachineBatch, MachineModel
 
 SCAN_POINTS = 401  # cylinder lengths tried between 0.5 and 1.5 × the reference length to find the stroke
@@ -42,16 +42,11 @@ def lifting_stroke(model: MachineModel, cylinder: str, length: float) -> tuple[f
     lengths = np.linspace(0.5, 1.5, SCAN_POINTS) * length
     batch = model.stroke_poses(cylinder, lengths)
     ok = (batch.status == 0) & (np.gradient(batch.implement_cg[:, 1], lengths) > 0.0)
-    start = int(np.argmin(np.abs(lengths - length)))
-    if not ok[start]:
+    stroke = interval_around(lengths, ok, length)
+    if stroke is None:
         raise LinkageError(f"cylinder '{cylinder}': at its reference length {length:.4f} m the linkage "
                            f"does not assemble or does not lift the implement; give --stroke MIN MAX")
-    lo, hi = start, start
-    while lo > 0 and ok[lo - 1]:
-        lo -= 1
-    while hi < len(ok) - 1 and ok[hi + 1]:
-        hi += 1
-    return float(lengths[lo]), float(lengths[hi])
+    return stroke
 
 
 def capacity_curve(mech: Mechanism, stroke: tuple[float, float] | None, points: int) -> tuple[dict, MachineBatch]:

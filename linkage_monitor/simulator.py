@@ -56,7 +56,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .mechanics import LinkageError, Mechanism, Solver, UnobservableError, mechanism_from_dict
-from .mechanics.capacity import reference_length, stroke_mechanism
+from .mechanics.capacity import interval_around, reference_length, stroke_mechanism
 from .mechanics.machine import axle_loads, steerability
 from .mechanics.model import PressureSensor
 
@@ -266,16 +266,11 @@ class _Plant:
         work = float(self.reference_length[self.driver])
         grid = np.linspace(0.5 * work, 1.5 * work, points)
         ok = self._solvers[0].solve_batch(cylinders=self.lengths(grid)).status == 0
-        i = int(np.argmin(np.abs(grid - work)))
-        if not ok[i]:
+        stroke = interval_around(grid, ok, work)
+        if stroke is None:
             raise ValueError(f"{self.mech.file}: cylinder '{self.driver}' does not assemble at its reference "
                              f"length {work:.4f} m: check reference_inputs")
-        lo, hi = i, i
-        while lo > 0 and ok[lo - 1]:
-            lo -= 1
-        while hi < points - 1 and ok[hi + 1]:
-            hi += 1
-        low, high = float(grid[lo]), float(grid[hi])
+        low, high = stroke
         return Stroke(cylinder=self.driver, low=low, high=high, work=work,
                       transport=work + TRANSPORT_FRACTION * (high - work))
 

@@ -24,13 +24,6 @@ JOINTS = ["lift_cylinder", "lift_arm_angle"]
 PRESSURE_TOPIC = "pressure/lift_cap_pressure"
 
 
-@pytest.fixture(scope="module")
-def ros():
-    rclpy.init()
-    yield
-    rclpy.shutdown()
-
-
 @pytest.fixture
 def node(ros, tmp_path):
     proc = start_node({"mechanism": "belarus_1221", "record_dir": str(tmp_path / "bags"),

@@ -34,13 +34,6 @@ OUTPUT_TOPICS = ("/hinge_reactions", "/hitch_state", "/steerability", "/diagnost
 FLUSH_PERIOD_S = 1.0  # s, the node's BagWriter flushes this often (recording.BagWriter default)
 
 
-@pytest.fixture(scope="module")
-def ros():
-    rclpy.init()
-    yield
-    rclpy.shutdown()
-
-
 @pytest.fixture
 def node(ros, tmp_path):
     """A recording node (default record = true) fed by a reliable test client; stopped at the end."""

@@ -39,13 +39,6 @@ OUTPUT_TOPICS = ("hinge_reactions", "hitch_state", "steerability")
 REL = 1e-9                           # the node runs the same mechanics: only round-off may differ
 
 
-@pytest.fixture(scope="module")
-def ros():
-    rclpy.init()
-    yield
-    rclpy.shutdown()
-
-
 def _run(tmp_path: Path, scenario: str, noise: Noise, duration: float | None) -> tuple[MonitorClient, list]:
     """Node up, simulator run to its end, outputs collected, node stopped (bag closed).
 

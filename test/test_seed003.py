@@ -16,36 +16,15 @@ import numpy as np
 import pytest
 
 from linkage_monitor.mechanics import load_preset
-from linkage_monitor.seed003_table import seed003_values
+from linkage_monitor.seed003_table import PAPER_TABLE_1, PAPER_TABLE_2, seed003_values
 
 REPO = Path(__file__).resolve().parent.parent
 
-# REFERENCE.md 003, Table 1: S [m], Y56 [m], XS6 [m], YS6 [m], phi6 [deg]
-TABLE_1 = np.array([
-    [0.535, 0.305, 1.819, 0.340, 88.551],
-    [0.555, 0.403, 1.832, 0.478, 91.606],
-    [0.575, 0.492, 1.831, 0.608, 94.777],
-    [0.595, 0.577, 1.818, 0.736, 98.174],
-    [0.615, 0.657, 1.794, 0.862, 101.882],
-    [0.635, 0.733, 1.759, 0.989, 105.983],
-    [0.655, 0.806, 1.711, 1.117, 110.554],
-    [0.675, 0.875, 1.650, 1.246, 115.670],
-    [0.695, 0.941, 1.574, 1.374, 121.390],
-    [0.715, 1.002, 1.481, 1.499, 127.731],
-])
-# REFERENCE.md 003, Table 2: S [m], G_s, R34 (per side), R03, R05 (per side), R07, F_pr [kN], P2 [MPa]
-TABLE_2 = np.array([
-    [0.535, 23.03, 20.55, 116.11, 15.82, 18.43, 107.52, 10.132],
-    [0.555, 24.82, 21.11, 110.12, 14.96, 18.69, 99.71, 9.368],
-    [0.575, 25.67, 21.83, 108.23, 14.25, 19.02, 96.43, 9.057],
-    [0.595, 26.01, 22.73, 108.31, 13.64, 19.39, 95.15, 8.939],
-    [0.615, 26.04, 23.73, 109.52, 13.11, 19.74, 95.04, 8.929],
-    [0.635, 25.90, 24.84, 111.30, 12.66, 20.03, 95.53, 8.975],
-    [0.655, 25.73, 26.06, 113.32, 12.36, 20.19, 96.17, 9.035],
-    [0.675, 25.67, 27.29, 115.11, 12.28, 20.12, 96.39, 9.056],
-    [0.695, 25.93, 28.36, 115.63, 12.44, 19.69, 95.42, 8.965],
-    [0.715, 26.83, 28.99, 113.80, 12.76, 18.75, 92.23, 8.665],
-])
+# The paper's tables, typed once from REFERENCE.md section 003 (with the docs generator):
+# Table 1: S [m], Y56 [m], XS6 [m], YS6 [m], phi6 [deg], I_S [-]
+TABLE_1 = PAPER_TABLE_1
+# Table 2: S [m], G_s, R34 (per side), R03, R05 (per side), R07, F_pr [kN], P2 [MPa]
+TABLE_2 = PAPER_TABLE_2
 
 
 def _rms(a: np.ndarray, b: np.ndarray) -> float:

@@ -115,3 +115,17 @@ def stroke_mechanism(mech: Mechanism) -> Mechanism:
         raise UnobservableError(f"{mech.file}: the measured cylinder lengths alone do not fix the pose, so "
                                 f"the stroke cannot be swept ({exc})") from exc
     return stroke
+
+
+def interval_around(grid: np.ndarray, ok: np.ndarray, centre: float) -> tuple[float, float] | None:
+    """The widest run of ``ok`` grid values (e.g. cylinder lengths, m) that contains the grid
+    point nearest ``centre``; None if that point itself is not ok."""
+    i = int(np.argmin(np.abs(grid - centre)))
+    if not ok[i]:
+        return None
+    lo, hi = i, i
+    while lo > 0 and ok[lo - 1]:
+        lo -= 1
+    while hi < len(ok) - 1 and ok[hi + 1]:
+        hi += 1
+    return float(grid[lo]), float(grid[hi])
