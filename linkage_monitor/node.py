@@ -50,7 +50,8 @@ PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
     "joint_map": ([""], "JointState names mapped to the mechanism's measurements, as 'joint_name=measurement' "
                   "(unlisted measurements are expected under their own name)", True, None),
     "pressure_topics": ([""], "One sensor_msgs/FluidPressure topic per cylinder chamber, as "
-                        "'topic=pressure_sensor'; default 'pressure/<sensor>' for every sensor", True, None),
+                        "'topic=pressure_sensor'; default 'pressure/<sensor>' for every sensor; ['none']: no "
+                        "pressures (the implement load is then implement_mass, the pressures predicted)", True, None),
     "pressure_absolute": (True, "FluidPressure carries absolute pressure (true, per its definition) or gauge",
                           True, None),
     "atmospheric_pressure": (ATMOSPHERIC_PRESSURE, "Pa, subtracted from absolute pressures", True,
@@ -118,7 +119,10 @@ class LinkageMonitorNode(Node):
         if overrides:
             mech = mech.with_overrides(overrides)
         config = InputConfig.default(mech)
-        pressure_topics = _pairs(list(p["pressure_topics"]), "pressure_topics") or dict(config.pressure_topics)
+        if list(p["pressure_topics"]) == ["none"]:
+            pressure_topics = {}
+        else:
+            pressure_topics = _pairs(list(p["pressure_topics"]), "pressure_topics") or dict(config.pressure_topics)
         config = InputConfig(joint_map=_pairs(list(p["joint_map"]), "joint_map"), pressure_topics=pressure_topics,
                              pressure_absolute=bool(p["pressure_absolute"]),
                              atmospheric_pressure=float(p["atmospheric_pressure"]),

@@ -7,10 +7,13 @@ same inputs), never from the node's own code path.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 import rclpy
+from rcl_interfaces.srv import SetParameters
+from rclpy.parameter import Parameter
 
 from linkage_monitor.inputs import ATMOSPHERIC_PRESSURE
 from linkage_monitor.mechanics import Inputs, Solver, load_preset
@@ -136,3 +139,72 @@ def test_bad_input_gives_error_diagnostic_then_good_input_solves(node, bad, expe
                                          pressures={"lift_cap_pressure": 9.1e6}))
     got = client.outputs_at("hitch_state", later + 1000)[0]
     assert got.implement_load == pytest.approx(expected.implement_load, rel=1e-9)
+
+
+FIXTURES = Path(__file__).resolve().parent / "fixtures"
+
+
+def test_dead_centre_over_a_topic_is_an_error_and_the_node_goes_on(ros, tmp_path):
+    proc = start_node({"mechanism": str(FIXTURES / "arm_angle.yaml"), "record_dir": str(tmp_path),
+                       "sensor_qos": "reliable"}, tmp_path / "node.log")
+    client = MonitorClient(pressure_topics=())
+    try:
+        client.wait_for_node()
+        for k, angle in enumerate([-math.pi / 4, -math.pi / 2, -math.pi / 3]):
+            client.publish_joint_state(T0 + k, ["arm_angle"], [angle])
+            assert client.spin_until(lambda k=k: client.diagnostics_at(T0 + k) or client.outputs_at(
+                "hitch_state", T0 + k), 20)
+        dead = client.diagnostics_at(T0 + 1)[0]
+        assert dead.level == b"\x02" and dead.message.startswith("dead centre") and "condition number" in dead.message
+        assert not client.outputs_at("hinge_reactions", T0 + 1)
+        # 60 deg below the vertical: moment balance about O (closed form) for the good pose after it
+        after = client.outputs_at("hitch_state", T0 + 2)[0].cylinders[0].force
+        t = np.array([math.cos(-math.pi / 3 + math.pi / 2), math.sin(-math.pi / 3 + math.pi / 2)])
+        u = (t - [-1.0, 0.0]) / np.linalg.norm(t - [-1.0, 0.0])
+        assert after == pytest.approx(10.0 * 9.80665 * t[0] / (t[0] * u[1] - t[1] * u[0]), rel=1e-9)
+    finally:
+        client.close()
+        assert stop(proc) == 0
+
+
+def test_stale_input_warns_and_does_not_solve(node):
+    client, _, _ = node
+    s, angle = _pose(0.60)
+    _send(client, T0, s, angle, 9.0e6)
+    assert client.spin_until(lambda: client.outputs_at("hitch_state", T0 + 1000), 20)
+    late = T0 + 2_000_000_000  # 2 s after the last pressure; staleness_limit is 0.5 s
+    client.publish_joint_state(late, JOINTS, [s, angle])
+    assert client.spin_until(lambda: client.diagnostics_at(late), 20)
+    status = client.diagnostics_at(late)[0]
+    assert status.level == b"\x01" and "stale: lift_cap_pressure (2.000 s old)" in status.message
+    assert not client.outputs_at("hitch_state", late)
+
+
+def test_implement_mass_changed_at_runtime_applies_from_the_next_message(ros, tmp_path):
+    proc = start_node({"mechanism": "belarus_1221", "record_dir": str(tmp_path), "sensor_qos": "reliable",
+                       "pressure_topics": ["none"]}, tmp_path / "node.log")
+    client = MonitorClient(pressure_topics=())
+    try:
+        client.wait_for_node()
+        s, angle = _pose(0.62)
+        client.publish_joint_state(T0, JOINTS, [s, angle])
+        assert client.spin_until(lambda: client.outputs_at("steerability", T0), 20)
+        setter = client.node.create_client(SetParameters, "/linkage_monitor/set_parameters")
+        assert setter.wait_for_service(timeout_sec=10)
+        future = setter.call_async(SetParameters.Request(parameters=[
+            Parameter("implement_mass", value=3000.0).to_parameter_msg()]))
+        assert client.spin_until(future.done, 10) and future.result().results[0].successful
+        client.publish_joint_state(T0 + 1, JOINTS, [s, angle])
+        assert client.spin_until(lambda: client.outputs_at("steerability", T0 + 1), 20)
+    finally:
+        client.close()
+        assert stop(proc) == 0
+    mech = load_preset("belarus_1221")
+    before, after = (client.outputs_at("hitch_state", T0 + k)[0] for k in (0, 1))
+    assert not after.implement_load_estimated
+    assert before.implement_load == pytest.approx(mech.implement.mass * 9.80665, rel=1e-12)  # the file's mass
+    assert after.implement_load == pytest.approx(3000.0 * 9.80665, rel=1e-12)               # the new parameter
+    heavy = load_preset("belarus_1221").with_overrides({"implement.mass": 3000.0})
+    offline = Solver(heavy).solve(Inputs(cylinders={"lift_cylinder": s}, angles={"lift_arm_angle": angle}))
+    expected = MachineModel(heavy, Solver(heavy)).evaluate(offline).steerability["margin"]
+    assert client.outputs_at("steerability", T0 + 1)[0].margin == pytest.approx(expected, rel=1e-9)
