@@ -30,7 +30,6 @@ from .mechanics import BatchResult, Mechanism, mechanism_from_dict
 from .mechanics.machine import MachineBatch
 from .mechanics.results import STATUS_LIFT_OFF, STATUS_OK
 from .monitor import ERROR, OK, WARN, WARNING_JOIN, Monitor, Pending, Step
-from .outputs import stamp_ns
 from .recording import MECHANISM_TOPIC, BagError, BagWriter
 
 OUTPUT_TOPICS = ("/hinge_reactions", "/hitch_state", "/steerability")

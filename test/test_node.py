@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import rclpy
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 

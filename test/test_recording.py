@@ -21,7 +21,6 @@ from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from sensor_msgs.msg import FluidPressure, JointState
-from std_msgs.msg import String
 
 from linkage_monitor.msg_schema import dependencies, message_definition, msg_file
 from linkage_monitor.recording import MECHANISM_TOPIC, BagError, BagWriter
