@@ -155,6 +155,8 @@ class LinkageMonitorNode(Node):
         elif p["rerun"] != "off":
             raise ValueError(f"parameter rerun = '{p['rerun']}': expected 'off', 'save' or 'connect'")
 
+        if p["sensor_qos"] not in ("sensor_data", "reliable"):
+            raise ValueError(f"parameter sensor_qos = '{p['sensor_qos']}': expected 'sensor_data' or 'reliable'")
         input_qos = qos_profile_sensor_data if p["sensor_qos"] == "sensor_data" else QoSProfile(
             depth=100, reliability=ReliabilityPolicy.RELIABLE)
         self.input_qos = input_qos
