@@ -233,6 +233,9 @@ class MachineModel:
             front, rear = axle_loads(mech.tractor, mech.gravity, batch.frame_load_points, batch.frame_load_forces)
             steer = steerability(mech.tractor, mech.gravity, front, rear, batch.implement_load, batch.implement_cg[:, 0])
         if capacity:
+            # A point that the cylinder pushing at p_max lowers instead of lifting (e.g. the front
+            # axle of seed 001's base-change parallelogram) has no lift capacity: NaN, not a negative load.
+            capacity = {k: np.where(v > 0.0, v, np.nan) for k, v in capacity.items()}
             with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
                 capacity["reserve"] = np.where(batch.implement_load > 0.0,
                                                capacity["implement_cg"] / batch.implement_load, np.inf)
