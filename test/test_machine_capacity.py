@@ -110,3 +110,16 @@ def test_machine_summary_for_solve_json():
     # docs/seed003_belarus.md: R_A = 22.2 kN, k = 0.254 (header 15.0 kN; the pressure 10.132 MPa estimates 15.05 kN)
     assert abs(summary["steerability"]["front_axle_load"] / 1e3 - 22.2) < 0.1
     assert abs(summary["steerability"]["ratio"] - 0.254) < 0.002
+
+
+def test_no_negative_capacity_where_the_cylinder_lowers_the_point():
+    """seed 001's base-change cylinder pushes the front axle down, not up: its 'implement' (the
+    axle load) has no lift capacity; the summary says None instead of a negative load."""
+    from linkage_monitor.mechanics import Inputs, Solver, load_preset
+    from linkage_monitor.mechanics.machine import machine_summary
+
+    mech = load_preset("ttz1080_base_change")
+    solver = Solver(mech)
+    result = solver.solve(Inputs(cylinders=dict(mech.reference_inputs["cylinders"])))
+    assert result.cylinders["base_change_cylinder"].force > 0.0  # pushing holds the axle load
+    assert machine_summary(solver, result)["lift_capacity"]["implement_cg"] is None
