@@ -16,6 +16,7 @@ import numpy as np
 
 from .mechanics import InputError, LinkageError, Mechanism, load_mechanism, load_preset
 from .mechanics.calibration import UNITS, FitResult, calibrate, fitted_yaml
+from .name_value import name_value, number
 
 ATMOSPHERE = 101325.0  # Pa, ISO 2533; sensor_msgs/FluidPressure carries absolute pressure
 
@@ -50,17 +51,9 @@ def add_calibrate_parser(subparsers: argparse._SubParsersAction) -> argparse.Arg
     return p
 
 
-def _pairs(texts: list[str], option: str) -> dict[str, float]:
-    out = {}
-    for text in texts:
-        name, sep, value = text.partition("=")
-        try:
-            out[name] = float(value)
-        except ValueError:
-            raise InputError(f"{option} {text!r}: expected NAME=NUMBER") from None
-        if not sep or not name:
-            raise InputError(f"{option} {text!r}: expected NAME=NUMBER")
-    return out
+def _numbers(texts: list[str], option: str) -> dict[str, float]:
+    pairs = (name_value(text, option) for text in texts)
+    return {name: number(value, option, name) for name, value in pairs}
 
 
 def read_csv_columns(path: Path) -> dict[str, np.ndarray]:
@@ -155,8 +148,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
         columns = read_csv_columns(data_path)
     free = [k.strip() for text in args.free for k in text.split(",") if k.strip()]
     inputs = [k.strip() for k in args.inputs.split(",") if k.strip()] if args.inputs else None
-    result = calibrate(start, columns, free, inputs=inputs, sigma=_pairs(args.sigma, "--sigma"),
-                       half_widths=_pairs(args.bound, "--bound"))
+    result = calibrate(start, columns, free, inputs=inputs, sigma=_numbers(args.sigma, "--sigma"),
+                       half_widths=_numbers(args.bound, "--bound"))
     text = fitted_yaml(result, args.mechanism or f"preset {args.preset}", str(data_path))
     try:
         Path(args.out).write_text(text, encoding="utf-8")

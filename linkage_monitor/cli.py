@@ -20,6 +20,7 @@ from .calibrate_cli import add_calibrate_parser, run_calibrate
 from .capacity_cli import add_capacity_parser, run_capacity
 from .mechanics.machine import machine_summary
 from .mechanics.presets import preset_description
+from .name_value import name_value, number
 from .recording import BagError
 from .replay import mechanism_in_bag, replay
 from .simulate_cli import add_simulate_parser, run_simulate
@@ -72,33 +73,19 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _pair(text: str, option: str) -> tuple[str, str]:
-    name, sep, value = text.partition("=")
-    if not sep or not name or not value:
-        raise LinkageError(f"{option} {text!r}: expected NAME=VALUE")
-    return name, value
-
-
-def _number(text: str, option: str, name: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        raise LinkageError(f"{option} {name}={text}: {text!r} is not a number") from None
-
-
 def _inputs(mech: Mechanism, args: argparse.Namespace) -> Inputs:
     ref = mech.reference_inputs
     cylinders = dict(ref.get("cylinders", {}))
     angles = dict(ref.get("angles", {}))
     pressures = dict(ref.get("pressures", {}))
     for text in args.stroke:
-        name, value = _pair(text, "--stroke")
-        cylinders[name] = _number(value, "--stroke", name)
+        name, value = name_value(text, "--stroke")
+        cylinders[name] = number(value, "--stroke", name)
     for text in args.angle:
-        name, value = _pair(text, "--angle")
-        angles[name] = _number(value, "--angle", name)
+        name, value = name_value(text, "--angle")
+        angles[name] = number(value, "--angle", name)
     for text in args.pressure:
-        name, value = _pair(text, "--pressure")
+        name, value = name_value(text, "--pressure")
         chambers = dict(zip(("cap", "rod"), value.split(":", 1)))
         sensors = {ps.chamber: ps.name for ps in mech.measurements.pressures if ps.cylinder == name}
         if not sensors:
@@ -108,7 +95,7 @@ def _inputs(mech: Mechanism, args: argparse.Namespace) -> Inputs:
         for chamber, v in chambers.items():
             if chamber not in sensors:
                 raise LinkageError(f"--pressure {text}: cylinder '{name}' has no {chamber}-chamber sensor")
-            pressures[sensors[chamber]] = _number(v, "--pressure", name)
+            pressures[sensors[chamber]] = number(v, "--pressure", name)
     return Inputs(cylinders=cylinders, angles=angles, pressures=pressures)
 
 
@@ -159,7 +146,7 @@ def _solve(args: argparse.Namespace) -> int:
     mech = load_preset(args.preset) if args.preset else load_mechanism(args.mechanism)
     overrides = {}
     for text in args.set:
-        key, value = _pair(text, "--set")
+        key, value = name_value(text, "--set")
         overrides[key] = yaml.safe_load(value)
     if overrides:
         mech = mech.with_overrides(overrides)

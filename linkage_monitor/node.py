@@ -29,6 +29,7 @@ from std_msgs.msg import String
 from . import outputs as out
 from .diagnostics import DiagnosticGate, diagnostic_array
 from .inputs import ATMOSPHERIC_PRESSURE, InputConfig
+from .name_value import name_value
 from .mechanics import LinkageError, load_mechanism, load_preset, preset_names
 from .monitor import ERROR, WARN, Monitor, Step
 from .msg import HingeReactions, HitchState, Steerability
@@ -88,15 +89,7 @@ def _descriptor(name: str) -> ParameterDescriptor:
 
 
 def _pairs(items: list[str], what: str) -> dict[str, str]:
-    pairs = {}
-    for item in items:
-        if not item:
-            continue
-        key, sep, value = item.partition("=")
-        if not sep or not key or not value:
-            raise ValueError(f"parameter {what}: entry '{item}' is not of the form 'name=value'")
-        pairs[key.strip()] = value.strip()
-    return pairs
+    return dict(name_value(item, f"parameter {what}:") for item in items if item)
 
 
 def load_description(spec: str):

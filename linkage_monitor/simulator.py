@@ -59,6 +59,7 @@ from .mechanics import LinkageError, Mechanism, Solver, UnobservableError, mecha
 from .mechanics.capacity import interval_around, reference_length, stroke_mechanism
 from .mechanics.machine import axle_loads, steerability
 from .mechanics.model import PressureSensor
+from .mechanics.results import angle_readings
 
 ATMOSPHERE = 101325.0   # Pa, ISO 2533 standard atmosphere; FluidPressure carries absolute pressure
 SCENARIOS = ("lift", "transport", "field", "overload")
@@ -239,11 +240,9 @@ class _Plant:
         bad = np.flatnonzero(empty.status != 0)
         if bad.size:
             raise LinkageError(f"{self.mech.file}: {empty.messages[bad[0]]}")
-        hinges = {h.name: h for h in self.mech.hinges}
-        angles = np.zeros((len(driver), len(self.mech.measurements.angles)))
-        for k, a in enumerate(self.mech.measurements.angles):
-            b0, b1 = hinges[a.hinge].bodies   # sensor: rotation of bodies[1] relative to bodies[0] (schema)
-            angles[:, k] = (a.reference + _rotation(empty, b1) - _rotation(empty, b0))[inverse]
+        readings = angle_readings(self.mech, empty)
+        angles = np.stack([readings[a.name][inverse] for a in self.mech.measurements.angles], axis=1
+                          ).reshape(len(driver), len(self.mech.measurements.angles))
         share = load / (_UNIT_MASS * self.mech.gravity)
         forces = {c.name: empty.cylinder_force[c.name][inverse]
                   + share * (unit.cylinder_force[c.name] - empty.cylinder_force[c.name])[inverse]
@@ -458,9 +457,3 @@ def _chamber_pressure(mech: Mechanism, sensor: PressureSensor, force: np.ndarray
     if sensor.chamber == "cap":
         return (np.maximum(force, 0.0) if both else force) / (cyl.count * cyl.cap_area)
     return (np.maximum(-force, 0.0) if both else -force) / (cyl.count * cyl.rod_area)
-
-
-def _rotation(batch: Any, body: str) -> np.ndarray:
-    """Rotation of ``body`` from the reference pose (rad); the ground body does not rotate."""
-    pose = batch.body_poses.get(body)
-    return pose[:, 2] if pose is not None else np.zeros(len(batch))

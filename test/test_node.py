@@ -18,6 +18,7 @@ from linkage_monitor.inputs import ATMOSPHERIC_PRESSURE
 from linkage_monitor.mechanics import Inputs, Solver, load_preset
 from linkage_monitor.mechanics.capacity import stroke_mechanism
 from linkage_monitor.mechanics.machine import MachineModel
+from linkage_monitor.mechanics.results import angle_readings
 from linkage_monitor.outputs import stamp_ns
 from support.ros_harness import MonitorClient, start_node, stop
 
@@ -26,29 +27,12 @@ JOINTS = ["lift_cylinder", "lift_arm_angle"]
 PRESSURE_TOPIC = "pressure/lift_cap_pressure"
 
 
-@pytest.fixture
-def node(ros, tmp_path):
-    proc = start_node({"mechanism": "belarus_1221", "record_dir": str(tmp_path / "bags"),
-                       "sensor_qos": "reliable", "staleness_limit": 0.5}, tmp_path / "node.log")
-    client = MonitorClient()
-    try:
-        client.wait_for_node()
-        yield client, proc, tmp_path
-    finally:
-        client.close()
-        code = stop(proc)
-        assert code == 0, f"node exit code {code}:\n" + (tmp_path / "node.log").read_text()
-
-
 def _pose(stroke: float) -> tuple[float, float]:
     """A consistent (stroke m, lift-arm angle rad) pair: the angle from the offline kinematics
     driven by the stroke alone."""
     mech = load_preset("belarus_1221")
     batch = Solver(stroke_mechanism(mech)).solve_batch(cylinders={"lift_cylinder": np.array([stroke])})
-    sensor = mech.measurements.angles[0]
-    hinge = next(h for h in mech.hinges if h.name == sensor.hinge)
-    theta = lambda body: batch.body_poses[body][0, 2] if body in batch.body_poses else 0.0  # noqa: E731
-    return stroke, sensor.reference + theta(hinge.bodies[1]) - theta(hinge.bodies[0])
+    return stroke, float(angle_readings(mech, batch)["lift_arm_angle"][0])
 
 
 def _send(client: MonitorClient, stamp: int, stroke: float, angle: float, gauge_pa: float) -> None:

@@ -13,7 +13,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pytest
 import rclpy
 import yaml
 from mcap.reader import make_reader
@@ -24,7 +23,7 @@ from linkage_monitor.mechanics import Solver, load_preset
 from linkage_monitor.mechanics.capacity import stroke_mechanism
 from linkage_monitor.outputs import stamp_ns
 from linkage_monitor.recording import MECHANISM_TOPIC
-from support.ros_harness import MonitorClient, node_bag, read_bag_rosbags, settle, start_node, stop
+from support.ros_harness import MonitorClient, node_bag, read_bag_rosbags, settle, stop
 
 T0 = 1_795_000_000_000_000_000  # ns, an arbitrary input stamp
 JOINTS = ["lift_cylinder", "lift_arm_angle"]
@@ -32,20 +31,6 @@ PRESSURE_TOPIC = "pressure/lift_cap_pressure"
 INPUT_TOPICS = ("/joint_states", "/" + PRESSURE_TOPIC)
 OUTPUT_TOPICS = ("/hinge_reactions", "/hitch_state", "/steerability", "/diagnostics")
 FLUSH_PERIOD_S = 1.0  # s, the node's BagWriter flushes this often (recording.BagWriter default)
-
-
-@pytest.fixture
-def node(ros, tmp_path):
-    """A recording node (default record = true) fed by a reliable test client; stopped at the end."""
-    proc = start_node({"mechanism": "belarus_1221", "record_dir": str(tmp_path / "bags"), "sensor_qos": "reliable",
-                       "staleness_limit": 0.5}, tmp_path / "node.log")
-    client = MonitorClient()
-    try:
-        client.wait_for_node()
-        yield client, proc, tmp_path
-    finally:
-        client.close()
-        stop(proc, timeout=10.0)
 
 
 def _pose(stroke: float) -> tuple[float, float]:

@@ -25,6 +25,7 @@ from scipy.optimize import least_squares
 
 from .errors import InputError, LinkageError, MechanismFileError
 from .model import Mechanism
+from .results import angle_readings
 from .schema import mechanism_from_dict
 from .solver import Solver
 
@@ -201,20 +202,13 @@ def predict(mech: Mechanism, inputs: Mapping[str, np.ndarray], columns: Sequence
     angles = {k: v for k, v in inputs.items() if k not in cylinders}
     batch = solver.solve_batch(cylinders=cylinders, angles=angles)
     failed = batch.status >= 2   # input, assembly or dead-centre error (1 = lift-off still solves)
-    n = len(batch)
-    hinges = {h.name: h for h in mech.hinges}
-
-    def theta(body: str) -> np.ndarray:
-        return batch.body_poses[body][:, 2] if body in batch.body_poses else np.zeros(n)
-
+    readings = angle_readings(mech, batch)
     out = {}
     for col in columns:
         if col.source in ("point_x", "point_z"):
             value = batch.points[col.ref][:, 0 if col.source == "point_x" else 1]
-        elif col.source == "angle":   # sensor reads reference + θ(bodies[1]) − θ(bodies[0]) (schema, measurements)
-            sensor = next(a for a in mech.measurements.angles if a.name == col.ref)
-            a, b = hinges[sensor.hinge].bodies
-            value = sensor.reference + theta(b) - theta(a)
+        elif col.source == "angle":
+            value = readings[col.ref]
         elif col.source == "pressure":  # F = count·(p_cap·A_cap − p_rod·A_rod) (schema, cylinders[])
             sensor = next(p for p in mech.measurements.pressures if p.name == col.ref)
             cyl = mech.cylinder(sensor.cylinder)

@@ -17,7 +17,7 @@ import numpy as np
 from .capacity import capacity_force, capacity_mechanism, capacity_points, lift_cylinder, reference_length
 from .errors import LinkageError
 from .model import Mechanism, Tractor
-from .results import STATUS_INPUT, BatchResult, Result
+from .results import STATUS_INPUT, BatchResult, Result, angle_readings
 from .solver import Inputs, Solver
 
 STEERABILITY_KEYS = ("front_axle_load", "rear_axle_load", "total_weight", "wheelbase", "ratio", "ratio_min",
@@ -181,16 +181,8 @@ class MachineModel:
         Read back from the solution (exact pose, even when the inputs were redundant and noisy):
         an angle sensor reads reference + θ(bodies[1]) − θ(bodies[0]) (θ: rotation from the reference pose).
         """
-        mech = self.mech
-        hinges = {h.name: h for h in mech.hinges}
-        n = len(batch)
-
-        def theta(body: str) -> np.ndarray:
-            return batch.body_poses[body][:, 2] if body in batch.body_poses else np.zeros(n)
-
-        cylinders = {c: batch.cylinder_length[c] for c in mech.measurements.cylinders}
-        angles = {a.name: a.reference + theta(hinges[a.hinge].bodies[1]) - theta(hinges[a.hinge].bodies[0])
-                  for a in mech.measurements.angles}
+        cylinders = {c: batch.cylinder_length[c] for c in self.mech.measurements.cylinders}
+        angles = angle_readings(self.mech, batch)
         return cylinders, angles
 
     # ---- batched (replay, capacity curve) and one pose (the node) ------------------------------

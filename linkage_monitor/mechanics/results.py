@@ -7,8 +7,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .model import Mechanism
 
 STATUS_OK, STATUS_LIFT_OFF, STATUS_INPUT, STATUS_ASSEMBLY, STATUS_DEAD_CENTRE = 0, 1, 2, 3, 4
 STATUS_NAMES = {STATUS_OK: "ok", STATUS_LIFT_OFF: "lift_off", STATUS_INPUT: "input_error",
@@ -137,3 +141,17 @@ class BatchResult:
 def _hinge(fx: float, fz: float, from_body: str, on_body: str) -> HingeResult:
     """HingeResult of the force (fx, fz) N on ``on_body`` from ``from_body`` (Python floats: cheap per pose)."""
     return HingeResult(fx=fx, fz=fz, magnitude=math.hypot(fx, fz), on_body=on_body, from_body=from_body)
+
+
+def angle_readings(mech: "Mechanism", batch: BatchResult) -> dict[str, np.ndarray]:
+    """What each angle sensor of ``mech`` reads (rad, (N,)) in the solved poses of ``batch``:
+    reference + θ(bodies[1]) − θ(bodies[0]) of its hinge (schema, ``measurements.angles``),
+    θ the rotation from the reference pose; the ground body does not rotate."""
+    hinges = {h.name: h for h in mech.hinges}
+
+    def theta(body: str) -> np.ndarray:
+        pose = batch.body_poses.get(body)
+        return pose[:, 2] if pose is not None else np.zeros(len(batch))
+
+    return {a.name: a.reference + theta(hinges[a.hinge].bodies[1]) - theta(hinges[a.hinge].bodies[0])
+            for a in mech.measurements.angles}
