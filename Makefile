@@ -50,7 +50,7 @@ test: setup
 	$(PY) -m pytest $(PYTEST_ARGS)
 
 demo: setup
-	$(PY) -m linkage_monitor.demo
+	$(PY) tools/demo.py
 
 bench: setup
 	$(PY) bench/run_all.py

@@ -102,15 +102,15 @@ setup(
     version="0.1.0",
     description="Live hinge reactions, lift capacity and steerability of tractor linkages (ROS 2)",
     packages=sorted({*find_packages(include=[PACKAGE, f"{PACKAGE}.*"]), f"{PACKAGE}.msg"}),
-    package_data={PACKAGE: ["*.so"], f"{PACKAGE}.presets": ["*.yaml"]},
+    package_data={PACKAGE: ["*.so"], f"{PACKAGE}.mechanics.presets": ["*.yaml"]},
     data_files=[],
     python_requires=">=3.10",
     distclass=PlatformDistribution,
     cmdclass={"build_py": BuildWithMessages},
     entry_points={
         "console_scripts": [
-            "linkage-monitor = linkage_monitor.cli:main",
-            "linkage_monitor_node = linkage_monitor.node:main",
+            "linkage-monitor = linkage_monitor.cli.main:main",
+            "linkage_monitor_node = linkage_monitor.ros.node:main",
         ],
     },
 )

@@ -14,8 +14,8 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from sensor_msgs.msg import FluidPressure, JointState
 
-from linkage_monitor.bag_reader import read_bag, read_inputs
-from linkage_monitor.recording import BagWriter
+from linkage_monitor.bag.reader import read_bag, read_inputs
+from linkage_monitor.bag.writer import BagWriter
 
 
 def _rate(label: str, count: int, seconds: float) -> None:

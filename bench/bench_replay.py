@@ -4,7 +4,7 @@ Run: .venv/bin/python bench/bench_replay.py [BAG]   (default: the bundled belaru
 Prints messages per second of
 - raw decode: mcap + mcap-ros2-support decoding every message of the bag (the floor of any
   reader in Python, measured in the same run),
-- replay: `linkage_monitor.replay.replay` over the same bag (read, solve batched, machine-level
+- replay: `linkage_monitor.offline.replay.replay` over the same bag (read, solve batched, machine-level
   results, output messages), without and with writing the output bag,
 and the ratios to the raw decode (goal >= 0.5).
 """
@@ -19,7 +19,7 @@ from pathlib import Path
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from linkage_monitor.replay import mechanism_in_bag, replay
+from linkage_monitor.offline.replay import mechanism_in_bag, replay
 
 BAG = Path(__file__).resolve().parent.parent / "bags" / "belarus_1221_lift_transport"
 

@@ -13,7 +13,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
 from linkage_monitor.msg import HitchState
-from linkage_monitor.node import LATCHED, OUTPUT_QOS
+from linkage_monitor.ros.node import LATCHED, OUTPUT_QOS
 
 INPUT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)  # the node's sensor_qos = reliable
 

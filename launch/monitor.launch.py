@@ -38,7 +38,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Run linkage_monitor_node with a parameter file.")
     parser.add_argument("--params", type=Path, default=DEFAULT_PARAMS, help="config/<preset>.yaml")
     args = parser.parse_args(argv)
-    command = [sys.executable, "-m", "linkage_monitor.node", "--ros-args", "--params-file", str(args.params)]
+    command = [sys.executable, "-m", "linkage_monitor.ros.node", "--ros-args", "--params-file", str(args.params)]
     node = subprocess.Popen(command)
     try:
         return node.wait()

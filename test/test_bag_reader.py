@@ -12,9 +12,9 @@ from rosbags.typesys import Stores, get_typestore
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import String
 
-from linkage_monitor.bag_reader import (
+from linkage_monitor.bag.reader import (
     JointStateColumns, PressureColumns, read_bag, read_inputs)
-from linkage_monitor.recording import BagError, BagWriter
+from linkage_monitor.bag.writer import BagError, BagWriter
 
 T0 = 1_700_000_000_000_000_000  # ns since the epoch
 N = 25

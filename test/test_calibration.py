@@ -15,12 +15,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from linkage_monitor.calibrate_cli import add_calibrate_parser, run_calibrate
+from linkage_monitor.cli.calibrate import add_calibrate_parser, run_calibrate
 from linkage_monitor.mechanics import LinkageError, MechanismFileError, Solver, load_mechanism, load_preset
 from linkage_monitor.mechanics.calibration import calibrate, parameter_value, with_parameters
 from linkage_monitor.mechanics.capacity import stroke_mechanism
-from linkage_monitor.recording import BagWriter
-from linkage_monitor.simulator import Noise, simulate
+from linkage_monitor.bag.writer import BagWriter
+from linkage_monitor.sim.telemetry import Noise, simulate
 
 ATMOSPHERE = 101325.0  # Pa; FluidPressure carries absolute pressure
 REFERENCE = "measurements.angles.lift_arm_angle.reference"

@@ -8,7 +8,7 @@ import json
 import matplotlib.image
 import numpy as np
 
-from linkage_monitor.capacity_cli import add_capacity_parser, run_capacity
+from linkage_monitor.cli.capacity import add_capacity_parser, run_capacity
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"  # PNG spec, section 5.2
 

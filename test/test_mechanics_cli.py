@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from linkage_monitor.cli import main
+from linkage_monitor.cli.main import main
 from test_mechanics_oracles import FIXTURES
 
 HITCH = str(FIXTURES / "hitch.yaml")

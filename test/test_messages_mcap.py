@@ -12,7 +12,7 @@ from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from linkage_monitor.recording import BagWriter
+from linkage_monitor.bag.writer import BagWriter
 from support.messages import CUSTOM_TYPES, samples, to_dict
 
 STAMP_NS = 1_763_000_000_123_456_789

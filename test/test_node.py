@@ -14,12 +14,12 @@ import pytest
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 
-from linkage_monitor.inputs import ATMOSPHERIC_PRESSURE
+from linkage_monitor.monitoring.inputs import ATMOSPHERIC_PRESSURE
 from linkage_monitor.mechanics import Inputs, Solver, load_preset
 from linkage_monitor.mechanics.capacity import stroke_mechanism
 from linkage_monitor.mechanics.machine import MachineModel
 from linkage_monitor.mechanics.results import angle_readings
-from linkage_monitor.outputs import stamp_ns
+from linkage_monitor.ros.messages import stamp_ns
 from support.ros_harness import MonitorClient, start_node, stop
 
 T0 = 1_795_000_000_000_000_000  # ns, an arbitrary stamp (2026-11): outputs must carry the inputs' stamps

@@ -18,11 +18,11 @@ import yaml
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from linkage_monitor.inputs import ATMOSPHERIC_PRESSURE
+from linkage_monitor.monitoring.inputs import ATMOSPHERIC_PRESSURE
 from linkage_monitor.mechanics import Solver, load_preset
 from linkage_monitor.mechanics.capacity import stroke_mechanism
-from linkage_monitor.outputs import stamp_ns
-from linkage_monitor.recording import MECHANISM_TOPIC
+from linkage_monitor.ros.messages import stamp_ns
+from linkage_monitor.bag.writer import MECHANISM_TOPIC
 from support.ros_harness import MonitorClient, node_bag, read_bag_rosbags, settle, stop
 
 T0 = 1_795_000_000_000_000_000  # ns, an arbitrary input stamp

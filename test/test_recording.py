@@ -22,8 +22,8 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from sensor_msgs.msg import FluidPressure, JointState
 
-from linkage_monitor.msg_schema import dependencies, message_definition, msg_file
-from linkage_monitor.recording import MECHANISM_TOPIC, BagError, BagWriter
+from linkage_monitor.bag.definitions import dependencies, message_definition, msg_file
+from linkage_monitor.bag.writer import MECHANISM_TOPIC, BagError, BagWriter
 
 REPO = Path(__file__).resolve().parents[1]
 T0 = 1_700_000_000_000_000_000  # ns since the epoch, an arbitrary recording start
@@ -233,7 +233,7 @@ def test_refuses_misuse(tmp_path: Path) -> None:
 _CHILD = """
 import sys, time
 from sensor_msgs.msg import JointState
-from linkage_monitor.recording import BagWriter
+from linkage_monitor.bag.writer import BagWriter
 writer = BagWriter(sys.argv[1], flush_period_s={period})
 i = 0
 while True:
@@ -251,7 +251,7 @@ def test_killed_writer_leaves_a_readable_bag(tmp_path: Path) -> None:
     """SIGKILL mid-recording: every reader gets the messages up to the last flush."""
     import rerun.chunk as rc
 
-    from linkage_monitor.bag_reader import read_bag
+    from linkage_monitor.bag.reader import read_bag
 
     period = 0.5
     directory = tmp_path / "killed"

@@ -21,14 +21,14 @@ from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from linkage_monitor.cli import main as cli_main
+from linkage_monitor.cli.main import main as cli_main
 from linkage_monitor.mechanics import load_preset
 from linkage_monitor.msg import HingeReactions
-from linkage_monitor.outputs import stamp_ns
-from linkage_monitor.bag_reader import message_class
-from linkage_monitor.player import sensor_messages
-from linkage_monitor.replay import replay
-from linkage_monitor.simulator import Noise, simulate
+from linkage_monitor.ros.messages import stamp_ns
+from linkage_monitor.bag.reader import message_class
+from linkage_monitor.ros.player import sensor_messages
+from linkage_monitor.offline.replay import replay
+from linkage_monitor.sim.telemetry import Noise, simulate
 from support.ros_harness import RELIABLE
 
 T0 = 1_795_100_000_000_000_000  # ns, arbitrary header stamp of the first sample
@@ -79,7 +79,7 @@ def _spin(node, condition, timeout: float) -> bool:
 
 
 def test_replay_equals_live_node_for_the_same_inputs(ros2_bag, tmp_path):
-    node = subprocess.Popen([sys.executable, "-m", "linkage_monitor.node", "--ros-args", "-p", "sensor_qos:=reliable",
+    node = subprocess.Popen([sys.executable, "-m", "linkage_monitor.ros.node", "--ros-args", "-p", "sensor_qos:=reliable",
                              "-p", f"record_dir:={tmp_path}", "-p", "record_name:=live"],
                             stdout=(tmp_path / "node.log").open("w"), stderr=subprocess.STDOUT)
     rclpy.init()

@@ -14,7 +14,7 @@ import pytest
 from rerun.chunk import RrdReader
 
 from linkage_monitor.mechanics import BatchResult, Inputs, Mechanism, Solver, load_preset, mechanism_from_dict
-from linkage_monitor.rerun_view import (ARROW_LENGTH, CYLINDER_COLOR, RerunView, default_blueprint,
+from linkage_monitor.viz.rerun_view import (ARROW_LENGTH, CYLINDER_COLOR, RerunView, default_blueprint,
                                         largest_hinges, linkage_bounds)
 
 RERUN = Path(sys.executable).with_name("rerun")

@@ -1,4 +1,4 @@
-"""The shipped sample bags (bags/, made by `python -m linkage_monitor.make_bags`) decode
+"""The shipped sample bags (bags/, made by `python tools/make_bags.py`) decode
 message by message with three readers we did not write, and replay offline."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from rerun.chunk import McapReader
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from linkage_monitor.replay import mechanism_in_bag, replay
+from linkage_monitor.offline.replay import mechanism_in_bag, replay
 
 BAGS = sorted(p for p in (Path(__file__).resolve().parent.parent / "bags").iterdir() if p.is_dir())
 

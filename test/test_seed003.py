@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from linkage_monitor.mechanics import load_preset
-from linkage_monitor.seed003_table import PAPER_TABLE_1, PAPER_TABLE_2, seed003_values
+from seed003_table import PAPER_TABLE_1, PAPER_TABLE_2, seed003_values  # tools/seed003_table.py
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -62,9 +62,9 @@ def test_table_2_forces_per_row(row: int):
 def test_generated_doc_is_current(tmp_path: Path):
     """docs/seed003_tables.md is exactly what its command prints (regenerate: see the doc's first lines)."""
     out = tmp_path / "seed003_tables.md"
-    subprocess.run([sys.executable, "-m", "linkage_monitor.seed003_table", "--out", str(out)], cwd=REPO, check=True,
+    subprocess.run([sys.executable, str(REPO / "tools" / "seed003_table.py"), "--out", str(out)], cwd=REPO, check=True,
                    timeout=120)
     committed = (REPO / "docs" / "seed003_tables.md").read_text(encoding="utf-8")
     assert out.read_text(encoding="utf-8") == committed, (
-        "docs/seed003_tables.md is stale: run .venv/bin/python -m linkage_monitor.seed003_table "
+        "docs/seed003_tables.md is stale: run .venv/bin/python tools/seed003_table.py "
         "--out docs/seed003_tables.md")

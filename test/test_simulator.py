@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 
 from linkage_monitor.mechanics import Inputs, Solver, load_preset, mechanism_from_dict
-from linkage_monitor.simulate_cli import add_simulate_parser, run_simulate
-from linkage_monitor.simulator import SCENARIOS, Noise, find_stroke, simulate
+from linkage_monitor.cli.simulate import add_simulate_parser, run_simulate
+from linkage_monitor.sim.telemetry import SCENARIOS, Noise, find_stroke, simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 G = 9.80665                   # m/s², the preset's gravity
@@ -163,7 +163,7 @@ def test_node_publishes_joint_states_and_fluid_pressure(belarus, solver):
     from sensor_msgs.msg import FluidPressure, JointState
 
     child = subprocess.Popen(
-        [sys.executable, "-m", "linkage_monitor.simulator_node", "--preset", "belarus_1221", "--scenario", "lift",
+        [sys.executable, "-m", "linkage_monitor.sim.node", "--preset", "belarus_1221", "--scenario", "lift",
          "--rate", "50", "--duration", "8", "--noise-angle", "0", "--noise-length", "0", "--noise-pressure", "0"],
         cwd=ROOT, env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     joints: dict[int, JointState] = {}

@@ -25,7 +25,7 @@ from scipy.optimize import least_squares
 
 from .errors import InputError, LinkageError, MechanismFileError
 from .model import Mechanism
-from .results import angle_readings
+from .results import Status, angle_readings
 from .schema import mechanism_from_dict
 from .solver import Solver
 
@@ -201,7 +201,7 @@ def predict(mech: Mechanism, inputs: Mapping[str, np.ndarray], columns: Sequence
     cylinders = {k: v for k, v in inputs.items() if k in drive.measurements.cylinders}
     angles = {k: v for k, v in inputs.items() if k not in cylinders}
     batch = solver.solve_batch(cylinders=cylinders, angles=angles)
-    failed = batch.status >= 2   # input, assembly or dead-centre error (1 = lift-off still solves)
+    failed = batch.status >= Status.INPUT   # input, assembly or dead-centre error (lift-off still solves)
     readings = angle_readings(mech, batch)
     out = {}
     for col in columns:

@@ -15,8 +15,8 @@ import numpy as np
 
 from .linalg import condition_1, det_sign_and_condition, solve_square
 from .model import Mechanism
+from .results import Status
 
-OK, ASSEMBLY, DEAD_CENTRE = 0, 3, 4  # status codes shared with solver.py (1 = lift-off, 2 = input)
 
 
 @dataclass
@@ -305,12 +305,12 @@ class Kinematics:
         if still.size and self.m == self.n:  # say how far the inputs are out of reach
             reach = self.reachable_fraction(s[still])
             for i, t in zip(still, reach):
-                status[i], messages[i] = ASSEMBLY, self.reach_message(s[i], t)
-        for i in np.flatnonzero(~(np.abs(phi).max(axis=1) <= limit) & (status == OK)):
-            status[i] = ASSEMBLY
+                status[i], messages[i] = Status.ASSEMBLY, self.reach_message(s[i], t)
+        for i in np.flatnonzero(~(np.abs(phi).max(axis=1) <= limit) & (status == Status.OK)):
+            status[i] = Status.ASSEMBLY
             messages[i] = self.assembly_message(phi[i], s[i])
-        for i in np.flatnonzero((status == OK) & ~(cond <= dead_centre_cond)):
-            status[i] = DEAD_CENTRE
+        for i in np.flatnonzero((status == Status.OK) & ~(cond <= dead_centre_cond)):
+            status[i] = Status.DEAD_CENTRE
             messages[i] = (f"kinematic dead centre at {self.describe_inputs(s[i])}: constraint Jacobian "
                            f"condition number {cond[i]:.3g} > {dead_centre_cond:.3g}")
         return KinematicState(s=s, q=q, phi=phi, jac=jac, status=status, messages=messages, condition=cond)

@@ -17,7 +17,7 @@ import numpy as np
 from .capacity import capacity_force, capacity_mechanism, capacity_points, lift_cylinder, reference_length
 from .errors import LinkageError
 from .model import Mechanism, Tractor
-from .results import STATUS_INPUT, BatchResult, Result, angle_readings
+from .results import BatchResult, Status, Result, angle_readings
 from .solver import Inputs, Solver
 
 STEERABILITY_KEYS = ("front_axle_load", "rear_axle_load", "total_weight", "wheelbase", "ratio", "ratio_min",
@@ -191,7 +191,7 @@ class MachineModel:
         capacity: dict[str, np.ndarray] = {}
         if self.has_capacity:
             cylinders, angles = self.pose_inputs(batch)
-            ok = batch.status < STATUS_INPUT
+            ok = batch.status < Status.INPUT
             cylinders = {k: np.where(ok, v, np.nan) for k, v in cylinders.items()}
             for name, solver in self.capacity_solvers.items():
                 res = solver.solve_batch(cylinders=cylinders, angles=angles, pressures=self._capacity_pressure[name])

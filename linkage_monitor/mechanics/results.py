@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from enum import IntEnum
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -14,9 +15,30 @@ import numpy as np
 if TYPE_CHECKING:
     from .model import Mechanism
 
-STATUS_OK, STATUS_LIFT_OFF, STATUS_INPUT, STATUS_ASSEMBLY, STATUS_DEAD_CENTRE = 0, 1, 2, 3, 4
-STATUS_NAMES = {STATUS_OK: "ok", STATUS_LIFT_OFF: "lift_off", STATUS_INPUT: "input_error",
-                STATUS_ASSEMBLY: "assembly_error", STATUS_DEAD_CENTRE: "dead_centre"}
+
+
+class Status(IntEnum):
+    """Verdict of the solver on one pose (``BatchResult.status`` holds these values as ints).
+
+    OK and LIFT_OFF are solved poses (LIFT_OFF: a ground contact would pull, the forces are
+    still published with a warning); the others are failures that produce no forces.
+    """
+
+    OK = 0
+    LIFT_OFF = 1
+    INPUT = 2        # an input is not a finite number / out of its physical range
+    ASSEMBLY = 3     # the linkage cannot be assembled for the inputs (or only off its branch)
+    DEAD_CENTRE = 4  # near-singular kinematics or statics
+
+    @property
+    def solved(self) -> bool:
+        """True for a pose with forces (OK or LIFT_OFF)."""
+        return self < Status.INPUT
+
+    @property
+    def label(self) -> str:
+        """Lower-case name for messages and JSON (``ok``, ``lift_off``, ``input``, ...)."""
+        return self.name.lower()
 
 
 @dataclass(frozen=True)
@@ -87,8 +109,7 @@ class Result:
 class BatchResult:
     """The same quantities for N poses as arrays (first axis = pose); failed poses hold NaN.
 
-    ``status`` (N,) int: 0 ok, 1 lift_off, 2 input_error, 3 assembly_error, 4 dead_centre
-    (``STATUS_NAMES``); ``messages[i]`` says what went wrong with pose i ("" when ok).
+    ``status`` (N,) int: a :class:`Status` value per pose; ``messages[i]`` says what went wrong with pose i ("" when ok).
     ``hinge_force[name]`` (N, 2) N on bodies[1] from bodies[0]; ``frame_load_points`` and
     ``frame_load_forces`` (N, K, 2) in the order of ``frame_load_names``.
     """
@@ -135,7 +156,7 @@ class BatchResult:
             frame_loads=[(self.frame_load_points[i, k].copy(), self.frame_load_forces[i, k].copy())
                          for k in range(len(self.frame_load_names))],
             residual=float(self.residual[i]), consistency_residual=float(self.consistency_residual[i]),
-            condition=float(self.condition[i]), status=STATUS_NAMES[int(self.status[i])], message=self.messages[i])
+            condition=float(self.condition[i]), status=Status(int(self.status[i])).label, message=self.messages[i])
 
 
 def _hinge(fx: float, fz: float, from_body: str, on_body: str) -> HingeResult:

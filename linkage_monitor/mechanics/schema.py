@@ -30,17 +30,27 @@ def load_mechanism(path: str | Path) -> Mechanism:
     """Read and validate a mechanism YAML file (SI units, frame x forward / z up, origin B)."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        data = path.read_bytes()
     except OSError as exc:
         raise MechanismFileError(str(path), "", f"cannot read the file ({exc.strerror})") from exc
+    return mechanism_from_text(data, file=str(path))
+
+
+def mechanism_from_text(text: bytes | str, file: str = "<text>") -> Mechanism:
+    """Parse and validate a mechanism description given as YAML text; ``file`` names it in errors."""
+    if isinstance(text, bytes):
+        try:
+            text = text.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise MechanismFileError(file, "", f"not UTF-8 text (byte {exc.start}: {exc.reason})") from exc
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark is not None else "YAML"
         problem = getattr(exc, "problem", None) or str(exc)
-        raise MechanismFileError(str(path), where, f"malformed YAML: {problem}") from exc
-    return mechanism_from_dict(data, file=str(path))
+        raise MechanismFileError(file, where, f"malformed YAML: {problem}") from exc
+    return mechanism_from_dict(data, file=file)
 
 
 def mechanism_from_dict(data: Any, file: str = "<dict>") -> Mechanism:

@@ -13,8 +13,7 @@ import numpy as np
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
 from .kinematics import Kinematics, KinematicState
 from .model import Mechanism
-from .results import (STATUS_ASSEMBLY, STATUS_DEAD_CENTRE, STATUS_INPUT, STATUS_LIFT_OFF, STATUS_OK,
-                      BatchResult, Result)
+from .results import BatchResult, Result, Status
 from .statics import StaticsLayout
 
 ATMOSPHERE = 101325.0  # Pa; a gauge pressure below −1 atm is a negative absolute pressure
@@ -90,10 +89,10 @@ class Solver:
         batch, ks = self._solve(self._previous, **arrays)
         res = batch.result(0)
         code = int(batch.status[0])
-        if code in (STATUS_OK, STATUS_LIFT_OFF):
+        if code in (Status.OK, Status.LIFT_OFF):
             self._previous = ks
             return res
-        raise {STATUS_INPUT: InputError, STATUS_ASSEMBLY: AssemblyError, STATUS_DEAD_CENTRE: DeadCentreError}[code](res.message)
+        raise {Status.INPUT: InputError, Status.ASSEMBLY: AssemblyError, Status.DEAD_CENTRE: DeadCentreError}[code](res.message)
 
     def restart(self) -> None:
         """Forget the previous pose: the next ``solve`` starts from the reference pose (after a jump
@@ -218,7 +217,7 @@ class Solver:
         ks = kin.solve(s_clean, previous, self.dead_centre_cond, self.consistency_tol)
         status, messages = ks.status.copy(), list(ks.messages)
         for i in np.flatnonzero(bad):
-            status[i], messages[i] = STATUS_INPUT, problems[i]
+            status[i], messages[i] = Status.INPUT, problems[i]
         p, rel = kin.positions(ks.q)
         accel = None
         if arrays["rates"] or arrays["accelerations"]:
@@ -246,18 +245,18 @@ class Solver:
                                                   - np.nan_to_num(rod[c.name]) * c.rod_area)
         layout = self._layout(force_known)
         sol = layout.solve(p, measured_force, accel)
-        for i in np.flatnonzero((status == STATUS_OK) & ~(sol.condition <= self.dead_centre_cond)):
-            status[i] = STATUS_DEAD_CENTRE
+        for i in np.flatnonzero((status == Status.OK) & ~(sol.condition <= self.dead_centre_cond)):
+            status[i] = Status.DEAD_CENTRE
             messages[i] = (f"static dead centre at {kin.describe_inputs(s[i])}: equilibrium matrix condition number "
                            f"{sol.condition[i]:.3g} > {self.dead_centre_cond:.3g} (a member is aligned with a "
                            f"hinge; forces would be unbounded)")
         u = sol.unknowns
         for c in mech.contacts:
             normal = u[:, layout.contact_col[c.name]]
-            for i in np.flatnonzero((status == STATUS_OK) & (normal < 0.0)):
-                status[i] = STATUS_LIFT_OFF
+            for i in np.flatnonzero((status == Status.OK) & (normal < 0.0)):
+                status[i] = Status.LIFT_OFF
                 messages[i] = f"contact '{c.name}' lifts off: its normal force would be {normal[i]:.1f} N (pulling)"
-        failed = status >= STATUS_INPUT
+        failed = status >= Status.INPUT
         u = np.where(failed[:, None], np.nan, u)
         q = np.where(failed[:, None], np.nan, ks.q)
         p = np.where(failed[:, None, None], np.nan, p)

@@ -17,15 +17,15 @@ from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import String
 
 from linkage_monitor.msg import HingeReactions, HitchState, Steerability
-from linkage_monitor.outputs import header, stamp_ns
+from linkage_monitor.ros.messages import header, stamp_ns
 
 RELIABLE = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def start_node(params: dict[str, Any], log: Path) -> subprocess.Popen:
-    """`python -m linkage_monitor.node` with `-p name:=value` for every parameter."""
-    args = [sys.executable, "-m", "linkage_monitor.node", "--ros-args"]
+    """`python -m linkage_monitor.ros.node` with `-p name:=value` for every parameter."""
+    args = [sys.executable, "-m", "linkage_monitor.ros.node", "--ros-args"]
     for name, value in params.items():
         if isinstance(value, bool):
             value = str(value).lower()
@@ -101,9 +101,9 @@ class MonitorClient:
 
 
 def start_simulator(args: list[str], log: Path) -> subprocess.Popen:
-    """`python -m linkage_monitor.simulator_node <args>` (the options of `linkage-monitor simulate`);
+    """`python -m linkage_monitor.sim.node <args>` (the options of `linkage-monitor simulate`);
     it exits by itself once the scenario has been published."""
-    return subprocess.Popen([sys.executable, "-m", "linkage_monitor.simulator_node", *args],
+    return subprocess.Popen([sys.executable, "-m", "linkage_monitor.sim.node", *args],
                             stdout=log.open("w"), stderr=subprocess.STDOUT, env=dict(os.environ))
 
 

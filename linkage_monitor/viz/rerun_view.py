@@ -26,7 +26,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from linkage_monitor.mechanics import BatchResult, Mechanism, Result
+from linkage_monitor.mechanics import BatchResult, Mechanism, Result, Status
 
 APPLICATION_ID = "linkage_monitor"
 TIMELINE = "ros_time"
@@ -228,7 +228,7 @@ class RerunView:
         times = np.array(stamps, dtype="datetime64[ns]")
         for i in np.flatnonzero(batch.status != 0):
             self.log_status(int(stamps[i]), f"pose {i}: {batch.messages[i] or 'status ' + str(batch.status[i])}",
-                            level="WARN" if batch.status[i] == 1 else "ERROR")
+                            level="WARN" if batch.status[i] == Status.LIFT_OFF else "ERROR")
         points = np.stack([batch.points[p] for p in self.mechanism.points], axis=1)
         ok = np.isfinite(points).all(axis=(1, 2))
         hinge_f = np.stack([batch.hinge_force[h] for h in self._hinge_names], axis=1).reshape(n, -1, 2)

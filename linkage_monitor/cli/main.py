@@ -15,15 +15,15 @@ from typing import Sequence
 
 import yaml
 
-from .mechanics import Inputs, LinkageError, Mechanism, Result, Solver, load_mechanism, load_preset, preset_names
-from .calibrate_cli import add_calibrate_parser, run_calibrate
-from .capacity_cli import add_capacity_parser, run_capacity
-from .mechanics.machine import machine_summary
-from .mechanics.presets import preset_description
-from .name_value import name_value, number
-from .recording import BagError
-from .replay import mechanism_in_bag, replay
-from .simulate_cli import add_simulate_parser, run_simulate
+from linkage_monitor.mechanics import Inputs, LinkageError, Mechanism, Result, Solver, load_mechanism, load_preset, preset_names
+from linkage_monitor.cli.calibrate import add_calibrate_parser, run_calibrate
+from linkage_monitor.cli.capacity import add_capacity_parser, run_capacity
+from linkage_monitor.mechanics.machine import machine_summary
+from linkage_monitor.mechanics.presets import preset_description
+from linkage_monitor.monitoring.name_value import name_value, number
+from linkage_monitor.bag.writer import BagError
+from linkage_monitor.offline.replay import mechanism_in_bag, replay
+from linkage_monitor.cli.simulate import add_simulate_parser, run_simulate
 
 
 class _Parser(argparse.ArgumentParser):

@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from .mechanics import InputError
+from linkage_monitor.mechanics import InputError
 
 
 def name_value(text: str, option: str) -> tuple[str, str]:

@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Iterable, Mapping, Sequence
 
-from .mechanics import InputError, Inputs, Mechanism
+from linkage_monitor.mechanics import InputError, Inputs, Mechanism
 
 ATMOSPHERIC_PRESSURE = 101325.0  # Pa, ISO 2533 standard atmosphere at sea level
 

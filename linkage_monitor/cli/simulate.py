@@ -1,7 +1,7 @@
 """`linkage-monitor simulate`: publish a simulated sensor stream of a mechanism (thin CLI).
 
-The physics is in :mod:`linkage_monitor.simulator`, the publishing in
-:mod:`linkage_monitor.simulator_node` (imported only when the command runs, so `--help`
+The physics is in :mod:`linkage_monitor.sim.telemetry`, the publishing in
+:mod:`linkage_monitor.sim.node` (imported only when the command runs, so `--help`
 works without a ROS environment).
 """
 
@@ -10,8 +10,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .mechanics import LinkageError, load_mechanism, load_preset
-from .simulator import SCENARIOS, Noise
+from linkage_monitor.mechanics import LinkageError, load_mechanism, load_preset
+from linkage_monitor.sim.telemetry import SCENARIOS, Noise
 
 # Default sensor noise (1 sigma): a Hall-effect rockshaft angle sensor ~0.1°, a stroke sensor
 # 0.5 mm, a 0-25 MPa pressure transducer 0.2 % of full scale.
@@ -52,7 +52,7 @@ def add_simulate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
 
 
 def parser() -> argparse.ArgumentParser:
-    """Stand-alone parser of the simulate options (for ``python -m linkage_monitor.simulator_node``)."""
+    """Stand-alone parser of the simulate options (for ``python -m linkage_monitor.sim.node``)."""
     p = argparse.ArgumentParser(prog="linkage-monitor-simulate", description=__doc__.splitlines()[0])
     add_simulate_arguments(p)
     return p
@@ -68,7 +68,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     except (LinkageError, ValueError) as exc:
         print(f"linkage-monitor simulate: {exc}", file=sys.stderr)
         return 2
-    from .simulator_node import run
+    from linkage_monitor.sim.node import run
 
     try:
         return run(mech, args.scenario, args.rate, noise, args.duration, args.gauge, args.prefix, args.loop,

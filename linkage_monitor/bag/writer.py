@@ -28,7 +28,7 @@ from rclpy.qos import (
     DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy)
 from rclpy.serialization import serialize_message
 
-from linkage_monitor.msg_schema import exact_cdr, message_definition
+from linkage_monitor.bag.definitions import exact_cdr, message_definition
 
 MECHANISM_TOPIC = "/linkage_monitor/mechanism"
 """Topic of the mechanism description (std_msgs/String holding the mechanism YAML)."""
@@ -157,7 +157,7 @@ class BagWriter:
         self._closed = threading.Event()
         self._file = _TailedFile(self.mcap_path)
         self._writer = Writer(self._file, chunk_size=chunk_size, compression=compression)
-        self._writer.start(profile="ros2", library="linkage_monitor.recording")
+        self._writer.start(profile="ros2", library="linkage_monitor.bag.writer")
         self._file.enable_tail()
         self._file.write(b"")  # end the header in a valid tail right away
         self._write_metadata_yaml()

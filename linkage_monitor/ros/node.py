@@ -26,15 +26,15 @@ from rclpy.qos import (DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_prof
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import String
 
-from . import outputs as out
-from .diagnostics import DiagnosticGate, diagnostic_array
-from .inputs import ATMOSPHERIC_PRESSURE, InputConfig
-from .name_value import name_value
-from .mechanics import LinkageError, load_mechanism, load_preset, preset_names
-from .monitor import ERROR, WARN, Monitor, Step
-from .msg import HingeReactions, HitchState, Steerability
-from .recording import BagWriter
-from .rerun_view import RerunView, machine_series
+from linkage_monitor.ros import messages as out
+from linkage_monitor.ros.diagnostics import DiagnosticGate, diagnostic_array
+from linkage_monitor.monitoring.inputs import ATMOSPHERIC_PRESSURE, InputConfig
+from linkage_monitor.monitoring.name_value import name_value
+from linkage_monitor.mechanics import LinkageError, load_mechanism, load_preset, preset_names
+from linkage_monitor.monitoring.core import ERROR, WARN, Monitor, Step
+from linkage_monitor.msg import HingeReactions, HitchState, Steerability
+from linkage_monitor.bag.writer import BagWriter
+from linkage_monitor.viz.rerun_view import RerunView, machine_series
 
 NODE_NAME = "linkage_monitor"
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,

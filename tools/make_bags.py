@@ -1,6 +1,6 @@
 """Regenerate the sample bags in bags/: the telemetry simulator through the real node.
 
-`python -m linkage_monitor.make_bags [--out bags]` runs, for each sample, the live node
+`python tools/make_bags.py [--out bags]` runs, for each sample, the live node
 (recording on) and one or more `linkage-monitor simulate` runs in separate processes, over
 real topics in an isolated ROS domain, and keeps the node's bag. Takes about as long as the
 scenarios last (real time).
@@ -40,13 +40,13 @@ def record(name: str, preset: str, scenarios: tuple[str, ...], options: tuple[st
     """Record one sample bag into out/name (replacing it); returns its directory."""
     target = out / name
     with tempfile.TemporaryDirectory() as tmp:
-        node = subprocess.Popen(_module("linkage_monitor.node", "--ros-args",
+        node = subprocess.Popen(_module("linkage_monitor.ros.node", "--ros-args",
                                         "--params-file", str(CONFIG / f"{preset}.yaml"),
                                         "-p", f"record_dir:={tmp}", "-p", f"record_name:={name}"))
         try:
             time.sleep(3.0)  # node up and subscribed
             for scenario in scenarios:
-                subprocess.run(_module("linkage_monitor.cli", "simulate", "--preset", preset, "--scenario", scenario,
+                subprocess.run(_module("linkage_monitor.cli.main", "simulate", "--preset", preset, "--scenario", scenario,
                                        "--rate", str(RATE_HZ), *options), check=True)
             time.sleep(1.0)
         finally:

@@ -14,7 +14,7 @@ from pathlib import Path
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from .bag_reader import FLUID_PRESSURE, JOINT_STATE, message_class, read_bag
+from linkage_monitor.bag.reader import FLUID_PRESSURE, JOINT_STATE, message_class, read_bag
 
 PLAYER_QOS = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
 

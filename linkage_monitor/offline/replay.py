@@ -23,14 +23,14 @@ import numpy as np
 import yaml
 from tqdm import tqdm
 
-from .bag_reader import FLUID_PRESSURE, JOINT_STATE, read_bag
-from .diagnostics import DiagnosticGate, diagnostic_array
-from .inputs import InputConfig
-from .mechanics import BatchResult, Mechanism, mechanism_from_dict
-from .mechanics.machine import MachineBatch
-from .mechanics.results import STATUS_LIFT_OFF, STATUS_OK
-from .monitor import ERROR, OK, WARN, WARNING_JOIN, Monitor, Pending, Step
-from .recording import MECHANISM_TOPIC, BagError, BagWriter
+from linkage_monitor.bag.reader import FLUID_PRESSURE, JOINT_STATE, read_bag
+from linkage_monitor.ros.diagnostics import DiagnosticGate, diagnostic_array
+from linkage_monitor.monitoring.inputs import InputConfig
+from linkage_monitor.mechanics import BatchResult, Mechanism, mechanism_from_dict
+from linkage_monitor.mechanics.machine import MachineBatch
+from linkage_monitor.mechanics.results import Status
+from linkage_monitor.monitoring.core import ERROR, OK, WARN, WARNING_JOIN, Monitor, Pending, Step
+from linkage_monitor.bag.writer import MECHANISM_TOPIC, BagError, BagWriter
 
 OUTPUT_TOPICS = ("/hinge_reactions", "/hitch_state", "/steerability")
 
@@ -170,7 +170,7 @@ def _solve_all(monitor: Monitor, stages: list[Pending | Step]) -> tuple[list[Ste
     machine = monitor.machine.evaluate_batch(batch)
     for k, (i, p) in enumerate(zip(due, pending)):
         code = int(batch.status[k])
-        if code in (STATUS_OK, STATUS_LIFT_OFF):
+        if code in (Status.OK, Status.LIFT_OFF):
             steps[i] = monitor.finish(p, batch.result(k), machine.result(k))
         else:
             steps[i] = monitor.failed(p, code, batch.messages[k])
@@ -199,7 +199,7 @@ def _account(summary: Summary, step: Step) -> None:
 
 def _log_rerun(path: Path, mech: Mechanism, steps: list[Step], solved: Solved | None) -> None:
     """Every solved pose as columns (one send per entity); rejected inputs as status text."""
-    from .rerun_view import RerunView, default_blueprint, largest_hinges, machine_series
+    from linkage_monitor.viz.rerun_view import RerunView, default_blueprint, largest_hinges, machine_series
 
     hinges = largest_hinges(solved.batch) if solved is not None else None
     view = RerunView.to_file(mech, path, blueprint=default_blueprint(mech, hinges=hinges))

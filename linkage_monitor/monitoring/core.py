@@ -13,12 +13,12 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import Any, Mapping, Sequence
 
-from . import outputs as out
-from .inputs import InputConfig, InputTracker, StaleInputError
-from .mechanics import (AssemblyError, DeadCentreError, InputError, Inputs, LinkageError, Mechanism, Result,
+from linkage_monitor.ros import messages as out
+from linkage_monitor.monitoring.inputs import InputConfig, InputTracker, StaleInputError
+from linkage_monitor.mechanics import (AssemblyError, DeadCentreError, InputError, Inputs, LinkageError, Mechanism, Result,
                         Solver)
-from .mechanics.results import STATUS_ASSEMBLY, STATUS_DEAD_CENTRE, STATUS_INPUT
-from .mechanics.machine import MachineModel, MachineResult
+from linkage_monitor.mechanics.results import Status
+from linkage_monitor.mechanics.machine import MachineModel, MachineResult
 
 OK, WARN, ERROR = 0, 1, 2  # diagnostic_msgs/DiagnosticStatus levels
 # Redundant measurements (e.g. stroke and lift-arm angle) never agree exactly: up to
@@ -27,8 +27,8 @@ OK, WARN, ERROR = 0, 1, 2  # diagnostic_msgs/DiagnosticStatus levels
 CONSISTENCY_WARN_M = 1e-3
 ASSEMBLY_LIMIT_M = 20e-3
 WARNING_JOIN = " | "  # between several warnings of one step (a warning itself may contain "; ")
-FAILURE_STATUS = {AssemblyError: STATUS_ASSEMBLY, DeadCentreError: STATUS_DEAD_CENTRE, InputError: STATUS_INPUT}
-FAILURE_TEXT = {STATUS_ASSEMBLY: "cannot assemble", STATUS_DEAD_CENTRE: "dead centre", STATUS_INPUT: "malformed input"}
+FAILURE_STATUS = {AssemblyError: Status.ASSEMBLY, DeadCentreError: Status.DEAD_CENTRE, InputError: Status.INPUT}
+FAILURE_TEXT = {Status.ASSEMBLY: "cannot assemble", Status.DEAD_CENTRE: "dead centre", Status.INPUT: "malformed input"}
 
 
 @dataclass(frozen=True)
@@ -123,7 +123,7 @@ class Monitor:
         try:
             result = self.solver.solve(pending.inputs)
         except LinkageError as exc:
-            return self.failed(pending, FAILURE_STATUS.get(type(exc), STATUS_INPUT), str(exc))
+            return self.failed(pending, FAILURE_STATUS.get(type(exc), Status.INPUT), str(exc))
         return self.finish(pending, result, self.machine.evaluate(result))
 
     @staticmethod

@@ -21,12 +21,12 @@ from pathlib import Path
 import rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from .bag_reader import FLUID_PRESSURE, JOINT_STATE, read_bag
-from .mechanics import preset_names
-from .msg import HingeReactions
-from .outputs import stamp_ns
-from .player import play, sensor_messages
-from .replay import mechanism_in_bag, replay
+from linkage_monitor.bag.reader import FLUID_PRESSURE, JOINT_STATE, read_bag
+from linkage_monitor.mechanics import preset_names
+from linkage_monitor.msg import HingeReactions
+from linkage_monitor.ros.messages import stamp_ns
+from linkage_monitor.ros.player import play, sensor_messages
+from linkage_monitor.offline.replay import mechanism_in_bag, replay
 
 DEFAULT_BAG = Path(__file__).resolve().parent.parent / "bags" / "belarus_1221_lift_transport"
 
@@ -53,7 +53,7 @@ def _largest_difference(live_bag: Path, offline_steps) -> tuple[int, float]:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the demo; returns 0 when the live run and the offline replay agree."""
-    parser = argparse.ArgumentParser(prog="python -m linkage_monitor.demo", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python tools/demo.py", description=__doc__.splitlines()[0])
     parser.add_argument("--bag", type=Path, default=DEFAULT_BAG, help="input bag (default: the bundled one)")
     parser.add_argument("--rate", type=float, default=1.0,
                         help="playback speed, times real time (default 1; the node keeps up with ~100 msg/s)")
@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"demo: {len(messages)} sensor messages of '{mech.name}' from {args.bag}, played at {args.rate}x "
           f"through the live node (ROS_DOMAIN_ID={os.environ['ROS_DOMAIN_ID']})")
 
-    node = subprocess.Popen([sys.executable, "-m", "linkage_monitor.node", "--ros-args",
+    node = subprocess.Popen([sys.executable, "-m", "linkage_monitor.ros.node", "--ros-args",
                              "-p", f"mechanism:={preset or mech.file}", "-p", "sensor_qos:=reliable",
                              "-p", f"record_dir:={run_dir}", "-p", "record_name:=live",
                              "-p", "rerun:=save", "-p", f"rerun_path:={rrd}"],

@@ -55,11 +55,11 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .mechanics import LinkageError, Mechanism, Solver, UnobservableError, mechanism_from_dict
-from .mechanics.capacity import interval_around, reference_length, stroke_mechanism
-from .mechanics.machine import axle_loads, steerability
-from .mechanics.model import PressureSensor
-from .mechanics.results import angle_readings
+from linkage_monitor.mechanics import LinkageError, Mechanism, Solver, UnobservableError, mechanism_from_dict
+from linkage_monitor.mechanics.capacity import interval_around, reference_length, stroke_mechanism
+from linkage_monitor.mechanics.machine import axle_loads, steerability
+from linkage_monitor.mechanics.model import PressureSensor
+from linkage_monitor.mechanics.results import Status, angle_readings
 
 ATMOSPHERE = 101325.0   # Pa, ISO 2533 standard atmosphere; FluidPressure carries absolute pressure
 SCENARIOS = ("lift", "transport", "field", "overload")
@@ -264,7 +264,7 @@ class _Plant:
         """Assemblable range of the driver (grid over ±50 % of its reference length), work, transport."""
         work = float(self.reference_length[self.driver])
         grid = np.linspace(0.5 * work, 1.5 * work, points)
-        ok = self._solvers[0].solve_batch(cylinders=self.lengths(grid)).status == 0
+        ok = self._solvers[0].solve_batch(cylinders=self.lengths(grid)).status == Status.OK
         stroke = interval_around(grid, ok, work)
         if stroke is None:
             raise ValueError(f"{self.mech.file}: cylinder '{self.driver}' does not assemble at its reference "

@@ -13,8 +13,8 @@ from typing import Mapping
 from builtin_interfaces.msg import Time
 from std_msgs.msg import Header
 
-from .mechanics import Mechanism, Result
-from .msg import CylinderState, HingeReaction, HingeReactions, HitchState, Steerability
+from linkage_monitor.mechanics import Mechanism, Result
+from linkage_monitor.msg import CylinderState, HingeReaction, HingeReactions, HitchState, Steerability
 
 FRAME_ID = "base_footprint"  # REP 105 frame at the ground below the tractor: x forward, z up
 # With more measured forces than needed (e.g. two cylinder pressures), equilibrium is met in

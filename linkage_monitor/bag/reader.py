@@ -24,7 +24,7 @@ from mcap.exceptions import McapError
 from mcap.reader import NonSeekingReader, SeekingReader
 from rclpy.serialization import deserialize_message
 
-from linkage_monitor.recording import BagError
+from linkage_monitor.bag.writer import BagError
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 FLUID_PRESSURE = "sensor_msgs/msg/FluidPressure"

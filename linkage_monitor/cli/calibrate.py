@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .mechanics import InputError, LinkageError, Mechanism, load_mechanism, load_preset
-from .mechanics.calibration import UNITS, FitResult, calibrate, fitted_yaml
-from .name_value import name_value, number
+from linkage_monitor.mechanics import InputError, LinkageError, Mechanism, load_mechanism, load_preset
+from linkage_monitor.mechanics.calibration import UNITS, FitResult, calibrate, fitted_yaml
+from linkage_monitor.monitoring.name_value import name_value, number
 
 ATMOSPHERE = 101325.0  # Pa, ISO 2533; sensor_msgs/FluidPressure carries absolute pressure
 
@@ -86,8 +86,8 @@ def read_bag_columns(path: Path, mech: Mechanism, gauge: bool = False) -> dict[s
     """Columns of a bag: the JointState positions of the measured cylinders (m) and angle sensors (rad),
     one row per message, and each ``.../pressure/<sensor>`` FluidPressure topic as ``pressure:<sensor>``
     (gauge Pa, interpolated at the JointState stamps; rows outside the pressure record are dropped)."""
-    from .bag_reader import JointStateColumns, read_inputs  # rclpy only when a bag is read
-    from .recording import BagError
+    from linkage_monitor.bag.reader import JointStateColumns, read_inputs  # rclpy only when a bag is read
+    from linkage_monitor.bag.writer import BagError
 
     try:
         topics = read_inputs(path)

@@ -11,9 +11,10 @@ import json
 
 import numpy as np
 
-from .mechanics import LinkageError, Mechanism, Solver, load_mechanism, load_preset
-from .mechanics.capacity import interval_around, lift_cylinder, reference_length, stroke_mechanism
-from .mechanics.machine import MachineBatch, MachineModel
+from linkage_monitor.mechanics import LinkageError, Mechanism, Solver, load_mechanism, load_preset
+from linkage_monitor.mechanics.capacity import interval_around, lift_cylinder, reference_length, stroke_mechanism
+from linkage_monitor.mechanics.machine import MachineBatch, MachineModel
+from linkage_monitor.mechanics.results import Status
 
 SCAN_POINTS = 401  # cylinder lengths tried between 0.5 and 1.5 × the reference length to find the stroke
 
@@ -41,7 +42,7 @@ def lifting_stroke(model: MachineModel, cylinder: str, length: float) -> tuple[f
     assembles and lengthening the cylinder raises the implement's cg (past that the lower links toggle)."""
     lengths = np.linspace(0.5, 1.5, SCAN_POINTS) * length
     batch = model.stroke_poses(cylinder, lengths)
-    ok = (batch.status == 0) & (np.gradient(batch.implement_cg[:, 1], lengths) > 0.0)
+    ok = (batch.status == Status.OK) & (np.gradient(batch.implement_cg[:, 1], lengths) > 0.0)
     stroke = interval_around(lengths, ok, length)
     if stroke is None:
         raise LinkageError(f"cylinder '{cylinder}': at its reference length {length:.4f} m the linkage "
@@ -99,7 +100,7 @@ def _table(curve: dict, rows: int = 11) -> str:
 
 def run_capacity(args: argparse.Namespace) -> int:
     """Run ``linkage-monitor capacity``; returns the exit code (LinkageError propagates to the caller)."""
-    from .capacity_plot import plot_capacity  # matplotlib only when this subcommand runs
+    from linkage_monitor.viz.capacity_plot import plot_capacity  # matplotlib only when this subcommand runs
 
     mech = load_preset(args.preset) if args.preset else load_mechanism(args.mechanism)
     curve, machine = capacity_curve(mech, tuple(args.stroke) if args.stroke else None, args.points)

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
-from .monitor import OK, Step
-from .outputs import header
+from linkage_monitor.monitoring.core import OK, Step
+from linkage_monitor.ros.messages import header
 
 STAMP_KEY = "input stamp [ns]"
 

@@ -1,4 +1,4 @@
-"""rclpy publisher of a simulated sensor stream (the physics is in :mod:`linkage_monitor.simulator`).
+"""rclpy publisher of a simulated sensor stream (the physics is in :mod:`linkage_monitor.sim.telemetry`).
 
 Publishes, with ``qos_profile_sensor_data``, at the stream's rate:
 - ``<prefix>joint_states`` (``sensor_msgs/JointState``): the angle sensors (rad) and the
@@ -21,8 +21,8 @@ from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 
-from .mechanics import Mechanism
-from .simulator import Noise, SimulatedStream, simulate
+from linkage_monitor.mechanics import Mechanism
+from linkage_monitor.sim.telemetry import Noise, SimulatedStream, simulate
 
 
 SUBSCRIBER_WAIT_S = 5.0  # s
@@ -102,7 +102,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Console entry point: the options of ``linkage-monitor simulate`` plus ROS arguments."""
     from rclpy.utilities import remove_ros_args
 
-    from .simulate_cli import parser as simulate_parser, run_simulate
+    from linkage_monitor.cli.simulate import parser as simulate_parser, run_simulate
 
     argv = list(sys.argv if argv is None else argv)
     args = simulate_parser().parse_args(remove_ros_args(argv)[1:])

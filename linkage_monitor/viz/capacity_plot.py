@@ -15,7 +15,7 @@ matplotlib.use("Agg")  # files only, no display needed
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .mechanics.machine import MachineBatch  # noqa: E402
+from linkage_monitor.mechanics.machine import MachineBatch  # noqa: E402
 
 _CURVES = (("hitch_axis", "capacity at the hitch axis", "tab:blue", "-"),
            ("behind_610mm", "capacity 610 mm behind the axis", "tab:green", "-"),

@@ -1,0 +1,48 @@
+"""The bundled presets: one YAML per seed paper beside this file, read with importlib.resources
+(so they load from a wheel or a zip as well as from a checkout)."""
+
+from __future__ import annotations
+
+from importlib import resources
+from importlib.resources.abc import Traversable
+
+import yaml
+
+from ..errors import MechanismFileError
+from ..model import Mechanism
+from ..schema import load_mechanism, mechanism_from_text
+
+PRESET_DIR: Traversable = resources.files(__name__)
+
+
+def preset_names() -> list[str]:
+    """Names of the bundled presets (file stems), sorted."""
+    return sorted(p.name[:-5] for p in PRESET_DIR.iterdir() if p.name.endswith(".yaml"))
+
+
+def preset_path(name: str) -> Traversable:
+    """Path of preset ``name``; MechanismFileError listing the presets if there is none."""
+    path = PRESET_DIR / f"{name}.yaml"
+    if not path.is_file():
+        raise MechanismFileError(f"preset '{name}'", "", f"no such preset (available: {', '.join(preset_names()) or 'none'})")
+    return path
+
+
+def load_preset(name: str) -> Mechanism:
+    """Load and validate the bundled preset ``name`` (e.g. ``belarus_1221``)."""
+    return mechanism_from_text(preset_path(name).read_bytes(), file=f"{name}.yaml (preset)")
+
+
+def load_description(spec: str) -> Mechanism:
+    """A Mechanism from a preset name or else a YAML file path: what every ``--preset/--mechanism``
+    option and the node's ``mechanism`` parameter accept."""
+    return load_preset(spec) if spec in preset_names() else load_mechanism(spec)
+
+
+def preset_description(name: str) -> str:
+    """The preset's one-line ``description`` ('' if missing or unreadable)."""
+    try:
+        data = yaml.safe_load(preset_path(name).read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError):
+        return ""
+    return str(data.get("description", "")) if isinstance(data, dict) else ""
