@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))
 from support.ros_env import isolate_ros_domain  # noqa: E402  (before any rclpy context)
 from support.ros_harness import LATCHED, start_node, stop  # noqa: E402
 
-from linkage_monitor.monitoring.inputs import ATMOSPHERIC_PRESSURE  # noqa: E402
+from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE  # noqa: E402
 from linkage_monitor.msg import HitchState  # noqa: E402
 from linkage_monitor.ros.messages import header, stamp_ns  # noqa: E402
 

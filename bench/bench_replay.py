@@ -38,9 +38,9 @@ def main() -> int:
     bag = Path(sys.argv[1]) if len(sys.argv) > 1 else BAG
     mech = mechanism_in_bag(bag)
     n_raw, t_raw = raw_decode(bag)
-    summary, _ = replay(bag, mech, progress=None)
+    summary = replay(bag, mech, progress=None).summary
     with tempfile.TemporaryDirectory() as tmp:
-        summary_out, _ = replay(bag, mech, out_dir=Path(tmp) / "out", progress=None)
+        summary_out = replay(bag, mech, out_dir=Path(tmp) / "out", progress=None).summary
     raw_rate = n_raw / t_raw
     rows = [("raw decode (mcap-ros2-support), all messages", n_raw, t_raw),
             ("replay, input messages, no output files", summary.inputs, summary.seconds),

@@ -28,12 +28,13 @@ def ros():
 @pytest.fixture
 def node(ros, tmp_path):
     """A belarus_1221 node in a child process (recording into tmp_path/bags, reliable inputs,
-    staleness 0.5 s) and a test client here: yields (client, process, tmp_path). A node the test
+    staleness 0.5 s, stamps accepted within an hour of the clock) and a test client here: yields (client, process, tmp_path). A node the test
     did not stop or kill itself must exit cleanly (code 0) on Ctrl-C."""
     from support.ros_harness import MonitorClient, start_node, stop
 
     proc = start_node({"mechanism": "belarus_1221", "record_dir": str(tmp_path / "bags"),
-                       "sensor_qos": "reliable", "staleness_limit": 0.5}, tmp_path / "node.log")
+                       "sensor_qos": "reliable", "staleness_limit": 0.5, "stamp_tolerance": 3600.0},
+                      tmp_path / "node.log")
     client = MonitorClient()
     try:
         client.wait_for_node()

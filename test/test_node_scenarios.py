@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 import rclpy
 
-from linkage_monitor.monitoring.inputs import ATMOSPHERIC_PRESSURE
+from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
 from linkage_monitor.mechanics import Inputs, Solver, load_preset
 from linkage_monitor.mechanics.machine import MachineModel
 from linkage_monitor.monitoring.core import ASSEMBLY_LIMIT_M

@@ -1,19 +1,14 @@
 """Replay: a bag recorded by `ros2 bag record`'s layout (rosbags.rosbag2.Writer, MCAP) goes
-through `linkage-monitor replay`; its outputs equal what the live node publishes for the same
-inputs, and every file it writes is read back by readers we did not write."""
+through `linkage-monitor replay`, and every file it writes is read back by readers we did not
+write. (That a replay equals the live node: test_replay_equals_node.py.)"""
 
 from __future__ import annotations
 
-import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rerun.chunk import McapReader, RrdReader
@@ -23,15 +18,9 @@ from rosbags.typesys import Stores, get_typestore
 
 from linkage_monitor.cli.main import main as cli_main
 from linkage_monitor.mechanics import load_preset
-from linkage_monitor.msg import HingeReactions
-from linkage_monitor.ros.messages import stamp_ns
-from linkage_monitor.bag.reader import message_class
-from linkage_monitor.ros.player import sensor_messages
-from linkage_monitor.offline.replay import replay
 from linkage_monitor.sim.telemetry import Noise, simulate
-from support.ros_harness import RELIABLE
 
-T0 = 1_795_100_000_000_000_000  # ns, arbitrary header stamp of the first sample
+T0 = (time.time_ns() // 10**9) * 10**9  # ns, now (whole s): the node refuses stamps far from its clock
 
 
 @pytest.fixture(scope="module")
@@ -69,53 +58,6 @@ def replayed(ros2_bag, tmp_path_factory):
                      "--rrd", str(out / "replay.rrd"), "--quiet"])
     assert code == 0
     return out
-
-
-def _spin(node, condition, timeout: float) -> bool:
-    end = time.monotonic() + timeout
-    while not condition() and time.monotonic() < end:
-        rclpy.spin_once(node, timeout_sec=0.02)
-    return condition()
-
-
-def test_replay_equals_live_node_for_the_same_inputs(ros2_bag, tmp_path):
-    node = subprocess.Popen([sys.executable, "-m", "linkage_monitor.ros.node", "--ros-args", "-p", "sensor_qos:=reliable",
-                             "-p", f"record_dir:={tmp_path}", "-p", "record_name:=live"],
-                            stdout=(tmp_path / "node.log").open("w"), stderr=subprocess.STDOUT)
-    rclpy.init()
-    received: list[HingeReactions] = []
-    problems: list = []  # WARN/ERROR diagnostics: one per input that produced no outputs
-    try:
-        client = rclpy.create_node("replay_test_player")
-        client.create_subscription(HingeReactions, "hinge_reactions", received.append, RELIABLE)
-        client.create_subscription(DiagnosticArray, "/diagnostics",
-                                   lambda m: problems.extend(s for s in m.status if s.level != b"\x00"), RELIABLE)
-        messages = sensor_messages(ros2_bag)
-        publishers = {topic: client.create_publisher(message_class(kind), topic, RELIABLE)
-                      for topic, kind, *_ in messages}
-        assert _spin(client, lambda: all(p.get_subscription_count() for p in publishers.values()), 30)
-        _spin(client, lambda: False, 0.5)
-        # Lockstep: each input yields exactly one HingeReactions or one WARN/ERROR diagnostic;
-        # waiting for it keeps the node's processing order equal to the bag's order (two
-        # topics have no order between them, and a busy executor may take either first).
-        for k, (topic, _, _, _, msg) in enumerate(messages):
-            publishers[topic].publish(msg)
-            assert _spin(client, lambda: len(received) + len(problems) > k, 10), f"no reaction to input {k}"
-        client.destroy_node()
-    finally:
-        rclpy.shutdown()
-        node.send_signal(signal.SIGINT)
-        node.wait(timeout=30)
-    _, offline_steps = replay(ros2_bag, load_preset("belarus_1221"), progress=None)
-    expected = [s.outputs.hinge_reactions for s in offline_steps if s.outputs is not None]
-    assert len(expected) > 0.9 * len(messages) / 2
-    assert [stamp_ns(m.header) for m in received] == [stamp_ns(m.header) for m in expected], \
-        "the live node solved a different sequence of inputs than the replay"
-    for live, offline in zip(received, expected):
-        for a, b in zip(live.hinges, offline.hinges):
-            assert (a.name, a.on_body) == (b.name, b.on_body)
-            assert a.fx == pytest.approx(b.fx, rel=1e-9, abs=1e-6 * max(b.magnitude, 1.0))
-            assert a.fz == pytest.approx(b.fz, rel=1e-9, abs=1e-6 * max(b.magnitude, 1.0))
 
 
 def test_replay_bag_is_read_by_rosbags_mcap_ros2_and_rerun(replayed):

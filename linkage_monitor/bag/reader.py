@@ -139,8 +139,8 @@ def _files_from_metadata(directory: Path) -> list[Path]:
     try:
         info = yaml.safe_load(metadata.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
         return [directory / Path(p).name for p in info["relative_file_paths"]]
-    except (yaml.YAMLError, KeyError, TypeError) as exc:
-        raise BagError(f"{metadata} is not a rosbag2 metadata file ({exc!r}): fix or remove it"
+    except (yaml.YAMLError, KeyError, TypeError, UnicodeDecodeError) as exc:
+        raise BagError(f"{metadata} is not a rosbag2 metadata file ({type(exc).__name__}): fix or remove it"
                        ) from exc
 
 
@@ -169,15 +169,22 @@ def _raw_messages(file: Path, topics: Collection[str] | None) -> Iterator[tuple[
         try:
             reader: SeekingReader | NonSeekingReader = SeekingReader(stream)
             indexed = reader.get_summary() is not None
-        except McapError:
+        except (McapError, OSError, struct.error, ValueError):   # no footer or summary (killed writer)
             indexed = False
         if not indexed:  # stream order = write order (log-time order for BagWriter bags)
             stream.seek(0)
             reader = NonSeekingReader(stream)
+        count = 0
         try:
-            yield from reader.iter_messages(topics=topic_list, log_time_order=indexed)
-        except (McapError, struct.error) as exc:  # a record cut off by a killed writer
-            _log.warning("%s ends in an incomplete record (%r): read up to there", file, exc)
+            for record in reader.iter_messages(topics=topic_list, log_time_order=indexed):
+                count += 1
+                yield record
+        except (McapError, struct.error, EOFError) as exc:  # a record cut off by a killed writer
+            _log.warning("%s ends in an incomplete record (%s): read up to there", file, type(exc).__name__)
+        except Exception as exc:  # noqa: BLE001 - damaged data: decompression, CRC, lengths
+            raise BagError(f"{file} is damaged after {count} messages ({type(exc).__name__}: "
+                           f"{str(exc).splitlines()[0] if str(exc) else 'unreadable data'}): "
+                           "copy what can be read with an MCAP tool or record again") from exc
 
 
 def _joint_columns(rows: list[tuple[int, int, Any]]) -> JointStateColumns:

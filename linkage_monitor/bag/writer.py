@@ -34,6 +34,7 @@ MECHANISM_TOPIC = "/linkage_monitor/mechanism"
 """Topic of the mechanism description (std_msgs/String holding the mechanism YAML)."""
 
 ROSBAG2_VERSION = 9
+_U64 = 1 << 64
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
 # DataEnd (op 0x0F, crc 0 = not computed) + Footer (op 0x02, summary_start 0 = no summary,
 # summary_offset_start 0, summary_crc 0) + magic: the smallest valid MCAP ending.
@@ -82,11 +83,37 @@ class _TailedFile:
         self._tail = True
 
     def write(self, data: bytes | memoryview) -> int:
-        written = self._file.write(data)
-        if self._tail:
-            self._file.write(_TAIL)
-            self._file.seek(-len(_TAIL), os.SEEK_CUR)
-        return written
+        """Write all of ``data`` (then the tail); on an I/O error (ENOSPC, EIO) the file is cut back
+        to where this write began and ends in the tail again, so it stays readable, and the error
+        is raised."""
+        start = self._file.tell()
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[self._file.write(view):]
+            if self._tail:
+                self._write_tail()
+        except OSError:
+            self._rollback(start)
+            raise
+        return len(data)
+
+    def _write_tail(self) -> None:
+        view = memoryview(_TAIL)
+        while view:
+            view = view[self._file.write(view):]
+        self._file.seek(-len(_TAIL), os.SEEK_CUR)
+
+    def _rollback(self, position: int) -> None:
+        """Cut the file back to ``position`` and end it in the tail again (best effort: the cut frees
+        the space the tail needs)."""
+        try:
+            self._file.truncate(position)
+            self._file.seek(position)
+            if self._tail:
+                self._write_tail()
+        except OSError:
+            pass
 
     def tell(self) -> int:
         return self._file.tell()
@@ -97,9 +124,14 @@ class _TailedFile:
     def fsync(self) -> None:
         os.fsync(self._file.fileno())
 
-    def close(self) -> None:
-        self._file.truncate(self._file.tell())
-        self._file.close()
+    def close(self, keep_tail: bool = False) -> None:
+        """Close; ``keep_tail``: leave the file ending in the tail (after an I/O error, when the
+        MCAP writer cannot finish its summary)."""
+        try:
+            if not keep_tail:
+                self._file.truncate(self._file.tell())
+        finally:
+            self._file.close()
 
 
 @dataclass
@@ -149,18 +181,24 @@ class BagWriter:
                            "choose a new directory or remove the old bag")
         if flush_period_s <= 0:
             raise ValueError(f"flush_period_s must be > 0 s, got {flush_period_s}")
-        self.directory.mkdir(parents=True, exist_ok=True)
         self._lock = threading.Lock()
         self._span = _Span()
         self._schemas: dict[str, int] = {}
         self._dirty = False
         self._closed = threading.Event()
-        self._file = _TailedFile(self.mcap_path)
-        self._writer = Writer(self._file, chunk_size=chunk_size, compression=compression)
-        self._writer.start(profile="ros2", library="linkage_monitor.bag.writer")
-        self._file.enable_tail()
-        self._file.write(b"")  # end the header in a valid tail right away
-        self._write_metadata_yaml()
+        self.error: str | None = None   # set at the first I/O error: what failed, on which path
+        self.unwritten = 0              # messages not recorded because of that error
+        try:
+            self.directory.mkdir(parents=True, exist_ok=True)
+            self._file = _TailedFile(self.mcap_path)
+            self._writer = Writer(self._file, chunk_size=chunk_size, compression=compression)
+            self._writer.start(profile="ros2", library="linkage_monitor.bag.writer")
+            self._file.enable_tail()
+            self._file.write(b"")  # end the header in a valid tail right away
+            self._write_metadata_yaml()
+        except OSError as exc:
+            raise BagError(f"cannot record into {exc.filename or self.directory}: {exc.strerror or exc} "
+                           "(choose a writable directory, e.g. with the record_dir parameter)") from None
         self._flusher = threading.Thread(target=self._flush_loop, args=(flush_period_s,),
                                          name=f"BagWriter flush {self.name}", daemon=True)
         self._flusher.start()
@@ -192,12 +230,22 @@ class BagWriter:
             data = exact_cdr(type_name, serialize_message(msg))
         with self._lock:
             self._check_open()
-            # receive order = log_time order, which readers of a killed (unindexed) bag need
-            log_time = (max(time.time_ns(), self._span.end or 0) if log_time_ns is None
-                        else int(log_time_ns))
+            if self.error is not None:
+                self.unwritten += 1
+                return
+            # receive order = log_time order, which readers of a killed (unindexed) bag need;
+            # MCAP times are unsigned 64-bit: a stamp that is not (negative, absurd) is stored as 0
+            log_time = time.time_ns() if log_time_ns is None or not 0 <= log_time_ns < _U64 else int(log_time_ns)
+            log_time = max(log_time, self._span.end or 0)
+            publish_time = int(stamp_ns) if 0 <= stamp_ns < _U64 else 0
             entry = self._topic(topic, type_name, qos)
-            self._writer.add_message(entry.channel_id, log_time=log_time, data=data,
-                                     publish_time=int(stamp_ns), sequence=entry.count)
+            try:
+                self._writer.add_message(entry.channel_id, log_time=log_time, data=data,
+                                         publish_time=publish_time, sequence=entry.count % (1 << 32))
+            except OSError as exc:
+                self._fail(exc)
+                self.unwritten += 1
+                return
             entry.count += 1
             self._span.add(log_time)
             self._dirty = True
@@ -224,14 +272,24 @@ class BagWriter:
 
     def flush(self) -> None:
         """Write everything recorded so far to disk in a readable form (chunk + footer +
-        metadata.yaml). Called every flush_period_s by the background thread."""
+        metadata.yaml). Called every flush_period_s by the background thread; the fsync runs
+        outside the lock, so writers are not held up by a slow card."""
         with self._lock:
-            if self._closed.is_set() or not self._dirty:
+            if self._closed.is_set() or not self._dirty or self.error is not None:
                 return
-            self._writer.flush()
-            self._file.fsync()
-            self._write_metadata_yaml()
+            try:
+                self._writer.flush()
+                self._write_metadata_yaml()
+            except OSError as exc:
+                self._fail(exc)
+                return
             self._dirty = False
+        try:
+            self._file.fsync()
+        except (OSError, ValueError) as exc:   # ValueError: closed meanwhile
+            if isinstance(exc, OSError):
+                with self._lock:
+                    self._fail(exc)
 
     def close(self) -> None:
         """Finish the MCAP file (summary, indexes, `rosbag2` metadata record) and write the
@@ -240,19 +298,26 @@ class BagWriter:
             if self._closed.is_set():
                 return
             self._closed.set()
-            info = self._bag_information()
-            self._writer.add_metadata("rosbag2", {
-                "serialized_metadata": yaml.safe_dump(info, sort_keys=False)})
-            self._writer.finish()
-            self._file.close()
-            self._write_metadata_yaml()
+            if self.error is None:
+                try:
+                    info = self._bag_information()
+                    self._writer.add_metadata("rosbag2", {
+                        "serialized_metadata": yaml.safe_dump(info, sort_keys=False)})
+                    self._writer.finish()
+                except OSError as exc:
+                    self._fail(exc)
+            try:   # after an error the file keeps its last valid tail (readable without a summary)
+                self._file.close(keep_tail=self.error is not None)
+                self._write_metadata_yaml()
+            except OSError as exc:
+                self.error = self.error or f"{self.directory}: {exc.strerror or exc}"
         self._flusher.join()
 
-    @property
-    def message_counts(self) -> dict[str, int]:
-        """Messages written per topic so far."""
-        with self._lock:
-            return {name: t.count for name, t in self._span.topics.items()}
+    def _fail(self, exc: OSError) -> None:
+        """Enter the error state (under the lock): no more writing, the file stays readable."""
+        if self.error is None:
+            self.error = (f"{exc.filename or self.mcap_path}: {exc.strerror or exc} — the bag holds what was "
+                          "written before; free space or fix the disk, then restart the recording")
 
     def _check_open(self) -> None:
         if self._closed.is_set():

@@ -14,8 +14,18 @@ from pathlib import Path
 
 import numpy as np
 
-from linkage_monitor.mechanics import InputError, LinkageError, Mechanism, load_mechanism, load_preset
-from linkage_monitor.mechanics.calibration import UNITS, FitResult, calibrate, fitted_yaml
+from linkage_monitor.cli.arguments import (
+    add_mechanism_group,
+    mechanism_from_args,
+    output_file,
+)
+from linkage_monitor.mechanics import InputError, LinkageError, Mechanism
+from linkage_monitor.mechanics.calibration import (
+    UNITS,
+    FitResult,
+    calibrate,
+    fitted_yaml,
+)
 from linkage_monitor.monitoring.name_value import name_value, number
 
 ATMOSPHERE = 101325.0  # Pa, ISO 2533; sensor_msgs/FluidPressure carries absolute pressure
@@ -28,15 +38,14 @@ def add_calibrate_parser(subparsers: argparse._SubParsersAction) -> argparse.Arg
         description="Bounded nonlinear least squares of the --free parameters of the start mechanism to the "
                     "data; reports the residual per column, each parameter's uncertainty and the parameters "
                     "the data cannot determine (docs/calibration.md).")
-    src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--preset", metavar="NAME", help="start from a bundled mechanism")
-    src.add_argument("--mechanism", metavar="START.yaml", help="start from a mechanism YAML")
+    add_mechanism_group(p)
     p.add_argument("--data", required=True, metavar="FILE.csv|BAG",
                    help="CSV with a header of column names, or a rosbag2 MCAP bag (directory or .mcap)")
     p.add_argument("--free", required=True, action="append", metavar="PARAM[,PARAM...]",
                    help="parameters to fit, dotted keys: points.P05.x, points.S6.z, implement.mass, "
                         "cylinders.lift_cylinder.bore, measurements.angles.NAME.reference (repeatable)")
-    p.add_argument("--out", required=True, metavar="FITTED.yaml", help="write the fitted mechanism here")
+    p.add_argument("--out", required=True, metavar="FITTED.yaml", type=output_file,
+                   help="write the fitted mechanism here")
     p.add_argument("--inputs", metavar="NAME[,NAME...]",
                    help="data columns that drive the linkage (default: the measured cylinders, plus the "
                         "angle sensors if the cylinders do not fix the pose)")
@@ -86,7 +95,10 @@ def read_bag_columns(path: Path, mech: Mechanism, gauge: bool = False) -> dict[s
     """Columns of a bag: the JointState positions of the measured cylinders (m) and angle sensors (rad),
     one row per message, and each ``.../pressure/<sensor>`` FluidPressure topic as ``pressure:<sensor>``
     (gauge Pa, interpolated at the JointState stamps; rows outside the pressure record are dropped)."""
-    from linkage_monitor.bag.reader import JointStateColumns, read_inputs  # rclpy only when a bag is read
+    from linkage_monitor.bag.reader import (  # rclpy only when a bag is read
+        JointStateColumns,
+        read_inputs,
+    )
     from linkage_monitor.bag.writer import BagError
 
     try:
@@ -140,7 +152,8 @@ def report(result: FitResult) -> str:
 
 def run_calibrate(args: argparse.Namespace) -> int:
     """Run ``linkage-monitor calibrate``; returns the exit code (LinkageError propagates to the caller)."""
-    start = load_preset(args.preset) if args.preset else load_mechanism(args.mechanism)
+    start = mechanism_from_args(args)
+    assert start is not None   # the group is required
     data_path = Path(args.data)
     if data_path.is_dir() or data_path.suffix == ".mcap":
         columns = read_bag_columns(data_path, start, args.gauge_pressure)

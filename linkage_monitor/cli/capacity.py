@@ -11,8 +11,19 @@ import json
 
 import numpy as np
 
-from linkage_monitor.mechanics import LinkageError, Mechanism, Solver, load_mechanism, load_preset
-from linkage_monitor.mechanics.capacity import interval_around, lift_cylinder, reference_length, stroke_mechanism
+from linkage_monitor.cli.arguments import (
+    add_mechanism_group,
+    bounded,
+    mechanism_from_args,
+    output_file,
+)
+from linkage_monitor.mechanics import LinkageError, Mechanism, Solver
+from linkage_monitor.mechanics.capacity import (
+    interval_around,
+    lift_cylinder,
+    reference_length,
+    stroke_mechanism,
+)
 from linkage_monitor.mechanics.machine import MachineBatch, MachineModel
 from linkage_monitor.mechanics.results import Status
 
@@ -25,14 +36,13 @@ def add_capacity_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
         "capacity", help="lift capacity (hitch axis, 610 mm, implement cg) and steerability limit over the stroke",
         description="Lift capacity at p_max*eta over the lift cylinder's stroke (transport poses) with the "
                     "largest implement weight the tractor can steer with (seed 003 Fig. 4-5).")
-    src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--preset", metavar="NAME", help="bundled mechanism (see `linkage-monitor presets`)")
-    src.add_argument("--mechanism", metavar="FILE", help="mechanism YAML (docs/mechanism-schema.md)")
-    p.add_argument("--stroke", nargs=2, type=float, metavar=("MIN_M", "MAX_M"),
+    add_mechanism_group(p)
+    p.add_argument("--stroke", nargs=2, type=bounded(0.0, 100.0, "m", lo_open=True), metavar=("MIN_M", "MAX_M"),
                    help="lift cylinder lengths to sweep, m (default: the range around the reference length in "
                         "which the linkage assembles and the implement rises)")
-    p.add_argument("--points", type=int, default=101, help="number of cylinder lengths (default 101)")
-    p.add_argument("--plot", metavar="FILE.png", help="write the capacity curve as a PNG")
+    p.add_argument("--points", type=bounded(2, 100_000, integer=True), default=101,
+                   help="number of cylinder lengths, 2 to 100000 (default 101)")
+    p.add_argument("--plot", metavar="FILE.png", type=output_file, help="write the capacity curve as a PNG")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     return p
 
@@ -100,9 +110,12 @@ def _table(curve: dict, rows: int = 11) -> str:
 
 def run_capacity(args: argparse.Namespace) -> int:
     """Run ``linkage-monitor capacity``; returns the exit code (LinkageError propagates to the caller)."""
-    from linkage_monitor.viz.capacity_plot import plot_capacity  # matplotlib only when this subcommand runs
+    from linkage_monitor.viz.capacity_plot import (
+        plot_capacity,  # matplotlib only when this subcommand runs
+    )
 
-    mech = load_preset(args.preset) if args.preset else load_mechanism(args.mechanism)
+    mech = mechanism_from_args(args)
+    assert mech is not None   # the group is required
     curve, machine = capacity_curve(mech, tuple(args.stroke) if args.stroke else None, args.points)
     if args.plot:
         cyl = mech.cylinder(curve["cylinder"])

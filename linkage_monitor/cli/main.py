@@ -9,21 +9,36 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from pathlib import Path
 from typing import Sequence
 
 import yaml
 
-from linkage_monitor.mechanics import Inputs, LinkageError, Mechanism, Result, Solver, load_mechanism, load_preset, preset_names
+from linkage_monitor.bag.writer import BagError
+from linkage_monitor.cli.arguments import (
+    add_mechanism_group,
+    bounded,
+    mechanism_from_args,
+    new_directory,
+    output_file,
+)
 from linkage_monitor.cli.calibrate import add_calibrate_parser, run_calibrate
 from linkage_monitor.cli.capacity import add_capacity_parser, run_capacity
+from linkage_monitor.cli.simulate import add_simulate_parser, run_simulate
+from linkage_monitor.mechanics import (
+    Inputs,
+    LinkageError,
+    Mechanism,
+    Result,
+    Solver,
+    preset_names,
+)
 from linkage_monitor.mechanics.machine import machine_summary
 from linkage_monitor.mechanics.presets import preset_description
 from linkage_monitor.monitoring.name_value import name_value, number
-from linkage_monitor.bag.writer import BagError
-from linkage_monitor.offline.replay import mechanism_in_bag, replay
-from linkage_monitor.cli.simulate import add_simulate_parser, run_simulate
+from linkage_monitor.offline.replay import replay
 
 
 class _Parser(argparse.ArgumentParser):
@@ -39,9 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("presets", help="list the bundled mechanisms with their description")
     solve = sub.add_parser("solve", help="solve one pose: hinge reactions, cylinder forces, implement load",
                            description="Solve one pose. Inputs default to the file's reference_inputs.")
-    src = solve.add_mutually_exclusive_group(required=True)
-    src.add_argument("--preset", metavar="NAME", help="bundled mechanism (see `linkage-monitor presets`)")
-    src.add_argument("--mechanism", metavar="FILE", help="mechanism YAML (docs/mechanism-schema.md)")
+    add_mechanism_group(solve)
     solve.add_argument("--stroke", action="append", default=[], metavar="CYL=METRES",
                        help="measured cylinder length pin to pin, m (repeatable)")
     solve.add_argument("--angle", action="append", default=[], metavar="SENSOR=RAD",
@@ -61,14 +74,12 @@ def build_parser() -> argparse.ArgumentParser:
                                         "(ours or from `ros2 bag record`) through the monitor, batched, and "
                                         "write the outputs to a new bag and/or a Rerun .rrd; prints a summary.")
     replay.add_argument("bag", metavar="BAG", help="bag directory (metadata.yaml + .mcap) or .mcap file")
-    src = replay.add_mutually_exclusive_group()
-    src.add_argument("--preset", metavar="NAME", help="bundled mechanism (default: the one stored in the bag)")
-    src.add_argument("--mechanism", metavar="FILE", help="mechanism YAML (default: the one stored in the bag)")
-    replay.add_argument("--out", metavar="DIR", help="write inputs + outputs + /diagnostics to this new bag directory")
-    replay.add_argument("--rrd", metavar="FILE", help="write a Rerun recording (open with `rerun FILE`)")
-    pace = replay.add_mutually_exclusive_group()
-    pace.add_argument("--rate", type=float, metavar="X", help="play at X times real time")
-    pace.add_argument("--max", action="store_true", help="as fast as possible (default)")
+    add_mechanism_group(replay, required=False, default="the one recorded in the bag")
+    replay.add_argument("--out", metavar="DIR", type=new_directory,
+                        help="write inputs + outputs + /diagnostics to this new bag directory")
+    replay.add_argument("--rrd", metavar="FILE", type=output_file, help="write a Rerun recording (open with `rerun FILE`)")
+    replay.add_argument("--rate", type=bounded(0.0, 1e6, "times real time", lo_open=True), metavar="X",
+                        help="write at X times real time (default: as fast as possible)")
     replay.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
 
@@ -143,7 +154,8 @@ def _table(res: Result) -> str:
 
 
 def _solve(args: argparse.Namespace) -> int:
-    mech = load_preset(args.preset) if args.preset else load_mechanism(args.mechanism)
+    mech = mechanism_from_args(args)
+    assert mech is not None   # the group is required
     overrides = {}
     for text in args.set:
         key, value = name_value(text, "--set")
@@ -161,17 +173,13 @@ def _solve(args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
-    bag = Path(args.bag)
-    if args.preset or args.mechanism:
-        mech = load_preset(args.preset) if args.preset else load_mechanism(args.mechanism)
-    else:
-        mech = mechanism_in_bag(bag)
-    if args.rate is not None and args.rate <= 0:
-        raise LinkageError(f"--rate {args.rate}: must be > 0 (times real time)")
-    summary, _ = replay(bag, mech, out_dir=Path(args.out) if args.out else None,
-                        rrd=Path(args.rrd) if args.rrd else None, rate=args.rate,
-                        progress=None if args.quiet else sys.stderr)
+    summary = replay(Path(args.bag), mechanism_from_args(args), out_dir=args.out, rrd=args.rrd, rate=args.rate,
+                     progress=None if args.quiet else sys.stderr).summary
     print(summary.table())
+    if summary.solved == 0:
+        print(f"linkage-monitor: error: no pose of {args.bag} was solved ({summary.inputs} inputs; see the findings "
+              "above): is it the right mechanism?", file=sys.stderr)
+        return 1
     if args.out:
         print(f"\noutputs written to {args.out}")
     if args.rrd:
@@ -184,8 +192,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         if args.command == "presets":
-            for name in preset_names():
-                print(f"{name:<24} {preset_description(name)}")
+            try:
+                for name in preset_names():
+                    print(f"{name:<24} {preset_description(name)}")
+            except BrokenPipeError:   # `linkage-monitor presets | head -1`
+                sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - the interpreter closes it at exit
             return 0
         if args.command == "capacity":
             return run_capacity(args)

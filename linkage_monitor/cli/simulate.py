@@ -10,7 +10,12 @@ from __future__ import annotations
 import argparse
 import sys
 
-from linkage_monitor.mechanics import LinkageError, load_mechanism, load_preset
+from linkage_monitor.cli.arguments import (
+    add_mechanism_group,
+    bounded,
+    mechanism_from_args,
+)
+from linkage_monitor.mechanics import LinkageError
 from linkage_monitor.sim.telemetry import SCENARIOS, Noise
 
 # Default sensor noise (1 sigma): a Hall-effect rockshaft angle sensor ~0.1°, a stroke sensor
@@ -20,25 +25,24 @@ NOISE_ANGLE, NOISE_LENGTH, NOISE_PRESSURE = 0.002, 0.0005, 0.05e6   # rad, m, Pa
 
 def add_simulate_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of the simulate command to ``parser``."""
-    source = parser.add_mutually_exclusive_group(required=True)
-    source.add_argument("--preset", metavar="NAME", help="bundled mechanism, e.g. belarus_1221")
-    source.add_argument("--mechanism", metavar="FILE", help="mechanism YAML file (docs/mechanism-schema.md)")
+    add_mechanism_group(parser)
     parser.add_argument("--scenario", choices=SCENARIOS, default="lift",
                         help="lift cycle, transport over bumps, field work, or overload (steerability < 0); "
                              "default lift")
-    parser.add_argument("--rate", type=float, default=50.0, metavar="HZ", help="samples per second, default 50")
-    parser.add_argument("--noise-angle", type=float, default=NOISE_ANGLE, metavar="RAD",
+    parser.add_argument("--rate", type=bounded(0.1, 100_000.0, "Hz"), default=50.0, metavar="HZ",
+                        help="samples per second, 0.1 to 100000, default 50")
+    parser.add_argument("--noise-angle", type=bounded(0.0, 1.0, "rad"), default=NOISE_ANGLE, metavar="RAD",
                         help=f"angle sensor noise sigma, rad (default {NOISE_ANGLE})")
-    parser.add_argument("--noise-length", type=float, default=NOISE_LENGTH, metavar="M",
+    parser.add_argument("--noise-length", type=bounded(0.0, 1.0, "m"), default=NOISE_LENGTH, metavar="M",
                         help=f"cylinder length noise sigma, m (default {NOISE_LENGTH})")
-    parser.add_argument("--noise-pressure", type=float, default=NOISE_PRESSURE, metavar="PA",
+    parser.add_argument("--noise-pressure", type=bounded(0.0, 1e8, "Pa"), default=NOISE_PRESSURE, metavar="PA",
                         help=f"pressure noise sigma, Pa (default {NOISE_PRESSURE:g})")
-    parser.add_argument("--duration", type=float, default=None, metavar="S",
+    parser.add_argument("--duration", type=bounded(0.0, 1e6, "s", lo_open=True), default=None, metavar="S",
                         help="seconds to simulate (default: the scenario's own length)")
     parser.add_argument("--gauge", action="store_true",
                         help="publish gauge pressure (default: absolute = gauge + 101325 Pa, as FluidPressure defines)")
     parser.add_argument("--loop", action="store_true", help="repeat the scenario until Ctrl-C")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the scenario's random phases and the noise")
+    parser.add_argument("--seed", type=bounded(0, 2**32 - 1, integer=True), default=0, help="seed of the scenario's random phases and the noise")
     parser.add_argument("--prefix", default="", help="topic prefix, e.g. 'sim/' -> sim/joint_states, "
                                                     "sim/pressure/<sensor>")
 
@@ -61,10 +65,9 @@ def parser() -> argparse.ArgumentParser:
 def run_simulate(args: argparse.Namespace) -> int:
     """Run the simulate command; returns the exit code (2 for a bad mechanism or option)."""
     try:
-        mech = load_preset(args.preset) if args.preset else load_mechanism(args.mechanism)
+        mech = mechanism_from_args(args)
+        assert mech is not None   # the group is required
         noise = Noise(angle=args.noise_angle, length=args.noise_length, pressure=args.noise_pressure)
-        if not args.rate > 0.0:
-            raise ValueError(f"--rate {args.rate}: the rate must be > 0 Hz")
     except (LinkageError, ValueError) as exc:
         print(f"linkage-monitor simulate: {exc}", file=sys.stderr)
         return 2

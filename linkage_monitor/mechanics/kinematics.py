@@ -12,6 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components, maximum_bipartite_matching
 
 from .linalg import condition_1, det_sign_and_condition, solve_square
 from .model import Mechanism
@@ -84,8 +86,9 @@ class Kinematics:
         p, _ = self._complex_positions(self._padded(self.q_ref[None]), self._constraint_arrays)
         self._s_ref = np.concatenate([np.abs(p[0, self.cyl_att[1]] - p[0, self.cyl_att[0]]), self.angle_reference])
         phi_ref, jac_ref = self.residual_jacobian(self.q_ref[None], self._s_ref[None])
-        ref_sign, ref_cond = self._branch_and_condition(jac_ref)
-        self._ref_sign = float(ref_sign[0])   # the assembly branch every solved pose must stay on
+        _, ref_cond = self._branch_and_condition(jac_ref)
+        self._loops = self._loop_blocks(jac_ref[0])
+        self._ref_branch = self.branch(jac_ref)[0]   # the assembly branch (one sign per loop) every pose keeps
         self._reference = KinematicState(s=self._s_ref[None], q=self.q_ref[None], phi=phi_ref, jac=jac_ref,
                                          status=np.zeros(1, dtype=int), messages=[""], condition=ref_cond)
 
@@ -189,7 +192,7 @@ class Kinematics:
         length = np.abs(d)
         ang = qp.take(self._angle_theta[1], axis=1) - qp.take(self._angle_theta[0], axis=1) + self.angle_reference
         phi = np.concatenate([as_xz(diff[:, :nh]).reshape(n_pose, 2 * nh), length - s[:, :nc],
-                              self.lc * (ang - s[:, nc:])], axis=1)
+                              self.lc * wrap_angle(ang - s[:, nc:])], axis=1)
         return phi, self._jacobian(rel, d / length)
 
     def _jacobian(self, rel: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -255,12 +258,57 @@ class Kinematics:
         return lo
 
     def _branch_and_condition(self, jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Assembly branch (sign of det ∂Φ/∂q; 1 when overdetermined) (N,) and the 1-norm condition
-        number (N,) of the Jacobian made dimensionless (θ columns / lc; positive scaling keeps the sign)."""
+        """Sign of det ∂Φ/∂q (1 when overdetermined) (N,) and the 1-norm condition number (N,) of the
+        Jacobian made dimensionless (θ columns / lc; positive scaling keeps the sign)."""
         js = jac * self._column_scale
         if self.m != self.n:
             return np.ones(jac.shape[0]), np.sqrt(condition_1(np.swapaxes(js, 1, 2) @ js))
         return det_sign_and_condition(js)
+
+    # ---- assembly branch: one sign per loop ------------------------------------------------------
+    def _loop_blocks(self, jac_ref: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(rows, columns) of each loop of the linkage: the diagonal blocks of the block-triangular
+        form of the square driving system (hinge rows + as many input rows, cylinders first, as
+        close the degrees of freedom), found from its structure (a maximum matching of rows to
+        columns, then the strongly connected components of the matched graph). A chain of dyads
+        gives one block per dyad; the sign of each block's determinant is that loop's assembly
+        branch (the sign of one global determinant would miss two loops flipping together)."""
+        nh2 = 2 * self.hinge_att.shape[1]
+        rows = list(range(nh2))
+        for r in range(nh2, self.m):          # input rows in order (cylinders, then angles), while they add rank
+            if len(rows) == self.n:
+                break
+            if np.linalg.matrix_rank(jac_ref[rows + [r]]) == len(rows) + 1:
+                rows.append(r)
+        if len(rows) != self.n or np.linalg.matrix_rank(jac_ref[rows]) < self.n:
+            return []                         # not closable by a square subsystem: no branch to keep
+        pattern = np.zeros((self.m, self.n), dtype=bool)
+        pattern.flat[self._jac_flat] = True
+        pattern |= self._jac0 != 0.0
+        sub = csr_matrix(pattern[rows].astype(np.int8))
+        match = maximum_bipartite_matching(sub, perm_type="column")   # match[row] = its column
+        if np.any(match < 0):
+            return []
+        order = np.argsort(match)            # row matched to each column
+        graph = csr_matrix(pattern[rows][order].astype(np.int8))    # column j -> columns of its matched row
+        count, label = connected_components(graph, directed=True, connection="strong")
+        blocks = []
+        for b in range(count):
+            cols = np.flatnonzero(label == b)
+            blocks.append((np.array(rows)[order[cols]], cols))
+        return blocks
+
+    def branch(self, jac: np.ndarray) -> np.ndarray:
+        """Sign of the determinant of each loop's block (N, n_loops): +1, −1, or 0 at a dead centre."""
+        out = np.ones((jac.shape[0], len(self._loops)))
+        for k, (rows, cols) in enumerate(self._loops):
+            out[:, k] = np.linalg.slogdet(jac[:, rows][:, :, cols])[0]
+        return out
+
+    def on_branch(self, jac: np.ndarray) -> np.ndarray:
+        """True (N,) where no loop is in the opposite assembly of the reference pose's (a loop at a
+        dead centre, sign 0, is left to the dead-centre check)."""
+        return ~np.any(self.branch(jac) * self._ref_branch < 0.0, axis=1)
 
     def predict(self, previous: KinematicState, s: np.ndarray) -> np.ndarray:
         """Poses q (N, n) predicted for inputs s (N, n_inputs) along the tangent at one solved pose.
@@ -286,10 +334,14 @@ class Kinematics:
         poses that fail or land on another branch are redone by continuation from the reference pose.
         """
         n_pose = s.shape[0]
-        q, phi, jac = self.newton(self.predict(self._reference if previous is None else previous, s), s)
-        sign, cond = self._branch_and_condition(jac)
+        nc = self.cyl_att.shape[1]
+        s = s.copy()   # angles as the nearest equivalent (modulo 2π) of the reference pose's: a sensor
+        s[:, nc:] = self.angle_reference + wrap_angle(s[:, nc:] - self.angle_reference)  # in [−π, π) or [0, 2π)
+        start = self._reference if previous is None else previous
+        q, phi, jac = self.newton(self.predict(start, s), s)
+        _, cond = self._branch_and_condition(jac)
         limit = 1e-9 * self.lc if self.m == self.n else consistency_tol
-        retry = np.flatnonzero((sign != self._ref_sign) | ~(np.abs(phi).max(axis=1) <= limit))
+        retry = np.flatnonzero(~self.on_branch(jac) | ~(np.abs(phi).max(axis=1) <= limit))
         still = np.zeros(0, dtype=int)
         if retry.size:  # continuation from the reference pose along a straight input path
             s_ref = self._s_ref
@@ -300,8 +352,15 @@ class Kinematics:
             q[retry], phi[retry], jac[retry] = qr, phir, jacr
             cond[retry] = self._branch_and_condition(jacr)[1]
             still = retry[~(np.abs(phir).max(axis=1) <= limit)]
+            off = retry[~self.on_branch(jacr) & (np.abs(phir).max(axis=1) <= limit)]
         status = np.zeros(n_pose, dtype=int)
         messages = [""] * n_pose
+        if retry.size:
+            for i in off:
+                status[i] = Status.ASSEMBLY
+                messages[i] = (f"cannot assemble the linkage for {self.describe_inputs(s[i])} on the reference "
+                               "pose's assembly branch: the inputs fit only a mirrored assembly of a loop (check the "
+                               "sensors and their zero offsets)")
         if still.size and self.m == self.n:  # say how far the inputs are out of reach
             reach = self.reachable_fraction(s[still])
             for i, t in zip(still, reach):
@@ -382,6 +441,11 @@ class Kinematics:
             return solve_square(jac, rhs)
         jt = np.swapaxes(jac, 1, 2)
         return solve_square(jt @ jac, (jt @ rhs[..., None])[..., 0])
+
+
+def wrap_angle(a: np.ndarray) -> np.ndarray:
+    """Angles (rad) taken modulo 2π into [−π, π)."""
+    return np.remainder(a + np.pi, 2.0 * np.pi) - np.pi
 
 
 def as_xz(z: np.ndarray) -> np.ndarray:

@@ -139,11 +139,13 @@ class PressureSensor:
 
 @dataclass(frozen=True)
 class Measurements:
-    """What is measured: cylinder lengths, joint angles, chamber pressures."""
+    """What is measured: cylinder lengths, joint angles, chamber pressures; ``limits`` = the file's
+    plausibility range [min, max] per measurement name (m, rad, Pa absolute), see mechanics.limits."""
 
     cylinders: tuple[str, ...] = ()
     angles: tuple[AngleSensor, ...] = ()
     pressures: tuple[PressureSensor, ...] = ()
+    limits: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

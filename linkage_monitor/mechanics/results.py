@@ -6,7 +6,7 @@ SI units, global frame (x forward, z up, origin at the rear wheels' ground conta
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import TYPE_CHECKING
 
@@ -103,6 +103,7 @@ class Result:
     condition: float
     status: str
     message: str = ""
+    state: object = field(default=None, repr=False, compare=False)  # the solver's pose, to warm-start the next solve
 
 
 @dataclass

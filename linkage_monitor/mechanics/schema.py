@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 import math
 import re
+import stat
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -23,33 +24,95 @@ _TOP_KEYS = {"name", "description", "source", "gravity", "points", "bodies", "hi
              "springs", "contacts", "loads", "implement", "measurements", "reference_inputs",
              "tractor"}
 _NAME = re.compile(r"^[a-z0-9_]+$")
+MAX_FILE_BYTES = 1 << 20     # a mechanism description is a few kB; more is not a mechanism
+MAX_DEPTH = 32               # nesting of mappings/lists (the schema needs 5)
+MAX_POINTS = 10_000
+MAX_MAGNITUDE = 1e9          # no number of the schema (m, kg, N, Pa, N/m) is larger
+MAX_COORDINATE = 1e3         # m: a linkage point farther than 1 km from the wheels is a typo
+MAX_GRAVITY = 100.0          # m/s²
 _FLOAT = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
 
 def load_mechanism(path: str | Path) -> Mechanism:
-    """Read and validate a mechanism YAML file (SI units, frame x forward / z up, origin B)."""
+    """Read and validate a mechanism YAML file (SI units, frame x forward / z up, origin B).
+
+    Only a regular file of at most MAX_FILE_BYTES is read (a FIFO or a device would block).
+    """
     path = Path(path)
     try:
-        data = path.read_bytes()
+        info = path.stat()
+    except OSError as exc:
+        raise MechanismFileError(str(path), "", f"cannot read the file ({exc.strerror})") from exc
+    if not stat.S_ISREG(info.st_mode):
+        raise MechanismFileError(str(path), "", "not a regular file (a directory, FIFO or device): give a YAML file")
+    if info.st_size > MAX_FILE_BYTES:
+        raise MechanismFileError(str(path), "", f"{info.st_size} bytes: larger than the {MAX_FILE_BYTES} bytes a "
+                                 "mechanism description may have")
+    try:
+        with open(path, "rb") as stream:
+            data = stream.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise MechanismFileError(str(path), "", f"cannot read the file ({exc.strerror})") from exc
     return mechanism_from_text(data, file=str(path))
 
 
+class _StrictLoader(yaml.SafeLoader):
+    """SafeLoader that refuses aliases (no expansion bombs), deep nesting and duplicate keys."""
+
+    def compose_node(self, parent, index):  # type: ignore[no-untyped-def]
+        if self.check_event(yaml.events.AliasEvent):
+            mark = self.peek_event().start_mark
+            raise yaml.constructor.ConstructorError(None, None, "aliases (*name) are not allowed in a mechanism "
+                                                    "description: write the value out", mark)
+        self._depth = getattr(self, "_depth", 0) + 1
+        try:
+            if self._depth > MAX_DEPTH:
+                raise yaml.constructor.ConstructorError(None, None, f"nesting deeper than {MAX_DEPTH} levels",
+                                                        self.peek_event().start_mark)
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+    def construct_mapping(self, node, deep=False):  # type: ignore[no-untyped-def]
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(None, None, f"duplicate key {key!r}", key_node.start_mark)
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+    def construct_yaml_int(self, node):  # type: ignore[no-untyped-def]
+        if len(str(node.value)) > 30:
+            raise yaml.constructor.ConstructorError(None, None, f"integer of {len(str(node.value))} digits: "
+                                                    "not a quantity of a linkage", node.start_mark)
+        return super().construct_yaml_int(node)
+
+
+_StrictLoader.add_constructor("tag:yaml.org,2002:int", _StrictLoader.construct_yaml_int)
+_StrictLoader.add_constructor("tag:yaml.org,2002:map", _StrictLoader.construct_yaml_map)
+
+
 def mechanism_from_text(text: bytes | str, file: str = "<text>") -> Mechanism:
     """Parse and validate a mechanism description given as YAML text; ``file`` names it in errors."""
     if isinstance(text, bytes):
+        if len(text) > MAX_FILE_BYTES:
+            raise MechanismFileError(file, "", f"larger than the {MAX_FILE_BYTES} bytes a mechanism description "
+                                     "may have")
         try:
             text = text.decode("utf-8")
         except UnicodeDecodeError as exc:
-            raise MechanismFileError(file, "", f"not UTF-8 text (byte {exc.start}: {exc.reason})") from exc
+            raise MechanismFileError(file, "", f"not UTF-8 text (byte {exc.start}: {exc.reason}); save the file "
+                                     "as UTF-8") from exc
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark is not None else "YAML"
-        problem = getattr(exc, "problem", None) or str(exc)
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
         raise MechanismFileError(file, where, f"malformed YAML: {problem}") from exc
+    except RecursionError as exc:
+        raise MechanismFileError(file, "YAML", f"nesting deeper than {MAX_DEPTH} levels") from exc
     return mechanism_from_dict(data, file=file)
 
 
@@ -133,9 +196,14 @@ class _Reader:
             value = float(value)  # YAML 1.1 reads 20e6 / 1.5e-3 (no sign in the exponent) as strings
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.fail(key, f"expected a number, got {value!r}")
-        x = float(value)
+        try:
+            x = float(value)
+        except OverflowError:
+            raise self.fail(key, "a number too large to be a quantity of a linkage") from None
         if not math.isfinite(x):
             raise self.fail(key, f"{x} is not a finite number")
+        if abs(x) > MAX_MAGNITUDE:
+            raise self.fail(key, f"{x:.6g} is out of range (|value| <= {MAX_MAGNITUDE:.0e} in SI units)")
         if positive and x <= 0.0:
             raise self.fail(key, f"must be > 0, got {x}")
         if minimum is not None and x < minimum:
@@ -205,7 +273,13 @@ class _Reader:
         pts = top["points"]
         if not isinstance(pts, dict) or not pts:
             raise self.fail("points", f"expected a mapping name -> [x, z], got {pts!r}")
+        if len(pts) > MAX_POINTS:
+            raise self.fail("points", f"{len(pts)} points: more than the {MAX_POINTS} a linkage description may have")
         self.points = {str(k): self.vector(v, f"points.{k}") for k, v in pts.items()}
+        for k, v in self.points.items():
+            if np.abs(v).max() > MAX_COORDINATE:
+                raise self.fail(f"points.{k}", f"{v.tolist()} m is farther than {MAX_COORDINATE:.0f} m from the "
+                                "origin (the rear wheels' ground contact): units are metres")
         bodies = self.read_bodies(top["bodies"])
         hinges = self.read_hinges(top["hinges"])
         cylinders = self.read_cylinders(top.get("cylinders"))
@@ -215,12 +289,27 @@ class _Reader:
             name=name, file=self.file, points=self.points, bodies=bodies, hinges=hinges,
             measurements=measurements,
             description=str(top.get("description", "") or ""), source=str(top.get("source", "") or ""),
-            gravity=self.number(top.get("gravity", 9.80665), "gravity", minimum=0.0),
+            gravity=self.number(top.get("gravity", 9.80665), "gravity", minimum=0.0, maximum=MAX_GRAVITY),
             cylinders=cylinders, springs=self.read_springs(top.get("springs")),
             contacts=self.read_contacts(top.get("contacts")), loads=self.read_loads(top.get("loads")),
             implement=implement, reference_inputs=self.read_reference_inputs(top.get("reference_inputs"), measurements),
             tractor=self.read_tractor(top.get("tractor")), raw=copy.deepcopy(top))
+        self.check_geometry(mech)
         return mech
+
+    def check_geometry(self, mech: Mechanism) -> None:
+        """Degenerate geometry, named: a moving body whose points coincide (no direction to rotate
+        about), a cylinder or spring of zero length."""
+        for i, b in enumerate(mech.bodies):
+            pts = np.array([mech.points[p] for p in b.points])
+            if not b.ground and len(pts) >= 2 and np.ptp(pts, axis=0).max() < 1e-6:
+                raise self.fail(f"bodies[{i}].points", f"all points of body '{b.name}' coincide: a rigid body needs "
+                                "two distinct points")
+        members = [("cylinders", c.name, c.base.point, c.rod_end.point) for c in mech.cylinders]
+        members += [("springs", s.name, s.a.point, s.b.point) for s in mech.springs]
+        for section, name, a, b in members:
+            if np.hypot(*(mech.points[a] - mech.points[b])) < 1e-6:
+                raise self.fail(f"{section}.{name}", f"its ends {a} and {b} coincide: zero length in the reference pose")
 
     def read_bodies(self, value: Any) -> tuple[Body, ...]:
         items = self.seq(value, "bodies")
@@ -363,7 +452,7 @@ class _Reader:
 
     def read_measurements(self, value: Any, hinges: tuple[Hinge, ...], cylinders: tuple[Cylinder, ...]) -> Measurements:
         k = "measurements"
-        m = self.mapping(value if value is not None else {}, k, {"cylinders", "angles", "pressures"})
+        m = self.mapping(value if value is not None else {}, k, {"cylinders", "angles", "pressures", "limits"})
         cyl_names = [c.name for c in cylinders]
         hinge_names = [h.name for h in hinges]
         cyls = []
@@ -393,7 +482,22 @@ class _Reader:
             pressures.append(PressureSensor(name=self.text(pm["name"], f"{kp}.name"), cylinder=pm["cylinder"],
                                             chamber=pm["chamber"]))
         self.unique([p.name for p in pressures], f"{k}.pressures")
-        return Measurements(cylinders=tuple(cyls), angles=tuple(angles), pressures=tuple(pressures))
+        measured = set(cyls) | {a.name for a in angles} | {p.name for p in pressures}
+        limits = {}
+        lm = m.get("limits") or {}
+        if not isinstance(lm, dict):
+            raise self.fail(f"{k}.limits", f"expected a mapping measurement name -> [min, max], got {type(lm).__name__}")
+        for name, pair in lm.items():
+            kl = f"{k}.limits.{name}"
+            if name not in measured:
+                raise self.fail(kl, f"'{name}' is not a measurement (measured: {', '.join(sorted(measured))})")
+            if not isinstance(pair, list) or len(pair) != 2:
+                raise self.fail(kl, f"expected [min, max], got {pair!r}")
+            lo, hi = self.number(pair[0], f"{kl}[0]"), self.number(pair[1], f"{kl}[1]")
+            if not lo < hi:
+                raise self.fail(kl, f"min {lo} must be below max {hi}")
+            limits[str(name)] = (lo, hi)
+        return Measurements(cylinders=tuple(cyls), angles=tuple(angles), pressures=tuple(pressures), limits=limits)
 
     def read_reference_inputs(self, value: Any, meas: Measurements) -> dict[str, dict[str, float]]:
         k = "reference_inputs"

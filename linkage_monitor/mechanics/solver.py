@@ -5,7 +5,7 @@ SI units (m, rad, N, Pa); frame x forward, z up, origin at the rear wheels' grou
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Mapping
 
 import numpy as np
@@ -75,29 +75,25 @@ class Solver:
                     self._frame_members.append((m, kin.attach(ground, end.point), sign))
                     self.frame_load_names.append(f"{name} {end.point}")
         self._sensors = {ps.name: ps for ps in mech.measurements.pressures}
-        self._previous: KinematicState | None = None  # last solved single pose: where the next one starts
 
     # ---- public API -------------------------------------------------------------------------
-    def solve(self, inputs: Inputs) -> Result:
+    def solve(self, inputs: Inputs, previous: Result | None = None) -> Result:
         """Solve one pose; raises a LinkageError subclass on failure.
 
-        Newton starts from the tangent prediction off the previous solved pose (a live node's
-        inputs change little between messages: 2 iterations), or off the reference pose.
+        Warm start is explicit: pass the previous solved pose (``previous``, a Result of this
+        solver) and Newton starts from the tangent prediction off it (a live node's inputs change
+        little between messages: 2 iterations); without it, from the reference pose. Either way
+        the answer is the same pose on the reference assembly branch (the solver keeps no state).
         """
         arrays = {kind: {k: np.array([v], dtype=float) for k, v in getattr(inputs, kind).items()}
                   for kind in ("cylinders", "angles", "pressures", "rates", "accelerations")}
-        batch, ks = self._solve(self._previous, **arrays)
+        start = previous.state if previous is not None else None
+        batch, ks = self._solve(start if isinstance(start, KinematicState) else None, **arrays)
         res = batch.result(0)
         code = int(batch.status[0])
         if code in (Status.OK, Status.LIFT_OFF):
-            self._previous = ks
-            return res
+            return replace(res, state=ks)
         raise {Status.INPUT: InputError, Status.ASSEMBLY: AssemblyError, Status.DEAD_CENTRE: DeadCentreError}[code](res.message)
-
-    def restart(self) -> None:
-        """Forget the previous pose: the next ``solve`` starts from the reference pose (after a jump
-        in the inputs, e.g. a sensor fault, starting there is as good as anywhere)."""
-        self._previous = None
 
     def solve_batch(self, cylinders: ArrayMap | None = None, angles: ArrayMap | None = None,
                     pressures: ArrayMap | None = None, rates: ArrayMap | None = None,

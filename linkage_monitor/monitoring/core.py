@@ -1,165 +1,314 @@
-"""One monitoring step per sensor message, without rclpy: the core of the live node.
+"""The monitoring core: sensor events in, domain results and findings out (no rclpy).
 
-A sensor message updates the latest inputs (inputs.py); if every input is fresh the
-linkage is solved (mechanics), the machine-level results are added, and the three output
-messages are built (outputs.py). Every step ends in a diagnostic level, a message naming
-the input and the reason, and key-values with the numbers. Nothing with garbage values is
-returned: a failed step has `outputs = None`.
+One core, two drivers. The live node calls ``on_joint_state`` / ``on_pressure`` per message
+(each solve warm-starts from the last solved pose, which the core holds explicitly); the
+replay hands a whole recording to ``run``, which takes every event through the same
+acceptance stage, solves the due poses of each configuration segment in one batch, and
+finishes each pose with the same function as the live path. Both return one ``Step`` per
+input event: a level, the findings (code + sentence naming the input and the reason), the
+key-values for the diagnostic, and the solved ``Pose`` or None — nothing with garbage values.
+Units SI (m, rad, N, Pa, kg); frame x forward, z up, origin at the rear wheels' ground contact.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
-from typing import Any, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Iterable, Mapping, Sequence, Union
 
-from linkage_monitor.ros import messages as out
-from linkage_monitor.monitoring.inputs import InputConfig, InputTracker, StaleInputError
-from linkage_monitor.mechanics import (AssemblyError, DeadCentreError, InputError, Inputs, LinkageError, Mechanism, Result,
-                        Solver)
-from linkage_monitor.mechanics.results import Status
-from linkage_monitor.mechanics.machine import MachineModel, MachineResult
+import numpy as np
 
-OK, WARN, ERROR = 0, 1, 2  # diagnostic_msgs/DiagnosticStatus levels
+from linkage_monitor.mechanics import (AssemblyError, BatchResult, DeadCentreError, InputError, Inputs, LinkageError,
+                                       Mechanism, Result, Solver, Status)
+from linkage_monitor.mechanics.machine import MachineBatch, MachineModel, MachineResult
+
+from .config import MonitorConfig
+from .findings import Code, Finding, Level, fmt
+from .inputs import InputTracker, Refused
+
 # Redundant measurements (e.g. stroke and lift-arm angle) never agree exactly: up to
 # CONSISTENCY_WARN_M of loop-closure residual is sensor noise, above it a WARN, above
 # ASSEMBLY_LIMIT_M the pose cannot be assembled from the inputs (ERROR).
 CONSISTENCY_WARN_M = 1e-3
 ASSEMBLY_LIMIT_M = 20e-3
-WARNING_JOIN = " | "  # between several warnings of one step (a warning itself may contain "; ")
-FAILURE_STATUS = {AssemblyError: Status.ASSEMBLY, DeadCentreError: Status.DEAD_CENTRE, InputError: Status.INPUT}
-FAILURE_TEXT = {Status.ASSEMBLY: "cannot assemble", Status.DEAD_CENTRE: "dead centre", Status.INPUT: "malformed input"}
+# With more measured forces than needed (e.g. two cylinder pressures), equilibrium is met in
+# the least-squares sense; a residual above this share of the largest force means the
+# pressures disagree beyond sensor noise.
+RESIDUAL_WARN_SHARE = 0.01
+MESSAGE_JOIN = " | "  # between the sentences of several findings of one step
+FAILURE_CODE = {Status.INPUT: Code.MALFORMED_INPUT, Status.ASSEMBLY: Code.CANNOT_ASSEMBLE,
+                Status.DEAD_CENTRE: Code.DEAD_CENTRE}
+FAILURE_TEXT = {Code.MALFORMED_INPUT: "malformed input", Code.CANNOT_ASSEMBLE: "cannot assemble",
+                Code.DEAD_CENTRE: "dead centre"}
+EXCEPTION_STATUS = {InputError: Status.INPUT, AssemblyError: Status.ASSEMBLY, DeadCentreError: Status.DEAD_CENTRE}
 
 
 @dataclass(frozen=True)
-class Pending:
-    """A solve that is due: the trigger's stamp (ns), the inputs, their values for the diagnostic."""
+class Pose:
+    """A solved pose: the solver's result and the machine-level results (axle loads,
+    steerability, lift capacity), both domain types in SI units."""
+
+    result: Result
+    machine: MachineResult
+
+
+@dataclass(frozen=True)
+class Step:
+    """The outcome of one input event (stamp = its header stamp, ns)."""
 
     stamp_ns: int
+    trigger: str
+    findings: tuple[Finding, ...] = ()
+    values: Mapping[str, str] = field(default_factory=dict)
+    pose: Pose | None = None
+    inputs: Inputs | None = None   # what was solved (None when no solve was due)
+
+    @property
+    def level(self) -> Level:
+        """The worst level of the findings (OK without any)."""
+        return max((f.level for f in self.findings), default=Level.OK)
+
+    @property
+    def message(self) -> str:
+        """The findings' sentences joined, or 'ok'."""
+        return MESSAGE_JOIN.join(f.text for f in self.findings) or "ok"
+
+
+@dataclass(frozen=True)
+class JointStateEvent:
+    """A sensor_msgs/JointState: positions rad / m, velocities rad/s / m/s (may be empty),
+    header stamp and receive time (ns)."""
+
+    topic: str
+    names: Sequence[str]
+    positions: Sequence[float]
+    velocities: Sequence[float]
+    stamp_ns: int
+    receive_ns: int
+
+
+@dataclass(frozen=True)
+class PressureEvent:
+    """A sensor_msgs/FluidPressure: Pa, header stamp and receive time (ns)."""
+
+    topic: str
+    fluid_pressure: float
+    stamp_ns: int
+    receive_ns: int
+
+
+@dataclass(frozen=True)
+class ConfigEvent:
+    """The configuration changed (runtime parameters); applies to the events after it."""
+
+    config: MonitorConfig
+
+
+Event = Union[JointStateEvent, PressureEvent, ConfigEvent]
+
+
+@dataclass(frozen=True)
+class Segment:
+    """The poses of one configuration segment of a batched run, solved together.
+
+    steps: index (into ``Run.steps``) of each pose's Step; stamps_ns: their header stamps;
+    batch / machine: the solver's and the machine-level results (arrays, SI units; failed poses
+    NaN with their status); mechanism: the effective mechanism of the segment.
+    """
+
+    steps: np.ndarray
+    stamps_ns: np.ndarray
+    batch: BatchResult
+    machine: MachineBatch
+    mechanism: Mechanism
+
+
+@dataclass(frozen=True)
+class Run:
+    """A batched run: one Step per input event, and the solved segments as arrays."""
+
+    steps: list[Step]
+    segments: list[Segment]
+
+
+@dataclass(frozen=True)
+class _Due:
+    """An accepted input event whose solve is due."""
+
+    stamp_ns: int
+    trigger: str
     inputs: Inputs
     values: dict[str, str]
 
 
-@dataclass
-class Step:
-    """The outcome of one sensor message: outputs (None if nothing was solved) and a diagnostic."""
-
-    stamp_ns: int
-    level: int
-    message: str
-    values: dict[str, str] = field(default_factory=dict)
-    outputs: out.Outputs | None = None
-    result: Result | None = None
-    machine: MachineResult | None = None
-
-
 class Monitor:
-    """Holds the mechanism, its solver and the latest inputs; turns sensor messages into Steps.
+    """Mechanism + configuration -> solver, machine model and the latest inputs; events -> Steps.
 
-    residual_warn_n: N, equilibrium residual above which a solve is a WARN.
+    ``description`` is the mechanism as described (preset or file, without the configuration's
+    overrides); the effective mechanism is ``description.with_overrides(config.overrides)``.
     """
 
-    def __init__(self, mech: Mechanism, config: InputConfig) -> None:
+    def __init__(self, description: Mechanism, config: MonitorConfig) -> None:
+        self.description = description
         self.config = config
-        self.tracker = InputTracker(mech, config)
-        self.mechanism = mech
-        self._build(mech)
+        self._build(config, previous=None)
 
-    def _build(self, mech: Mechanism) -> None:
-        self.mechanism = mech
-        self.solver = Solver(mech, consistency_tol=ASSEMBLY_LIMIT_M)
-        self.machine = MachineModel(mech, self.solver)
-        self.overdetermined = self.solver.kin.m > self.solver.kin.n
-        self.estimates_load = bool(self.tracker.pressure_names)
+    # ---- configuration ---------------------------------------------------------------------
+    def _build(self, config: MonitorConfig, previous: InputTracker | None) -> None:
+        mech = self.description.with_overrides(dict(config.overrides)) if config.overrides else self.description
+        tracker = InputTracker(mech, config)   # raises ValueError for a bad mapping: nothing changed yet
+        solver = Solver(mech, consistency_tol=ASSEMBLY_LIMIT_M)
+        machine = MachineModel(mech, solver)
+        if previous is not None:
+            tracker.carry_over(previous)
+        self.config, self.mechanism, self.tracker, self.solver, self.machine = config, mech, tracker, solver, machine
+        self.overdetermined = solver.kin.m > solver.kin.n
+        self.estimates_load = bool(tracker.pressure_names)
+        self.warm: Result | None = None   # the last solved pose: where the next live solve starts
 
-    def apply_overrides(self, overrides: Mapping[str, Any]) -> None:
-        """Change scalars of the description (e.g. {'implement.mass': 1530.0}); from the next step on."""
-        self._build(self.mechanism.with_overrides(overrides))
+    def reconfigure(self, config: MonitorConfig) -> None:
+        """Apply a new configuration from the next event on (the latest readings are kept)."""
+        self._build(config, previous=self.tracker)
 
-    def set_staleness_limit(self, seconds: float) -> None:
-        """Largest age (s) of any input relative to the triggering message, from the next step on."""
-        self.config = replace(self.config, staleness_limit_s=float(seconds))
-        self.tracker.config = self.config
+    # ---- the live path: one event at a time ------------------------------------------------------
+    def on_joint_state(self, names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
+                       stamp_ns: int, receive_ns: int, topic: str = "joint_states") -> Step:
+        """A JointState arrived: accept, solve (warm start from the last solved pose), finish."""
+        return self.step(JointStateEvent(topic, names, positions, velocities, stamp_ns, receive_ns))
 
-    def on_joint_state(self, names: Sequence[str], positions: Sequence[float], stamp_ns: int) -> Step:
-        """A sensor_msgs/JointState arrived (positions rad / m, stamp ns): accept, solve, finish."""
-        return self._solve(self.accept_joint_state(names, positions, stamp_ns))
+    def on_pressure(self, topic: str, fluid_pressure: float, stamp_ns: int, receive_ns: int) -> Step:
+        """A FluidPressure arrived on ``topic``: accept, solve, finish."""
+        return self.step(PressureEvent(topic, fluid_pressure, stamp_ns, receive_ns))
 
-    def on_pressure(self, topic: str, fluid_pressure: float, stamp_ns: int) -> Step:
-        """A sensor_msgs/FluidPressure arrived on `topic` (Pa, stamp ns): accept, solve, finish."""
-        return self._solve(self.accept_pressure(topic, fluid_pressure, stamp_ns))
-
-    # ---- the stages, shared with the batched replay ----------------------------------------------
-    def accept_joint_state(self, names: Sequence[str], positions: Sequence[float], stamp_ns: int) -> Pending | Step:
-        """Update the latest inputs from a JointState; the pending solve, or an ERROR/WARN Step."""
+    def step(self, event: JointStateEvent | PressureEvent) -> Step:
+        """One input event end to end; never raises (an internal failure is an ERROR Step)."""
         try:
-            self.tracker.update_joint_state(names, positions, stamp_ns)
-        except InputError as exc:
-            return Step(stamp_ns, ERROR, f"malformed input: {exc}", {"input": "joint_states"})
-        return self._pending(stamp_ns, "joint_states")
+            due = self._accept(event)
+            if isinstance(due, Step):
+                return due
+            try:
+                result = self.solver.solve(due.inputs, previous=self.warm)
+            except LinkageError as exc:
+                self.warm = None
+                return self._failed(due, EXCEPTION_STATUS.get(type(exc), Status.INPUT), str(exc))
+            self.warm = result
+            return self._finish(due, result, self.machine.evaluate(result))
+        except Exception as exc:  # noqa: BLE001 - the adapter boundary: report, forget the warm start, go on
+            return self._internal_error(event, exc)
 
-    def accept_pressure(self, topic: str, fluid_pressure: float, stamp_ns: int) -> Pending | Step:
-        """Update the latest inputs from a FluidPressure; the pending solve, or an ERROR/WARN Step."""
-        try:
-            self.tracker.update_pressure(topic, fluid_pressure, stamp_ns)
-        except InputError as exc:
-            return Step(stamp_ns, ERROR, f"malformed input: {exc}", {"input": topic})
-        return self._pending(stamp_ns, topic)
+    # ---- the batched path: a whole recording -----------------------------------------------------
+    def run(self, events: Iterable[Event]) -> Run:
+        """One Step per input event (ConfigEvents give none), the due poses solved in batches."""
+        steps: list[Step | None] = []
+        segments: list[Segment] = []
+        segment: list[tuple[int, _Due]] = []
+        for event in events:
+            if isinstance(event, ConfigEvent):
+                self._solve_segment(segment, steps, segments)
+                segment = []
+                self.reconfigure(event.config)
+                continue
+            try:
+                due = self._accept(event)
+            except Exception as exc:  # noqa: BLE001 - as in step()
+                due = self._internal_error(event, exc)
+            if isinstance(due, Step):
+                steps.append(due)
+            else:
+                segment.append((len(steps), due))
+                steps.append(None)
+        self._solve_segment(segment, steps, segments)
+        return Run(steps, segments)  # type: ignore[arg-type]  # every None was filled by _solve_segment
 
-    def _pending(self, stamp_ns: int, trigger: str) -> Pending | Step:
-        try:
-            inputs = self.tracker.inputs_at(stamp_ns)
-        except StaleInputError as exc:
-            return Step(stamp_ns, WARN, f"no solve: {exc}", {"input": trigger})
-        values = {"input": trigger}
-        values.update({f"input {k} [m]": f"{v:.6g}" for k, v in inputs.cylinders.items()})
-        values.update({f"input {k} [rad]": f"{v:.6g}" for k, v in inputs.angles.items()})
-        values.update({f"input {k} [Pa gauge]": f"{v:.6g}" for k, v in inputs.pressures.items()})
-        return Pending(stamp_ns, inputs, values)
+    def _solve_segment(self, segment: list[tuple[int, _Due]], steps: list[Step | None],
+                       segments: list[Segment]) -> None:
+        if not segment:
+            return
+        dues = [d for _, d in segment]
 
-    def _solve(self, pending: Pending | Step) -> Step:
-        if isinstance(pending, Step):
-            return pending
+        def column(kind: str) -> dict[str, np.ndarray]:
+            return {n: np.array([getattr(d.inputs, kind)[n] for d in dues]) for n in getattr(dues[0].inputs, kind)}
+
+        batch = self.solver.solve_batch(cylinders=column("cylinders"), angles=column("angles"),
+                                        pressures=column("pressures"), rates=column("rates"),
+                                        accelerations=column("accelerations"))
+        machine = self.machine.evaluate_batch(batch)
+        for k, (i, due) in enumerate(segment):
+            status = Status(int(batch.status[k]))
+            steps[i] = (self._finish(due, batch.result(k), machine.result(k)) if status.solved
+                        else self._failed(due, status, batch.messages[k]))
+        segments.append(Segment(np.array([i for i, _ in segment]), np.array([d.stamp_ns for d in dues], dtype=np.int64),
+                                batch, machine, self.mechanism))
+
+    # ---- the stages both paths share -------------------------------------------------------------
+    def _accept(self, event: JointStateEvent | PressureEvent) -> _Due | Step:
+        """Take the event's values (or refuse it whole); the due solve, or the Step that ends here."""
+        tracker = self.tracker
         try:
-            result = self.solver.solve(pending.inputs)
-        except LinkageError as exc:
-            return self.failed(pending, FAILURE_STATUS.get(type(exc), Status.INPUT), str(exc))
-        return self.finish(pending, result, self.machine.evaluate(result))
+            if isinstance(event, JointStateEvent):
+                tracker.accept_joint_state(event.names, event.positions, event.velocities, event.stamp_ns,
+                                           event.receive_ns)
+            else:
+                tracker.accept_pressure(event.topic, event.fluid_pressure, event.stamp_ns, event.receive_ns)
+        except Refused as refused:
+            return Step(event.stamp_ns, event.topic, (refused.finding,), {"input": event.topic})
+        inputs = tracker.inputs_at(event.stamp_ns)
+        if isinstance(inputs, Finding):
+            return Step(event.stamp_ns, event.topic, (inputs,), {"input": event.topic})
+        values = {"input": event.topic}
+        values.update({f"input {k} [m]": fmt(v) for k, v in inputs.cylinders.items()})
+        values.update({f"input {k} [rad]": fmt(v) for k, v in inputs.angles.items()})
+        values.update({f"input {k} [Pa gauge]": fmt(v) for k, v in inputs.pressures.items()})
+        return _Due(event.stamp_ns, event.topic, inputs, values)
 
     @staticmethod
-    def failed(pending: Pending, status: int, message: str) -> Step:
-        """The ERROR Step of a pose the solver rejected (status: results.STATUS_*)."""
-        return Step(pending.stamp_ns, ERROR, f"{FAILURE_TEXT[status]}: {message}", pending.values)
+    def _failed(due: _Due, status: Status, message: str) -> Step:
+        code = FAILURE_CODE[status]
+        return Step(due.stamp_ns, due.trigger, (Finding(code, f"{FAILURE_TEXT[code]}: {message}"),), due.values,
+                    inputs=due.inputs)
 
-    def finish(self, pending: Pending, result: Result, machine: MachineResult) -> Step:
-        """Output messages and the diagnostic of one solved pose with its machine-level results."""
-        mech, stamp_ns, values = self.mechanism, pending.stamp_ns, dict(pending.values)
-        warnings = list(machine.warnings)
+    def _internal_error(self, event: JointStateEvent | PressureEvent, exc: Exception) -> Step:
+        self.warm = None
+        text = (f"internal error while processing {event.topic} (stamp {event.stamp_ns} ns): "
+                f"{type(exc).__name__}: {exc}; the input was recorded, the monitor goes on")
+        return Step(event.stamp_ns, event.topic, (Finding(Code.INTERNAL_ERROR, text),), {"input": event.topic})
+
+    def _finish(self, due: _Due, result: Result, machine: MachineResult) -> Step:
+        """Findings and key-values of one solved pose with its machine-level results."""
+        findings = []
+        if result.status == Status.LIFT_OFF.label:
+            findings.append(Finding(Code.LIFT_OFF, result.message or "a ground contact lifts off"))
         if result.consistency_residual > CONSISTENCY_WARN_M:
-            warnings.append(f"measurements disagree: kinematic residual {result.consistency_residual * 1e3:.2f} mm "
-                            f"> {CONSISTENCY_WARN_M * 1e3:.1f} mm (check sensor calibration)")
-        if out.residual_too_high(result):
-            warnings.append(out.residual_too_high(result))
-        if result.status != "ok":
-            warnings.append(result.message or result.status)
-        reserve = machine.lift_capacity.get("reserve", math.nan)
-        reference = mech.tractor.steerability_reference if mech.tractor else "unit"
-        outputs = out.Outputs(
-            hinge_reactions=out.hinge_reactions(mech, stamp_ns, result, self.overdetermined),
-            hitch_state=out.hitch_state(mech, stamp_ns, result, machine.lift_capacity, reserve,
-                                        self.estimates_load, warnings),
-            steerability=out.steerability(stamp_ns, machine.steerability, reference))
-        steer = machine.steerability
+            findings.append(Finding(Code.SENSORS_DISAGREE, f"measurements disagree: kinematic residual "
+                                    f"{fmt(result.consistency_residual * 1e3)} mm > {fmt(CONSISTENCY_WARN_M * 1e3)} mm "
+                                    "(check sensor calibration)"))
+        largest = max([h.magnitude for h in result.hinges.values()] + [abs(c.force) for c in result.cylinders.values()],
+                      default=0.0)
+        if result.residual > RESIDUAL_WARN_SHARE * largest:
+            findings.append(Finding(Code.PRESSURES_DISAGREE, f"equilibrium residual {fmt(result.residual)} N > "
+                                    f"{RESIDUAL_WARN_SHARE:.0%} of the largest force ({fmt(largest)} N): the measured "
+                                    "pressures disagree"))
+        steer, capacity = machine.steerability, machine.lift_capacity
+        margin, reserve = steer.get("margin", math.nan), capacity.get("reserve", math.nan)
+        if margin < 0.0:
+            reference = self.mechanism.tractor.steerability_reference if self.mechanism.tractor else "unit"
+            findings.append(Finding(Code.STEERABILITY_LOW, f"steerability margin {margin:+.3f} < 0: the front axle "
+                                    f"carries {steer['ratio']:.1%} of the {reference} weight, below ratio_min "
+                                    f"{steer['ratio_min']:.0%}; front ballast needed "
+                                    f"{fmt(round(steer['front_ballast_needed']))} kg"))
+        if reserve < 1.0:
+            findings.append(Finding(Code.LIFT_RESERVE_LOW, f"lift reserve {reserve:.2f} < 1: implement load "
+                                    f"{fmt(result.implement_load / 1e3)} kN exceeds the lift capacity "
+                                    f"{fmt(capacity['implement_cg'] / 1e3)} kN at its centre of gravity"))
+        values = dict(due.values)
         values.update({
-            "implement load [N]": f"{result.implement_load:.6g}",
+            "implement load [N]": fmt(result.implement_load),
             "steerability ratio [-]": f"{steer.get('ratio', math.nan):.4f}",
-            "steerability margin [-]": f"{steer.get('margin', math.nan):.4f}",
-            "front axle load [N]": f"{steer.get('front_axle_load', math.nan):.6g}",
+            "steerability margin [-]": f"{margin:.4f}",
+            "front axle load [N]": fmt(steer.get("front_axle_load", math.nan)),
             "lift reserve [-]": f"{reserve:.4f}",
-            "largest hinge reaction [N]": max((f"{h.magnitude:.6g}" for h in result.hinges.values()),
-                                              key=float, default="nan"),
+            "largest hinge reaction [N]": fmt(max((h.magnitude for h in result.hinges.values()), default=math.nan)),
             "equilibrium residual [N]": f"{result.residual:.3g}",
             "kinematic residual [m]": f"{result.consistency_residual:.3g}",
         })
-        level = WARN if warnings else OK
-        return Step(stamp_ns, level, WARNING_JOIN.join(warnings) or "ok", values, outputs, result, machine=machine)
+        return Step(due.stamp_ns, due.trigger, tuple(findings), values, Pose(result, machine), due.inputs)

@@ -1,149 +1,199 @@
-"""Sensor inputs of the monitor: validation and the latest value of every input.
+"""Sensor inputs of the monitor: checks before physics, and the latest value of every input.
 
-No rclpy: the node and the replay hand in the fields of `sensor_msgs/JointState`
-(positions: rad for angle sensors, m for cylinder lengths) and `sensor_msgs/FluidPressure`
-(Pa), with their header stamps in ns. Each accepted message updates the latest value of
-its inputs; `inputs_at(stamp)` assembles the inputs of one solve when no input is older
-than the staleness limit. Errors name the input and the reason (InputError).
+No rclpy: the drivers hand in the fields of `sensor_msgs/JointState` (positions: rad for
+angle sensors, m for cylinder lengths; velocities rad/s, m/s) and `sensor_msgs/FluidPressure`
+(Pa), with their header stamps and the monitor's receive time in ns. A message is either
+accepted whole — every value finite, every name known once, inside the mechanism's
+plausibility limits, the stamp positive and near the clock — or refused whole with a
+Finding naming the input and the reason; a refused message changes nothing. `inputs_at`
+assembles the inputs of one solve when every input is there and none is stale.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from typing import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Mapping, Sequence
 
-from linkage_monitor.mechanics import InputError, Inputs, Mechanism
+from linkage_monitor.mechanics import Inputs, Mechanism
+from linkage_monitor.mechanics.limits import Limit, input_limits
 
-ATMOSPHERIC_PRESSURE = 101325.0  # Pa, ISO 2533 standard atmosphere at sea level
+from .config import MonitorConfig
+from .findings import Code, Finding, fmt
+
+NS = 1_000_000_000
 
 
-class StaleInputError(InputError):
-    """An input needed for a solve is missing or older than the staleness limit."""
+class Refused(Exception):
+    """An input message was refused; ``finding`` says why."""
+
+    def __init__(self, finding: Finding) -> None:
+        super().__init__(finding.text)
+        self.finding = finding
 
 
 @dataclass(frozen=True)
-class InputConfig:
-    """How sensor messages map onto the mechanism's measurements.
+class Reading:
+    """The latest accepted value of one input: value (m, rad or Pa gauge), rate (m/s, rad/s or
+    NaN), its change since the previous reading (m/s², rad/s² or NaN: a finite difference over
+    the header stamps), header stamp (ns)."""
 
-    joint_map: JointState joint name -> measurement name (an angle sensor, rad, or a measured
-    cylinder, m); measurement names not in the map are expected under their own name.
-    pressure_topics: topic -> pressure-sensor name (one FluidPressure topic per chamber).
-    pressure_absolute: True if FluidPressure carries absolute pressure (the message's
-    definition), False for gauge. staleness_limit_s: s, largest age of any input relative to
-    the stamp of the triggering message.
-    """
+    value: float
+    rate: float
+    acceleration: float
+    stamp_ns: int
 
-    joint_map: Mapping[str, str] = field(default_factory=dict)
-    pressure_topics: Mapping[str, str] = field(default_factory=dict)
-    pressure_absolute: bool = True
-    atmospheric_pressure: float = ATMOSPHERIC_PRESSURE
-    staleness_limit_s: float = 0.5
-
-    @staticmethod
-    def default(mech: Mechanism, prefix: str = "pressure/") -> "InputConfig":
-        """Identity joint names; one topic `<prefix><sensor>` per pressure sensor."""
-        return InputConfig(pressure_topics={f"{prefix}{p.name}": p.name
-                                            for p in mech.measurements.pressures})
+    def then(self, value: float, rate: float, stamp_ns: int) -> Reading:
+        """The next reading of this input, its acceleration differenced from this one."""
+        dt = (stamp_ns - self.stamp_ns) / NS
+        accel = (rate - self.rate) / dt if dt > 0.0 and math.isfinite(rate) and math.isfinite(self.rate) else math.nan
+        return Reading(value, rate, accel, stamp_ns)
 
 
 class InputTracker:
-    """The latest accepted value and stamp (ns) of every input of one mechanism."""
+    """The latest accepted reading of every input of one mechanism under one configuration."""
 
-    def __init__(self, mech: Mechanism, config: InputConfig) -> None:
+    def __init__(self, mech: Mechanism, config: MonitorConfig) -> None:
         self.config = config
         self.angle_names = frozenset(a.name for a in mech.measurements.angles)
         self.cylinder_names = frozenset(mech.measurements.cylinders)
         self.pressure_names = frozenset(config.pressure_topics.values())
+        self.limits: Mapping[str, Limit] = input_limits(mech)
         known_pressures = {p.name for p in mech.measurements.pressures}
         unknown = sorted(self.pressure_names - known_pressures)
         if unknown:
-            raise InputError(f"pressure sensor(s) {', '.join(unknown)} are not in the mechanism's "
+            raise ValueError(f"pressure sensor(s) {', '.join(unknown)} are not in the mechanism's "
                              f"measurements.pressures ({', '.join(sorted(known_pressures)) or 'none'})")
         measured = self.angle_names | self.cylinder_names
         bad_targets = sorted(set(config.joint_map.values()) - measured)
         if bad_targets:
-            raise InputError(f"joint_map targets {', '.join(bad_targets)} are not measured angles or "
+            raise ValueError(f"joint_map targets {', '.join(bad_targets)} are not measured angles or "
                              f"cylinders of the mechanism ({', '.join(sorted(measured))})")
         self._joint_to_input = {name: name for name in measured}
         self._joint_to_input.update(config.joint_map)
-        self._values: dict[str, float] = {}
-        self._stamps: dict[str, int] = {}
+        self.readings: dict[str, Reading] = {}
 
     @property
     def required(self) -> frozenset[str]:
         """Names of every input a solve needs (angles, cylinder lengths, mapped pressures)."""
         return self.angle_names | self.cylinder_names | self.pressure_names
 
-    def update_joint_state(self, names: Sequence[str], positions: Sequence[float], stamp_ns: int) -> list[str]:
-        """Accept a JointState (positions rad or m); returns the inputs it updated.
+    def carry_over(self, previous: InputTracker) -> None:
+        """Keep the readings of ``previous`` (a configuration change does not forget the sensors)."""
+        self.readings = {k: v for k, v in previous.readings.items() if k in self.required}
 
-        Joints that map to no measurement are ignored unless none maps at all. Raises
-        InputError for arrays of different lengths, NaN/inf or an unknown joint name.
-        """
+    # ---- acceptance ---------------------------------------------------------------------------
+    def check_stamp(self, what: str, stamp_ns: int, now_ns: int) -> None:
+        """Refuse a header stamp that is ≤ 0 or farther than stamp_tolerance_s from ``now_ns``."""
+        tolerance = self.config.stamp_tolerance_s
+        if stamp_ns <= 0:
+            raise Refused(Finding(Code.BAD_STAMP, f"{what}: header stamp {stamp_ns} ns is not after 1970: "
+                                  "the sensor's clock is not set"))
+        offset = (stamp_ns - now_ns) / NS
+        if abs(offset) > tolerance:
+            side = "ahead of" if offset > 0 else "behind"
+            raise Refused(Finding(Code.BAD_STAMP, f"{what}: header stamp is {fmt(abs(offset))} s {side} the "
+                                  f"monitor's clock (stamp_tolerance {fmt(tolerance)} s): check the sensor's "
+                                  "clock synchronisation"))
+
+    def accept_joint_state(self, names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
+                           stamp_ns: int, now_ns: int) -> list[str]:
+        """Accept a JointState whole or raise Refused; returns the inputs it updated."""
+        what = "JointState"
         if len(names) != len(positions):
-            raise InputError(f"JointState has {len(names)} names but {len(positions)} positions: "
-                             "the arrays must have the same length")
-        updates: dict[str, float] = {}
-        for name, value in zip(names, positions):
+            raise Refused(Finding(Code.MALFORMED_INPUT, f"{what} has {len(names)} names but {len(positions)} "
+                                  "positions: the arrays must have the same length"))
+        if velocities and len(velocities) != len(names):
+            raise Refused(Finding(Code.MALFORMED_INPUT, f"{what} has {len(names)} names but {len(velocities)} "
+                                  "velocities: give none or one per joint"))
+        seen: set[str] = set()
+        for name in names:
+            if name in seen:
+                raise Refused(Finding(Code.DUPLICATE_JOINT, f"{what} names joint '{name}' twice: which value "
+                                      "is meant cannot be known"))
+            seen.add(name)
+        self.check_stamp(what, stamp_ns, now_ns)
+        updates: dict[str, Reading] = {}
+        for k, name in enumerate(names):
             target = self._joint_to_input.get(name)
             if target is None:
                 continue
-            value = float(value)
+            unit = "rad" if target in self.angle_names else "m"
+            value = float(positions[k])
+            rate = float(velocities[k]) if velocities else math.nan
             if not math.isfinite(value):
-                unit = "rad" if target in self.angle_names else "m"
-                raise InputError(f"JointState joint '{name}' position is {value} {unit}: "
-                                 "a finite value is required")
-            updates[target] = value
+                raise Refused(Finding(Code.MALFORMED_INPUT, f"{what} joint '{name}' position is {value} {unit}: "
+                                      "a finite value is required (sensor fault?)"))
+            if velocities and not math.isfinite(rate):
+                raise Refused(Finding(Code.MALFORMED_INPUT, f"{what} joint '{name}' velocity is {rate} {unit}/s: "
+                                      "a finite value is required"))
+            self._check_limit(target, value, f"joint '{name}'")
+            previous = self.readings.get(target)
+            updates[target] = (previous.then(value, rate, stamp_ns) if previous is not None
+                               else Reading(value, rate, math.nan, stamp_ns))
         if not updates:
             expected = ", ".join(sorted(self._joint_to_input))
-            raise InputError(f"JointState joint name(s) {', '.join(map(repr, names)) or '(none)'} are unknown: "
-                             f"expected {expected} (map others with the joint_map parameter)")
-        self._store(updates, stamp_ns)
+            shown = ", ".join(map(repr, names[:5])) + (", ..." if len(names) > 5 else "")
+            raise Refused(Finding(Code.UNKNOWN_INPUT, f"{what} joint name(s) {shown or '(none)'} are unknown: "
+                                  f"expected {expected} (map others with the joint_map parameter)"))
+        self.readings.update(updates)
         return sorted(updates)
 
-    def update_pressure(self, topic: str, fluid_pressure: float, stamp_ns: int) -> str:
-        """Accept a FluidPressure (Pa, absolute or gauge per config); returns the sensor name.
-
-        Stores gauge pressure. Raises InputError for NaN/inf or a negative absolute pressure.
-        """
+    def accept_pressure(self, topic: str, fluid_pressure: float, stamp_ns: int, now_ns: int) -> str:
+        """Accept a FluidPressure (Pa, absolute or gauge per config) or raise Refused; stores gauge Pa."""
         sensor = self.config.pressure_topics.get(topic)
         if sensor is None:
-            raise InputError(f"FluidPressure on topic '{topic}' maps to no pressure sensor "
-                             f"(pressure_topics: {', '.join(sorted(self.config.pressure_topics))})")
+            raise Refused(Finding(Code.UNKNOWN_INPUT, f"FluidPressure on topic '{topic}' maps to no pressure "
+                                  f"sensor (pressure_topics: {', '.join(sorted(self.config.pressure_topics))})"))
+        what = f"pressure '{sensor}' (topic '{topic}')"
         value = float(fluid_pressure)
         if not math.isfinite(value):
-            raise InputError(f"pressure '{sensor}' (topic '{topic}') is {value} Pa: a finite value is required")
-        absolute = value if self.config.pressure_absolute else value + self.config.atmospheric_pressure
+            raise Refused(Finding(Code.MALFORMED_INPUT, f"{what} is {value} Pa: a finite value is required"))
+        self.check_stamp(what, stamp_ns, now_ns)
+        cfg = self.config
+        absolute = value if cfg.pressure_absolute else value + cfg.atmospheric_pressure
         if absolute < 0.0:
-            kind = "absolute" if self.config.pressure_absolute else "gauge"
-            raise InputError(f"pressure '{sensor}' (topic '{topic}') is {value:.6g} Pa {kind}: "
-                             f"a negative absolute pressure ({absolute:.6g} Pa) is impossible; "
-                             "check the sensor and the pressure_absolute parameter")
-        gauge = absolute - self.config.atmospheric_pressure
-        self._store({sensor: gauge}, stamp_ns)
+            kind = "absolute" if cfg.pressure_absolute else "gauge"
+            raise Refused(Finding(Code.OUT_OF_RANGE, f"{what} is {fmt(value)} Pa {kind}: a negative absolute "
+                                  f"pressure ({fmt(absolute)} Pa) is impossible; check the sensor and the "
+                                  "pressure_absolute parameter"))
+        self._check_limit(sensor, absolute, f"topic '{topic}'")
+        self.readings[sensor] = Reading(absolute - cfg.atmospheric_pressure, math.nan, math.nan, stamp_ns)
         return sensor
 
-    def inputs_at(self, stamp_ns: int) -> Inputs:
-        """The inputs of a solve triggered at `stamp_ns` (ns); StaleInputError if any is missing or old."""
-        limit_ns = int(self.config.staleness_limit_s * 1e9)
-        missing = sorted(self.required - self._values.keys())
-        stale = sorted(name for name in self.required & self._values.keys()
-                       if stamp_ns - self._stamps[name] > limit_ns)
-        if missing or stale:
-            parts = []
-            if missing:
-                parts.append(f"no value yet for {', '.join(missing)}")
-            if stale:
-                ages = ", ".join(f"{n} ({(stamp_ns - self._stamps[n]) * 1e-9:.3f} s old)" for n in stale)
-                parts.append(f"stale: {ages} > staleness limit {self.config.staleness_limit_s} s")
-            raise StaleInputError("; ".join(parts))
-        return Inputs(cylinders=self._pick(self.cylinder_names), angles=self._pick(self.angle_names),
-                      pressures=self._pick(self.pressure_names))
+    def _check_limit(self, name: str, value: float, source: str) -> None:
+        limit = self.limits.get(name)
+        problem = limit.check(value) if limit is not None else None
+        if problem:
+            raise Refused(Finding(Code.OUT_OF_RANGE, f"{problem} ({source})"))
 
-    def _pick(self, names: Iterable[str]) -> dict[str, float]:
-        return {name: self._values[name] for name in sorted(names)}
+    # ---- the inputs of a solve ----------------------------------------------------------------
+    def inputs_at(self, stamp_ns: int) -> Inputs | Finding:
+        """The inputs of a solve triggered at ``stamp_ns`` (ns), or the Finding why there is none.
 
-    def _store(self, updates: Mapping[str, float], stamp_ns: int) -> None:
-        self._values.update(updates)
-        self._stamps.update(dict.fromkeys(updates, int(stamp_ns)))
+        Staleness is the absolute difference of stamps: a reading from the future is as stale as
+        one from the past.
+        """
+        missing = sorted(self.required - self.readings.keys())
+        if missing:
+            return Finding(Code.NO_VALUE_YET, f"no solve: no value yet for {', '.join(missing)}")
+        limit_ns = self.config.staleness_limit_s * NS
+        stale = [(n, abs(stamp_ns - self.readings[n].stamp_ns)) for n in sorted(self.required)]
+        stale = [(n, age) for n, age in stale if age > limit_ns]
+        if stale:
+            ages = ", ".join(f"{n} ({fmt(age / NS)} s)" for n, age in stale)
+            return Finding(Code.STALE_INPUT, f"no solve: stale input {ages} > staleness limit "
+                                             f"{fmt(self.config.staleness_limit_s)} s")
+        r = self.readings
+        kinematic = sorted(self.cylinder_names | self.angle_names)
+        dynamic = self.config.kinetostatics
+        return Inputs(cylinders={n: r[n].value for n in sorted(self.cylinder_names)},
+                      angles={n: r[n].value for n in sorted(self.angle_names)},
+                      pressures={n: r[n].value for n in sorted(self.pressure_names)},
+                      rates={n: _zero_if_nan(r[n].rate) for n in kinematic} if dynamic else {},
+                      accelerations={n: _zero_if_nan(r[n].acceleration) for n in kinematic} if dynamic else {})
+
+
+def _zero_if_nan(value: float) -> float:
+    """A rate not given (or not yet differenced) counts as 0 (quasi-static)."""
+    return 0.0 if math.isnan(value) else value

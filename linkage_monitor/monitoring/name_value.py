@@ -3,7 +3,10 @@
 
 from __future__ import annotations
 
+import math
+
 from linkage_monitor.mechanics import InputError
+from linkage_monitor.mechanics.schema import MAX_MAGNITUDE
 
 
 def name_value(text: str, option: str) -> tuple[str, str]:
@@ -18,6 +21,9 @@ def name_value(text: str, option: str) -> tuple[str, str]:
 def number(text: str, option: str, name: str) -> float:
     """The float of `text`, the value of `name` in `option`; InputError if it is not a number."""
     try:
-        return float(text)
+        value = float(text)
     except ValueError:
         raise InputError(f"{option} {name}={text}: {text!r} is not a number") from None
+    if not math.isfinite(value) or abs(value) > MAX_MAGNITUDE:
+        raise InputError(f"{option} {name}={text}: a finite number of magnitude <= {MAX_MAGNITUDE:.0e} is needed")
+    return value

@@ -10,30 +10,38 @@ from __future__ import annotations
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
-from linkage_monitor.monitoring.core import OK, Step
+from linkage_monitor.monitoring.core import Step
+from linkage_monitor.monitoring.findings import Level
 from linkage_monitor.ros.messages import header
 
 STAMP_KEY = "input stamp [ns]"
+MAX_TIME_NS = 2**31 * 1_000_000_000  # builtin_interfaces/Time.sec is int32
+CODES_KEY = "findings"  # the findings' codes (monitoring.findings.Code identifiers), space-separated
 
 
-def diagnostic_array(step: Step, name: str, hardware_id: str) -> DiagnosticArray:
-    """A DiagnosticArray with the one status of `step`, stamped with its input's stamp."""
+def diagnostic_array(step: Step, name: str, hardware_id: str, now_ns: int) -> DiagnosticArray:
+    """A DiagnosticArray with the one status of `step`, stamped like every output with the
+    input's stamp, or with `now_ns` (the monitor's clock) when that stamp cannot be a ROS time
+    (negative, or beyond int32 seconds: the fault being reported); the input's stamp is a key-value."""
     values = [KeyValue(key=k, value=v) for k, v in step.values.items()]
     values.append(KeyValue(key=STAMP_KEY, value=str(step.stamp_ns)))
+    if step.findings:
+        values.append(KeyValue(key=CODES_KEY, value=" ".join(f.code.ident for f in step.findings)))
     status = DiagnosticStatus(level=bytes([step.level]), name=name, message=step.message,
                               hardware_id=hardware_id, values=values)
-    return DiagnosticArray(header=header(step.stamp_ns), status=[status])
+    stamp = step.stamp_ns if 0 <= step.stamp_ns < MAX_TIME_NS else now_ns
+    return DiagnosticArray(header=header(stamp), status=[status])
 
 
 class DiagnosticGate:
     """Decides which steps are reported: every WARN/ERROR, and an OK that ends one."""
 
     def __init__(self) -> None:
-        self._last: tuple[int, str] | None = None
+        self._last: tuple[Level, str] | None = None
 
     def due(self, step: Step) -> bool:
         """True if `step` should be reported now."""
         key = (step.level, step.message)
-        report = step.level != OK or key != self._last
+        report = step.level != Level.OK or key != self._last
         self._last = key
         return report

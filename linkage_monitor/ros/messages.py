@@ -1,4 +1,4 @@
-"""Solver results -> the package's output messages (used by the live node and the replay).
+"""Monitoring steps -> the package's output messages (used by the live node and the replay).
 
 Units SI (m, N, Pa, kg); frame x forward, z up, origin at the rear wheels' ground contact.
 Every output carries the header stamp of the triggering input, never wall-clock time.
@@ -14,23 +14,11 @@ from builtin_interfaces.msg import Time
 from std_msgs.msg import Header
 
 from linkage_monitor.mechanics import Mechanism, Result
+from linkage_monitor.monitoring.core import Monitor, Step
+from linkage_monitor.monitoring.findings import Code, Level
 from linkage_monitor.msg import CylinderState, HingeReaction, HingeReactions, HitchState, Steerability
 
 FRAME_ID = "base_footprint"  # REP 105 frame at the ground below the tractor: x forward, z up
-# With more measured forces than needed (e.g. two cylinder pressures), equilibrium is met in
-# the least-squares sense; a residual above this share of the largest force means the
-# pressures disagree beyond sensor noise.
-RESIDUAL_WARN_SHARE = 0.01
-
-
-def residual_too_high(result: Result) -> str:
-    """A warning if the equilibrium residual (N) exceeds RESIDUAL_WARN_SHARE of the largest force, else ''."""
-    forces = [h.magnitude for h in result.hinges.values()] + [abs(c.force) for c in result.cylinders.values()]
-    limit = RESIDUAL_WARN_SHARE * max(forces, default=0.0)
-    if result.residual > limit:
-        return (f"equilibrium residual {result.residual:.3g} N > {RESIDUAL_WARN_SHARE:.0%} of the largest force "
-                f"({limit:.3g} N): the measured pressures disagree")
-    return ""
 
 
 @dataclass(frozen=True)
@@ -53,7 +41,18 @@ def stamp_ns(msg_header: Header) -> int:
     return int(msg_header.stamp.sec) * 1_000_000_000 + int(msg_header.stamp.nanosec)
 
 
-def hinge_reactions(mech: Mechanism, stamp: int, result: Result, overdetermined: bool) -> HingeReactions:
+def outputs(monitor: Monitor, step: Step) -> Outputs | None:
+    """The three output messages of a step with a solved pose (None without one)."""
+    if step.pose is None:
+        return None
+    mech, result, machine = monitor.mechanism, step.pose.result, step.pose.machine
+    reference = mech.tractor.steerability_reference if mech.tractor else "unit"
+    return Outputs(hinge_reactions=hinge_reactions(mech, step, result, monitor.overdetermined),
+                   hitch_state=hitch_state(mech, step, result, machine.lift_capacity, monitor.estimates_load),
+                   steerability=steerability(step.stamp_ns, machine.steerability, reference))
+
+
+def hinge_reactions(mech: Mechanism, step: Step, result: Result, overdetermined: bool) -> HingeReactions:
     """HingeReactions for one solved pose: force on bodies[1] from bodies[0] at every hinge, N.
 
     overdetermined: more measurements than degrees of freedom (solved by least squares).
@@ -65,17 +64,18 @@ def hinge_reactions(mech: Mechanism, stamp: int, result: Result, overdetermined:
         hinges.append(HingeReaction(name=hinge.name, on_body=r.on_body, from_body=r.from_body,
                                     fx=r.fx, fz=r.fz, magnitude=r.magnitude, x=float(x), z=float(z)))
     status, text = HingeReactions.STATUS_OK, result.message or "ok"
-    if residual_too_high(result):
-        status, text = HingeReactions.STATUS_HIGH_RESIDUAL, residual_too_high(result)
+    disagree = [f.text for f in step.findings if f.code is Code.PRESSURES_DISAGREE]
+    if disagree:
+        status, text = HingeReactions.STATUS_HIGH_RESIDUAL, disagree[0]
     elif overdetermined:
         status = HingeReactions.STATUS_OVERDETERMINED
-    return HingeReactions(header=header(stamp), mechanism=mech.name, hinges=hinges, status=status,
+    return HingeReactions(header=header(step.stamp_ns), mechanism=mech.name, hinges=hinges, status=status,
                           status_text=text, equilibrium_residual=float(result.residual),
                           kinematic_residual=float(result.consistency_residual))
 
 
-def hitch_state(mech: Mechanism, stamp: int, result: Result, lift_capacity: Mapping[str, float],
-                lift_reserve: float, estimated: bool, warnings: list[str]) -> HitchState:
+def hitch_state(mech: Mechanism, step: Step, result: Result, lift_capacity: Mapping[str, float],
+                estimated: bool) -> HitchState:
     """HitchState: cylinder states, implement load (N, + down), lift capacities (N), reserve (-)."""
     cylinders = [CylinderState(name=name, length=c.length, force=c.force,
                                cap_pressure_measured=c.cap_pressure_measured,
@@ -84,16 +84,16 @@ def hitch_state(mech: Mechanism, stamp: int, result: Result, lift_capacity: Mapp
                  for name, c in result.cylinders.items()]
     hitch_point = mech.implement.hitch_point if mech.implement else None
     height = float(result.points[hitch_point][1]) if hitch_point else math.nan
-    status = HitchState.STATUS_WARN if warnings else HitchState.STATUS_OK
-    return HitchState(header=header(stamp), cylinders=cylinders, implement_load=float(result.implement_load),
+    status = HitchState.STATUS_WARN if step.level == Level.WARN else HitchState.STATUS_OK
+    return HitchState(header=header(step.stamp_ns), cylinders=cylinders, implement_load=float(result.implement_load),
                       implement_load_estimated=estimated,
                       implement_cg_x=float(result.implement_cg[0]), implement_cg_z=float(result.implement_cg[1]),
                       hitch_axis_height=height,
                       lift_capacity_hitch_axis=float(lift_capacity.get("hitch_axis", math.nan)),
                       lift_capacity_610mm=float(lift_capacity.get("behind_610mm", math.nan)),
                       lift_capacity_implement_cg=float(lift_capacity.get("implement_cg", math.nan)),
-                      lift_reserve=float(lift_reserve), status=status,
-                      status_text=" | ".join(warnings) or "ok")
+                      lift_reserve=float(lift_capacity.get("reserve", math.nan)), status=status,
+                      status_text=step.message)
 
 
 def steerability(stamp: int, values: Mapping[str, float], reference: str) -> Steerability:

@@ -1,45 +1,52 @@
 """The live node: joint angles and cylinder pressures in, hinge reactions, hitch state,
-steerability and /diagnostics out (a thin rclpy adapter around monitor.Monitor).
+steerability and /diagnostics out — a thin rclpy driver of monitoring.core.Monitor.
 
-Topics (defaults): `joint_states` (sensor_msgs/JointState: angles rad, cylinder lengths m),
-`pressure/<sensor>` (sensor_msgs/FluidPressure, Pa), out `hinge_reactions`, `hitch_state`,
-`steerability`, `/diagnostics`, and `mechanism_description` (std_msgs/String, the mechanism
-YAML, transient local). Units SI; frame x forward, z up, origin at the rear wheels' ground
-contact. Outputs carry the header stamp of the triggering input.
+Topics (defaults, relative to the node's namespace): `joint_states` (sensor_msgs/JointState:
+angles rad, cylinder lengths m, velocities rad/s, m/s), `pressure/<sensor>`
+(sensor_msgs/FluidPressure, Pa), out `hinge_reactions`, `hitch_state`, `steerability`,
+`/diagnostics`, `mechanism_description` (std_msgs/String, the mechanism YAML, transient local).
+Units SI; frame x forward, z up, origin at the rear wheels' ground contact (REP 103). Outputs
+carry the header stamp of the triggering input; receive times come from the node's clock
+(`use_sim_time` is honoured).
 """
 
 from __future__ import annotations
 
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import rclpy
 import yaml
-from diagnostic_msgs.msg import DiagnosticArray
-from rcl_interfaces.msg import (FloatingPointRange, ParameterDescriptor, ParameterType,
-                                SetParametersResult)
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, ParameterType, SetParametersResult
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import (DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data)
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import String
 
-from linkage_monitor.ros import messages as out
-from linkage_monitor.ros.diagnostics import DiagnosticGate, diagnostic_array
-from linkage_monitor.monitoring.inputs import ATMOSPHERIC_PRESSURE, InputConfig
+from linkage_monitor.bag.writer import BagError, BagWriter
+from linkage_monitor.mechanics import LinkageError, Mechanism, load_description
+from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
+from linkage_monitor.monitoring.config import CONFIG_TOPIC, OVERRIDE_KEYS, MonitorConfig, Topics
+from linkage_monitor.monitoring.core import Monitor, Step
+from linkage_monitor.monitoring.findings import Level
+from linkage_monitor.monitoring.inputs import InputTracker
+from linkage_monitor.monitoring.loss import LossCounter
 from linkage_monitor.monitoring.name_value import name_value
-from linkage_monitor.mechanics import LinkageError, load_mechanism, load_preset, preset_names
-from linkage_monitor.monitoring.core import ERROR, WARN, Monitor, Step
 from linkage_monitor.msg import HingeReactions, HitchState, Steerability
-from linkage_monitor.bag.writer import BagWriter
-from linkage_monitor.viz.rerun_view import RerunView, machine_series
+from linkage_monitor.ros.diagnostics import DiagnosticGate, diagnostic_array
+from linkage_monitor.ros.messages import outputs, stamp_ns
 
 NODE_NAME = "linkage_monitor"
-LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 OUTPUT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+RELIABLE_INPUT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 HEARTBEAT_S = 1.0  # s, /diagnostics is repeated at least this often
 
 # name: (default, description, read_only, (min, max) for doubles)
@@ -58,8 +65,11 @@ PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
     "atmospheric_pressure": (ATMOSPHERIC_PRESSURE, "Pa, subtracted from absolute pressures", True,
                              (50_000.0, 110_000.0)),
     "sensor_qos": ("sensor_data", "QoS of the inputs: 'sensor_data' (best effort) or 'reliable'", True, None),
-    "staleness_limit": (0.5, "s, no solve if any input is older than this relative to the triggering message",
-                        False, (0.0, 3600.0)),
+    "staleness_limit": (0.5, "s, no solve if the stamps of the inputs differ by more than this", False,
+                        (0.0, 3600.0)),
+    "stamp_tolerance": (10.0, "s, an input whose header stamp is farther than this from the node's clock is "
+                        "refused (ERROR)", False, (0.001, 1e6)),
+    "kinetostatics": (False, "Add inertia loads from JointState velocities and their change (seed 004)", True, None),
     "implement_mass": (-1.0, "kg, implement mass; -1 keeps the mechanism file's value; applies from the next "
                        "message", False, (-1.0, 100_000.0)),
     "tractor_mass": (-1.0, "kg, tractor operating mass without ballast; -1 keeps the file's value", False,
@@ -73,9 +83,11 @@ PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
     "rerun": ("off", "Rerun logging: 'off', 'save' (to rerun_path) or 'connect' (to a running viewer)", True,
               None),
     "rerun_path": ("out/linkage_monitor.rrd", "The .rrd file written when rerun = 'save'", True, None),
+    "rerun_rate": (30.0, "Hz, largest rate at which solved poses are logged to Rerun (the bag keeps every one)",
+                   True, (0.1, 10_000.0)),
 }
-OVERRIDES = {"implement_mass": "implement.mass", "tractor_mass": "tractor.mass",
-             "front_ballast_mass": "tractor.front_ballast.mass", "ratio_min": "tractor.ratio_min"}
+SENSOR_QOS = {"sensor_data": qos_profile_sensor_data, "reliable": RELIABLE_INPUT_QOS}
+RERUN_MODES = ("off", "save", "connect")
 
 
 def _descriptor(name: str) -> ParameterDescriptor:
@@ -92,11 +104,31 @@ def _pairs(items: list[str], what: str) -> dict[str, str]:
     return dict(name_value(item, f"parameter {what}:") for item in items if item)
 
 
-def load_description(spec: str):
-    """A Mechanism from a preset name or a YAML path."""
-    if spec in preset_names():
-        return load_preset(spec)
-    return load_mechanism(Path(spec))
+def monitor_config(p: dict[str, Any], mech: Mechanism, resolve: Callable[[str], str]) -> MonitorConfig:
+    """The MonitorConfig of the node's parameters ``p`` (topic names resolved by ``resolve``)."""
+    overrides = {OVERRIDE_KEYS[k]: float(p[k]) for k in OVERRIDE_KEYS if float(p[k]) >= 0.0}
+    if list(p["pressure_topics"]) == ["none"]:
+        pressure_topics: dict[str, str] = {}
+    else:
+        given = _pairs(list(p["pressure_topics"]), "pressure_topics")
+        pressure_topics = ({resolve(t): s for t, s in given.items()} if given
+                           else {resolve(f"pressure/{s.name}"): s.name for s in mech.measurements.pressures})
+    topics = Topics(joint_states=resolve(p["joint_state_topic"]), hinge_reactions=resolve("hinge_reactions"),
+                    hitch_state=resolve("hitch_state"), steerability=resolve("steerability"),
+                    diagnostics="/diagnostics", markers=resolve("linkage_markers"))
+    return MonitorConfig(mechanism=p["mechanism"], overrides=overrides, topics=topics,
+                         joint_map=_pairs(list(p["joint_map"]), "joint_map"), pressure_topics=pressure_topics,
+                         pressure_absolute=bool(p["pressure_absolute"]),
+                         atmospheric_pressure=float(p["atmospheric_pressure"]),
+                         staleness_limit_s=float(p["staleness_limit"]), stamp_tolerance_s=float(p["stamp_tolerance"]),
+                         kinetostatics=bool(p["kinetostatics"]))
+
+
+def _check_choices(p: dict[str, Any]) -> None:
+    if p["sensor_qos"] not in SENSOR_QOS:
+        raise ValueError(f"parameter sensor_qos = '{p['sensor_qos']}': expected one of {', '.join(SENSOR_QOS)}")
+    if p["rerun"] not in RERUN_MODES:
+        raise ValueError(f"parameter rerun = '{p['rerun']}': expected one of {', '.join(RERUN_MODES)}")
 
 
 class LinkageMonitorNode(Node):
@@ -107,124 +139,204 @@ class LinkageMonitorNode(Node):
         for name, (default, *_rest) in PARAMETERS.items():
             self.declare_parameter(name, default, _descriptor(name))
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
-        mech = load_description(p["mechanism"])
-        overrides = {OVERRIDES[k]: float(p[k]) for k in OVERRIDES if float(p[k]) >= 0.0}
-        if overrides:
-            mech = mech.with_overrides(overrides)
-        config = InputConfig.default(mech)
-        if list(p["pressure_topics"]) == ["none"]:
-            pressure_topics = {}
-        else:
-            pressure_topics = _pairs(list(p["pressure_topics"]), "pressure_topics") or dict(config.pressure_topics)
-        config = InputConfig(joint_map=_pairs(list(p["joint_map"]), "joint_map"), pressure_topics=pressure_topics,
-                             pressure_absolute=bool(p["pressure_absolute"]),
-                             atmospheric_pressure=float(p["atmospheric_pressure"]),
-                             staleness_limit_s=float(p["staleness_limit"]))
-        self.monitor = Monitor(mech, config)
-        self.status_name = f"{NODE_NAME}: {mech.name}"
+        # everything is validated before anything is created
+        _check_choices(p)
+        description = load_description(p["mechanism"])
+        config = monitor_config(p, description, self.resolve_topic_name)
+        self.monitor = Monitor(description, config)
+        bag_dir = Path(p["record_dir"]) / (p["record_name"] or time.strftime(f"{description.name}_%Y%m%d_%H%M%S"))
+        self.recorder = BagWriter(bag_dir) if p["record"] else None   # BagError: one line at start
+
+        self.status_name = f"{NODE_NAME}: {description.name}"
         self.diagnostic_gate = DiagnosticGate()
-        self._last_diag = 0.0
+        self.loss = LossCounter()
         self._last_step: Step | None = None
-
-        self.pub_hinges = self.create_publisher(HingeReactions, "hinge_reactions", OUTPUT_QOS)
-        self.pub_hitch = self.create_publisher(HitchState, "hitch_state", OUTPUT_QOS)
-        self.pub_steer = self.create_publisher(Steerability, "steerability", OUTPUT_QOS)
-        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", OUTPUT_QOS)
+        self._last_heartbeat = 0.0
+        self._recording_reported = False
+        self._pending_params: dict[str, Any] = {}
+        self.pub_hinges = self.create_publisher(HingeReactions, config.topics.hinge_reactions, OUTPUT_QOS)
+        self.pub_hitch = self.create_publisher(HitchState, config.topics.hitch_state, OUTPUT_QOS)
+        self.pub_steer = self.create_publisher(Steerability, config.topics.steerability, OUTPUT_QOS)
+        self.pub_diag = self.create_publisher(DiagnosticArray, config.topics.diagnostics, OUTPUT_QOS)
         self.pub_mech = self.create_publisher(String, "mechanism_description", LATCHED)
-        description = yaml.safe_dump(dict(mech.raw), sort_keys=False, allow_unicode=True)
-        self.pub_mech.publish(String(data=description))
-
-        self.recorder: BagWriter | None = None
-        if p["record"]:
-            bag_dir = Path(p["record_dir"]) / (p["record_name"] or time.strftime(f"{mech.name}_%Y%m%d_%H%M%S"))
-            self.recorder = BagWriter(bag_dir)
-            self.recorder.record_mechanism(description, time.time_ns())
+        mechanism_yaml = yaml.safe_dump(dict(description.raw), sort_keys=False, allow_unicode=True)
+        self.pub_mech.publish(String(data=mechanism_yaml))
+        now = self._now()
+        if self.recorder is not None:
+            self.recorder.record_mechanism(mechanism_yaml, now)
+            self._record_config(config, now)
             self.get_logger().info(f"recording to {bag_dir}")
+
         self.rerun = None
-        if p["rerun"] == "save":
-            self.rerun = RerunView.to_file(mech, p["rerun_path"])
-        elif p["rerun"] == "connect":
-            self.rerun = RerunView.to_viewer(mech)
-        elif p["rerun"] != "off":
-            raise ValueError(f"parameter rerun = '{p['rerun']}': expected 'off', 'save' or 'connect'")
+        self._rerun_period_ns = int(1e9 / float(p["rerun_rate"]))
+        self._rerun_last_ns: int | None = None
+        if p["rerun"] != "off":
+            from linkage_monitor.viz.rerun_view import RerunView
+            self.rerun = (RerunView.to_file(description, p["rerun_path"]) if p["rerun"] == "save"
+                          else RerunView.to_viewer(description))
 
-        if p["sensor_qos"] not in ("sensor_data", "reliable"):
-            raise ValueError(f"parameter sensor_qos = '{p['sensor_qos']}': expected 'sensor_data' or 'reliable'")
-        input_qos = qos_profile_sensor_data if p["sensor_qos"] == "sensor_data" else QoSProfile(
-            depth=100, reliability=ReliabilityPolicy.RELIABLE)
-        self.input_qos = input_qos
-        self.joint_topic = p["joint_state_topic"]
-        self.create_subscription(JointState, self.joint_topic, self.on_joint_state, input_qos)
+        self.input_qos = SENSOR_QOS[p["sensor_qos"]]
+        self._subscribe(JointState, config.topics.joint_states, self.on_joint_state)
         for topic in config.pressure_topics:
-            self.create_subscription(FluidPressure, topic,
-                                     lambda msg, topic=topic: self.on_pressure(topic, msg), input_qos)
+            self._subscribe(FluidPressure, topic, lambda msg, info, topic=topic: self.on_pressure(topic, msg, info))
         self.create_timer(HEARTBEAT_S, self.on_heartbeat)
-        self.add_on_set_parameters_callback(self.on_parameters)
-        self.get_logger().info(
-            f"monitoring '{mech.name}': {self.joint_topic} + {', '.join(config.pressure_topics) or 'no pressures'}")
+        self.add_on_set_parameters_callback(self.validate_parameters)
+        self.add_post_set_parameters_callback(self.apply_parameters)
+        self.get_logger().info(f"monitoring '{description.name}': {config.topics.joint_states} + "
+                               f"{', '.join(config.pressure_topics) or 'no pressures'}")
 
-    # ---- callbacks: short, the work is in Monitor -----------------------------------------------
-    def on_joint_state(self, msg: JointState) -> None:
+    def _subscribe(self, msg_type: type, topic: str, callback: Callable[[Any, Any], None]) -> None:
+        events = SubscriptionEventCallbacks(
+            message_lost=lambda info, topic=topic: self.loss.on_lost_event(topic, info.total_count_change))
+        self.create_subscription(msg_type, topic, callback, self.input_qos, event_callbacks=events)
+
+    def _now(self) -> int:
+        return self.get_clock().now().nanoseconds
+
+    # ---- callbacks: record first, then the core; never raise -------------------------------------
+    def on_joint_state(self, msg: JointState, info: dict) -> None:
         """Record the JointState, solve, publish."""
-        stamp = out.stamp_ns(msg.header)
-        self._record(self.resolve_topic_name(self.joint_topic), msg, stamp, self.input_qos)
-        self._publish(self.monitor.on_joint_state(list(msg.name), list(msg.position), stamp))
+        topic = self.monitor.config.topics.joint_states
+        self._guarded(topic, msg, info, lambda stamp, now: self.monitor.on_joint_state(
+            msg.name, msg.position, msg.velocity, stamp, now, topic))
 
-    def on_pressure(self, topic: str, msg: FluidPressure) -> None:
+    def on_pressure(self, topic: str, msg: FluidPressure, info: dict) -> None:
         """Record the FluidPressure, solve, publish."""
-        stamp = out.stamp_ns(msg.header)
-        self._record(self.resolve_topic_name(topic), msg, stamp, self.input_qos)
-        self._publish(self.monitor.on_pressure(topic, msg.fluid_pressure, stamp))
+        self._guarded(topic, msg, info, lambda stamp, now: self.monitor.on_pressure(topic, msg.fluid_pressure,
+                                                                                    stamp, now))
+
+    def _guarded(self, topic: str, msg: Any, info: dict, solve: Callable[[int, int], Step]) -> None:
+        now = self._now()
+        stamp = stamp_ns(msg.header)
+        self.loss.on_message(topic, _publisher_id(info), info.get("publication_sequence_number"))
+        try:
+            self._record(topic, msg, stamp, now, self.input_qos)
+        except Exception as exc:  # noqa: BLE001 - a recording fault must not stop the monitoring
+            self._publish_status("recording", Level.ERROR, f"recording failed for {topic}: {type(exc).__name__}: "
+                                 f"{exc}; solving and publishing go on", now)
+        try:
+            self._publish(solve(stamp, now), now)
+        except Exception as exc:  # noqa: BLE001 - the adapter boundary: report and go on
+            self.get_logger().error(f"internal error on {topic}: {type(exc).__name__}: {exc}",
+                                    throttle_duration_sec=1.0)
+            self._publish_status("internal", Level.ERROR, f"internal error while publishing the results of "
+                                 f"{topic}: {type(exc).__name__}: {exc}", now)
 
     def on_heartbeat(self) -> None:
-        """Repeat the last diagnostic at least every HEARTBEAT_S (diagnostic_updater style)."""
-        if self._last_step is not None and time.monotonic() - self._last_diag >= HEARTBEAT_S:
-            self._publish_diagnostic(self._last_step)
-
-    def on_parameters(self, params: list) -> SetParametersResult:
-        """Apply implement mass, tractor mass, ballast, ratio_min and staleness from the next message."""
-        overrides = {OVERRIDES[p.name]: float(p.value) for p in params if p.name in OVERRIDES and p.value >= 0}
+        """Repeat the last diagnostic at least every HEARTBEAT_S, with the input-stream and
+        recording statuses (diagnostic_updater style)."""
         try:
-            if overrides:
-                self.monitor.apply_overrides(overrides)
-            for p in params:
-                if p.name == "staleness_limit":
-                    self.monitor.set_staleness_limit(float(p.value))
+            now = self._now()
+            if self._last_step is not None and time.monotonic() - self._last_heartbeat >= HEARTBEAT_S:
+                self._publish_diagnostic(self._last_step, now, record=False)   # a repeat: the bag has it
+            new_lost = self.loss.new_since_report()
+            if new_lost:
+                self._publish_status("inputs", Level.WARN, f"{new_lost} input message(s) lost in the last "
+                                     f"{HEARTBEAT_S:.0f} s (the monitor did not see them): {self.loss.summary()}",
+                                     now)
+            recorder_error = self.recorder.error if self.recorder is not None else None
+            if recorder_error:
+                self._publish_status("recording", Level.ERROR, f"recording failed: {recorder_error}; solving and "
+                                     "publishing go on", now)
+        except Exception as exc:  # noqa: BLE001
+            self.get_logger().error(f"heartbeat failed: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
+
+    # ---- parameters: validate in on-set, apply in post-set ----------------------------------------
+    def _config_with(self, params: list[Parameter]) -> MonitorConfig:
+        config = self.monitor.config
+        overrides = dict(config.overrides)
+        for param in params:
+            if param.name in OVERRIDE_KEYS:
+                key = OVERRIDE_KEYS[param.name]
+                if float(param.value) >= 0.0:
+                    overrides[key] = float(param.value)
+                else:
+                    overrides.pop(key, None)
+            elif param.name == "staleness_limit":
+                config = replace(config, staleness_limit_s=float(param.value))
+            elif param.name == "stamp_tolerance":
+                config = replace(config, stamp_tolerance_s=float(param.value))
+        return replace(config, overrides=overrides)
+
+    def validate_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        """Accept a change only if the mechanism with it is valid (nothing is applied here)."""
+        try:
+            config = self._config_with(params)
+            mech = self.monitor.description.with_overrides(dict(config.overrides))
+            InputTracker(mech, config)
         except (LinkageError, ValueError) as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
 
-    # ---- outputs --------------------------------------------------------------------------------
-    def _publish(self, step: Step) -> None:
-        if step.outputs is not None:
-            o = step.outputs
-            for topic, pub, msg in (("hinge_reactions", self.pub_hinges, o.hinge_reactions),
-                                    ("hitch_state", self.pub_hitch, o.hitch_state),
-                                    ("steerability", self.pub_steer, o.steerability)):
+    def apply_parameters(self, params: list[Parameter]) -> None:
+        """Apply a validated change from the next message on, and record it in the bag."""
+        try:
+            config = self._config_with(params)
+            if config != self.monitor.config:
+                self.monitor.reconfigure(config)
+                if self.recorder is not None:
+                    self._record_config(config, self._now())
+                self.get_logger().info(f"configuration changed: {config.describe()}")
+        except Exception as exc:  # noqa: BLE001
+            self.get_logger().error(f"parameter change not applied: {type(exc).__name__}: {exc}")
+
+    # ---- outputs ----------------------------------------------------------------------------------
+    def _publish(self, step: Step, now: int) -> None:
+        out = outputs(self.monitor, step)
+        topics = self.monitor.config.topics
+        if out is not None:
+            for topic, pub, msg in ((topics.hinge_reactions, self.pub_hinges, out.hinge_reactions),
+                                    (topics.hitch_state, self.pub_hitch, out.hitch_state),
+                                    (topics.steerability, self.pub_steer, out.steerability)):
                 pub.publish(msg)
-                self._record(self.resolve_topic_name(topic), msg, step.stamp_ns, OUTPUT_QOS)
-            if self.rerun is not None:
-                m = step.machine
-                self.rerun.log_pose(step.stamp_ns, step.result, machine_series(m.steerability, m.lift_capacity))
-        elif self.rerun is not None and step.level == ERROR:
-            self.rerun.log_status(step.stamp_ns, step.message)
+                self._record(topic, msg, step.stamp_ns, now, OUTPUT_QOS)
+        if self.rerun is not None:
+            self._log_rerun(step)
         if self.diagnostic_gate.due(step):
-            self._publish_diagnostic(step)
+            self._publish_diagnostic(step, now)
         self._last_step = step
-        if step.level == ERROR:
+        if step.level == Level.ERROR:
             self.get_logger().error(step.message, throttle_duration_sec=1.0)
-        elif step.level == WARN:
+        elif step.level == Level.WARN:
             self.get_logger().warning(step.message, throttle_duration_sec=1.0)
 
-    def _publish_diagnostic(self, step: Step) -> None:
-        msg = diagnostic_array(step, self.status_name, self.monitor.mechanism.name)
-        self.pub_diag.publish(msg)
-        self._record("/diagnostics", msg, step.stamp_ns, OUTPUT_QOS)
-        self._last_diag = time.monotonic()
+    def _log_rerun(self, step: Step) -> None:
+        """Solved poses at most at rerun_rate; every ERROR's text."""
+        from linkage_monitor.viz.rerun_view import machine_series
 
-    def _record(self, topic: str, msg: Any, stamp_ns: int, qos: QoSProfile) -> None:
+        assert self.rerun is not None
+        if step.pose is not None:
+            if self._rerun_last_ns is None or abs(step.stamp_ns - self._rerun_last_ns) >= self._rerun_period_ns:
+                m = step.pose.machine
+                self.rerun.log_pose(step.stamp_ns, step.pose.result, machine_series(m.steerability, m.lift_capacity))
+                self._rerun_last_ns = step.stamp_ns
+        elif step.level == Level.ERROR:
+            self.rerun.log_status(step.stamp_ns, step.message)
+
+    def _publish_diagnostic(self, step: Step, now: int, record: bool = True) -> None:
+        msg = diagnostic_array(step, self.status_name, self.monitor.mechanism.name, now)
+        self.pub_diag.publish(msg)
+        if record:
+            self._record(self.monitor.config.topics.diagnostics, msg, step.stamp_ns, now, OUTPUT_QOS)
+        self._last_heartbeat = time.monotonic()
+
+    def _publish_status(self, part: str, level: Level, message: str, now: int) -> None:
+        """A separate DiagnosticStatus ``<node>: <part>`` (input stream, recording, internal)."""
+        status = DiagnosticStatus(level=bytes([level]), name=f"{NODE_NAME}: {part}", message=message,
+                                  hardware_id=self.monitor.mechanism.name, values=[KeyValue(key="part", value=part)])
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self.pub_diag.publish(msg)
+        if part != "recording":
+            self._record(self.monitor.config.topics.diagnostics, msg, now, now, OUTPUT_QOS)
+
+    def _record(self, topic: str, msg: Any, stamp: int, now: int, qos: QoSProfile) -> None:
         if self.recorder is not None:
-            self.recorder.write(topic, msg, stamp_ns, qos=qos)
+            self.recorder.write(topic, msg, stamp, qos=qos, log_time_ns=now)
+
+    def _record_config(self, config: MonitorConfig, now: int) -> None:
+        assert self.recorder is not None
+        self.recorder.write(CONFIG_TOPIC, String(data=config.to_yaml()), now, qos=LATCHED, log_time_ns=now)
 
     def close(self) -> None:
         """Finish the bag and the Rerun recording."""
@@ -233,6 +345,11 @@ class LinkageMonitorNode(Node):
             self.get_logger().info(f"bag written: {self.recorder.directory}")
         if self.rerun is not None:
             self.rerun.close()
+
+
+def _publisher_id(info: dict) -> object:
+    gid = info.get("publisher_gid")
+    return tuple(gid["data"]) if isinstance(gid, dict) and "data" in gid else None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -244,8 +361,8 @@ def main(argv: list[str] | None = None) -> int:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except (LinkageError, ValueError) as exc:
-        print(f"linkage_monitor_node: {exc}", file=sys.stderr)
+    except (LinkageError, ValueError, BagError) as exc:
+        print(f"linkage_monitor_node: {str(exc).splitlines()[0]}", file=sys.stderr)
         return 2
     finally:
         if node is not None:

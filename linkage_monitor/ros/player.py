@@ -2,8 +2,9 @@
 
 Publishes every sensor_msgs/JointState and sensor_msgs/FluidPressure of a rosbag2 MCAP bag on
 its recorded topic, in recording order, with its recorded header stamp, paced at `rate` times
-the recorded timing. Reliable QoS with a deep history, so a node subscribed reliably loses
-nothing.
+the recorded timing, and (as `ros2 bag play --clock`) the recorded time on /clock before each
+message, so a node with `use_sim_time` judges the recorded stamps against the recorded time.
+Reliable QoS with a deep history, so a node subscribed reliably loses nothing.
 """
 
 from __future__ import annotations
@@ -11,8 +12,10 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from builtin_interfaces.msg import Time
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
 
 from linkage_monitor.bag.reader import FLUID_PRESSURE, JOINT_STATE, message_class, read_bag
 
@@ -35,6 +38,7 @@ def play(node: Node, messages: list[tuple[str, str, int, int, object]], rate: fl
     a pressure with the same stamp).
     """
     publishers = {}
+    clock = node.create_publisher(Clock, "/clock", PLAYER_QOS)
     for topic, type_name, *_ in messages:
         if topic not in publishers:
             publishers[topic] = node.create_publisher(message_class(type_name), topic, PLAYER_QOS)
@@ -46,10 +50,11 @@ def play(node: Node, messages: list[tuple[str, str, int, int, object]], rate: fl
         return 0
     t0_log, t0_wall = messages[0][3], time.monotonic()
     due = -min_gap_s
-    for topic, _, _, log_time, msg in messages:
+    for topic, _, stamp, log_time, msg in messages:
         due = max((log_time - t0_log) * 1e-9 / rate, due + min_gap_s)
         delay = due - (time.monotonic() - t0_wall)
         if delay > 0:
             time.sleep(delay)
+        clock.publish(Clock(clock=Time(sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000)))
         publishers[topic].publish(msg)
     return len(messages)

@@ -241,8 +241,8 @@ class _Plant:
         if bad.size:
             raise LinkageError(f"{self.mech.file}: {empty.messages[bad[0]]}")
         readings = angle_readings(self.mech, empty)
-        angles = np.stack([readings[a.name][inverse] for a in self.mech.measurements.angles], axis=1
-                          ).reshape(len(driver), len(self.mech.measurements.angles))
+        angles = np.array([readings[a.name][inverse] for a in self.mech.measurements.angles]
+                          ).T.reshape(len(driver), len(self.mech.measurements.angles))
         share = load / (_UNIT_MASS * self.mech.gravity)
         forces = {c.name: empty.cylinder_force[c.name][inverse]
                   + share * (unit.cylinder_force[c.name] - empty.cylinder_force[c.name])[inverse]

@@ -1,0 +1,68 @@
+"""Command-line arguments checked before any work starts: numbers finite and in range, output
+paths writable, the one `--preset NAME | --mechanism FILE` group. A bad value is one line on
+stderr and exit code 2 (argparse's own error path), never a traceback or a hang."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from pathlib import Path
+from typing import Callable
+
+from linkage_monitor.mechanics import Mechanism, load_mechanism, load_preset
+
+
+def bounded(lo: float, hi: float, unit: str = "", integer: bool = False, lo_open: bool = False
+           ) -> Callable[[str], float]:
+    """An argparse type: a finite number in [lo, hi] (lo excluded when ``lo_open``)."""
+    def parse(text: str) -> float:
+        try:
+            value = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {'an integer' if integer else 'a number'}") from None
+        if not math.isfinite(value) or value > hi or value < lo or (lo_open and value == lo):
+            bound = f"{'(' if lo_open else '['}{lo:g}, {hi:g}]"
+            raise argparse.ArgumentTypeError(f"{text} is outside {bound}{' ' + unit if unit else ''}")
+        return value
+    return parse
+
+
+def output_file(text: str) -> Path:
+    """An argparse type: a file path whose directory exists and is writable."""
+    path = Path(text)
+    parent = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a directory: give a file name")
+    if not parent.is_dir():
+        raise argparse.ArgumentTypeError(f"directory {parent} does not exist: create it first")
+    if not os.access(parent, os.W_OK):
+        raise argparse.ArgumentTypeError(f"directory {parent} is not writable")
+    return path
+
+
+def new_directory(text: str) -> Path:
+    """An argparse type: a directory to create (it must not exist; its parent must be writable)."""
+    path = Path(text)
+    if path.exists():
+        raise argparse.ArgumentTypeError(f"{text} already exists: give a new directory")
+    output_file(text)
+    return path
+
+
+def add_mechanism_group(parser: argparse.ArgumentParser, required: bool = True, default: str = "") -> None:
+    """The ``--preset NAME | --mechanism FILE`` pair (one of them, ``required`` or not)."""
+    group = parser.add_mutually_exclusive_group(required=required)
+    group.add_argument("--preset", metavar="NAME", help="bundled mechanism (see `linkage-monitor presets`)"
+                       + (f"; default: {default}" if default else ""))
+    group.add_argument("--mechanism", metavar="FILE", help="mechanism YAML (docs/mechanism-schema.md)"
+                       + (f"; default: {default}" if default else ""))
+
+
+def mechanism_from_args(args: argparse.Namespace) -> Mechanism | None:
+    """The mechanism the ``--preset/--mechanism`` group names (None when neither was given)."""
+    if getattr(args, "preset", None):
+        return load_preset(args.preset)
+    if getattr(args, "mechanism", None):
+        return load_mechanism(args.mechanism)
+    return None

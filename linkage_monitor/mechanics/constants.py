@@ -1,0 +1,5 @@
+"""Physical constants the package uses, each defined once (SI units)."""
+
+ATMOSPHERIC_PRESSURE = 101325.0
+"""Pa, ISO 2533 standard atmosphere at sea level: absolute = gauge + this (sensor_msgs/FluidPressure
+carries absolute pressure)."""

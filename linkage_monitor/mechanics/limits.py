@@ -1,0 +1,145 @@
+"""Plausibility limits of the measured inputs: what a sensor can read on this linkage.
+
+The monitor refuses a reading outside its limit before any physics (a sensor or bus fault
+must not reach the solver). Limits come from the file (``measurements.limits``, name ->
+[min, max]) or, by default, from the geometry:
+- cylinder length, m: the interval of lengths around the reference length over which the
+  linkage assembles (a sweep of the cylinder alone, the other cylinders at their reference
+  length), widened by CYLINDER_MARGIN of it on each side — a reading just outside is then
+  still judged by the solver ("cannot assemble ... by N mm"), a reading far outside is a fault;
+- joint angle, rad: the angle's span over that sweep (or over a sweep of the angle itself when
+  no cylinder drives the linkage), widened by ANGLE_MARGIN; compared modulo 2π, so a sensor
+  reporting in [−π, π) or [0, 2π) reads inside the same range;
+- chamber pressure, Pa absolute: from MIN_ABSOLUTE_PRESSURE (a hydraulic transducer reading
+  below it is dead or disconnected) to RELIEF_FACTOR × the cylinder's relief pressure (gauge)
+  + 1 atm, or DEFAULT_MAX_PRESSURE without one.
+Units SI; frame x forward, z up, origin at the rear wheels' ground contact.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .capacity import interval_around
+from .constants import ATMOSPHERIC_PRESSURE
+from .errors import LinkageError
+from .model import Mechanism
+from .results import Status, angle_readings
+from .schema import mechanism_from_dict
+from .solver import Solver
+
+CYLINDER_MARGIN = 0.05     # share of the assemblable length interval added on each side
+ANGLE_MARGIN = 0.2         # rad added on each side of the swept angle span
+MIN_ABSOLUTE_PRESSURE = 1e3  # Pa absolute
+RELIEF_FACTOR = 1.5        # × relief pressure (gauge): above it the reading is not a pressure the circuit can hold
+DEFAULT_MAX_PRESSURE = 100e6  # Pa absolute, without a relief pressure in the file
+SWEEP_POINTS = 141
+MAX_ABS_ANGLE = 4.0 * math.pi   # rad: sensors report in [−π, π) or [0, 2π), ±2π off at most
+UNDRIVEN_FACTOR = 4.0    # × reference length: the bound of a cylinder that does not drive the linkage alone
+
+
+@dataclass(frozen=True)
+class Limit:
+    """Plausible range [lo, hi] of one input (m, rad, or Pa absolute) and where it comes from."""
+
+    name: str
+    kind: str      # 'cylinder' | 'angle' | 'pressure'
+    lo: float
+    hi: float
+    unit: str
+    source: str    # 'file' | 'geometry' | 'relief pressure' | 'default'
+
+    def check(self, value: float) -> str | None:
+        """None if ``value`` is inside, else a sentence naming the input, the value and the limit."""
+        v = value
+        if self.kind == "angle" and abs(v) > MAX_ABS_ANGLE:
+            return (f"angle '{self.name}' = {value:.6g} rad is not an angle a sensor reports (|angle| > "
+                    f"{MAX_ABS_ANGLE:.6g} rad): sensor fault?")
+        if self.kind == "angle" and math.isfinite(v) and self.hi - self.lo < 2.0 * math.pi:
+            centre = 0.5 * (self.lo + self.hi)   # the equivalent (modulo 2π) nearest the range
+            v = centre + math.remainder(v - centre, 2.0 * math.pi)
+        if self.lo <= v <= self.hi:
+            return None
+        what = {"cylinder": "cylinder length", "angle": "angle", "pressure": "absolute pressure"}[self.kind]
+        return (f"{what} '{self.name}' = {value:.6g} {self.unit} is outside its plausible range "
+                f"[{self.lo:.6g}, {self.hi:.6g}] {self.unit} (from the {self.source}): sensor fault?")
+
+
+def input_limits(mech: Mechanism) -> dict[str, Limit]:
+    """The limit of every measured input of ``mech``, keyed by measurement name."""
+    out: dict[str, Limit] = {}
+    spans = _swept_spans(mech)
+    reference = mech.reference_inputs.get("cylinders", {})
+    for name in mech.measurements.cylinders:
+        if name in spans:
+            out[name] = Limit(name, "cylinder", *spans[name], "m", "geometry")
+        else:   # not drivable alone: a wide bound around the reference length
+            out[name] = Limit(name, "cylinder", 0.0, UNDRIVEN_FACTOR * _reference_length(mech, name, reference),
+                              "m", "default")
+    for a in mech.measurements.angles:
+        lo, hi = spans.get(a.name, (-math.inf, math.inf))
+        out[a.name] = Limit(a.name, "angle", lo, hi, "rad", "geometry" if a.name in spans else "default")
+    for p in mech.measurements.pressures:
+        relief = mech.cylinder(p.cylinder).relief_pressure
+        hi = RELIEF_FACTOR * relief + ATMOSPHERIC_PRESSURE if relief else DEFAULT_MAX_PRESSURE
+        out[p.name] = Limit(p.name, "pressure", MIN_ABSOLUTE_PRESSURE, hi, "Pa",
+                            "relief pressure" if relief else "default")
+    for name, (lo, hi) in mech.measurements.limits.items():
+        out[name] = Limit(name, out[name].kind, lo, hi, out[name].unit, "file")
+    return out
+
+
+def _reference_length(mech: Mechanism, name: str, reference: dict) -> float:
+    cyl = mech.cylinder(name)
+    return float(reference.get(name, np.hypot(*(mech.points[cyl.rod_end.point] - mech.points[cyl.base.point]))))
+
+
+def _driven_by(mech: Mechanism, kind: str, entry: object) -> Solver | None:
+    """A solver of ``mech`` driven by this one input alone, or None if it does not fix the pose."""
+    raw = {**dict(mech.raw), "measurements": {kind: [entry]}, "reference_inputs": {}}
+    try:
+        return Solver(mechanism_from_dict(raw, file=mech.file))
+    except LinkageError:
+        return None
+
+
+def _swept_spans(mech: Mechanism) -> dict[str, tuple[float, float]]:
+    """Geometry ranges (m, rad) of the inputs that drive the linkage alone: a measured cylinder swept
+    alone gives its assemblable interval (widened by CYLINDER_MARGIN) and the span of every angle
+    sensor over it (widened by ANGLE_MARGIN); an angle that drives alone is swept over a full turn."""
+    spans: dict[str, tuple[float, float]] = {}
+    angle_values: dict[str, list[np.ndarray]] = {a.name: [] for a in mech.measurements.angles}
+    reference = mech.reference_inputs.get("cylinders", {})
+    for cyl in mech.measurements.cylinders:
+        solver = _driven_by(mech, "cylinders", cyl)
+        if solver is None:
+            continue
+        length0 = _reference_length(mech, cyl, reference)
+        grid = np.linspace(0.4 * length0, 1.8 * length0, SWEEP_POINTS)
+        batch = solver.solve_batch(cylinders={cyl: grid})
+        ok = batch.status != Status.ASSEMBLY
+        interval = interval_around(grid, ok, length0)
+        if interval is None:
+            continue
+        lo, hi = interval
+        pad = CYLINDER_MARGIN * (hi - lo) + (grid[1] - grid[0])
+        spans[cyl] = (max(lo - pad, 0.0), hi + pad)
+        inside = ok & (grid >= lo) & (grid <= hi)
+        for name, values in angle_readings(mech, batch).items():
+            angle_values[name].append(values[inside])
+    for a, entry in zip(mech.measurements.angles, mech.raw["measurements"].get("angles") or []):
+        values = [v for v in angle_values[a.name] if v.size]
+        if not values:
+            solver = _driven_by(mech, "angles", entry)
+            if solver is not None:
+                grid = a.reference + np.linspace(-math.pi, math.pi, SWEEP_POINTS)
+                batch = solver.solve_batch(angles={a.name: grid})
+                interval = interval_around(grid, batch.status != Status.ASSEMBLY, a.reference)
+                values = [np.array(interval)] if interval is not None else []
+        if values:
+            allv = np.concatenate(values)
+            spans[a.name] = (float(allv.min()) - ANGLE_MARGIN, float(allv.max()) + ANGLE_MARGIN)
+    return spans

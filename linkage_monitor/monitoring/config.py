@@ -1,0 +1,102 @@
+"""The monitor's configuration as one typed, recordable value (no rclpy).
+
+Everything that decides what the monitor computes from its inputs lives here: the mechanism
+(as given: preset name or file, plus scalar overrides such as the implement mass), how sensor
+messages map onto the mechanism's measurements, the pressure convention, the time limits and
+the topic names. The node builds it from its parameters, records it in its bag (YAML text on
+CONFIG_TOPIC, a new copy at every runtime parameter change), and the replay rebuilds the same
+monitor from the recorded copies. Units SI (Pa, s, kg).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields, replace
+from typing import Any, Mapping
+
+import yaml
+
+from linkage_monitor.mechanics import InputError, Mechanism
+from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
+
+CONFIG_TOPIC = "/linkage_monitor/config"
+"""Topic (std_msgs/String, YAML of a MonitorConfig) on which the node records its configuration."""
+
+# runtime-changeable scalars of the mechanism: node parameter -> dotted key of the description
+OVERRIDE_KEYS = {"implement_mass": "implement.mass", "tractor_mass": "tractor.mass",
+                 "front_ballast_mass": "tractor.front_ballast.mass", "ratio_min": "tractor.ratio_min"}
+
+
+@dataclass(frozen=True)
+class Topics:
+    """Resolved (absolute) names of the monitor's input and output topics."""
+
+    joint_states: str = "/joint_states"
+    hinge_reactions: str = "/hinge_reactions"
+    hitch_state: str = "/hitch_state"
+    steerability: str = "/steerability"
+    diagnostics: str = "/diagnostics"
+    markers: str = "/linkage_markers"
+
+
+@dataclass(frozen=True)
+class MonitorConfig:
+    """How the monitor turns sensor messages into results.
+
+    mechanism: preset name or YAML path as given (for the record; the description itself is
+    recorded beside it). overrides: dotted key -> value applied to the description
+    (``implement.mass`` kg, ``tractor.mass`` kg, ``tractor.front_ballast.mass`` kg,
+    ``tractor.ratio_min`` -). joint_map: JointState joint name -> measurement name (angle rad,
+    cylinder length m); unlisted measurements are expected under their own name.
+    pressure_topics: resolved FluidPressure topic -> pressure-sensor name. pressure_absolute:
+    FluidPressure carries absolute pressure (its definition) or gauge. atmospheric_pressure: Pa.
+    staleness_limit_s: s, largest age of any input at a solve. stamp_tolerance_s: s, largest
+    distance of a header stamp from the monitor's clock. kinetostatics: use JointState
+    velocities (and their differences) for inertia loads (seed 004).
+    """
+
+    mechanism: str
+    overrides: Mapping[str, float] = field(default_factory=dict)
+    topics: Topics = field(default_factory=Topics)
+    joint_map: Mapping[str, str] = field(default_factory=dict)
+    pressure_topics: Mapping[str, str] = field(default_factory=dict)
+    pressure_absolute: bool = True
+    atmospheric_pressure: float = ATMOSPHERIC_PRESSURE
+    staleness_limit_s: float = 0.5
+    stamp_tolerance_s: float = 10.0
+    kinetostatics: bool = False
+
+    @staticmethod
+    def default(spec: str, mech: Mechanism, namespace: str = "/") -> MonitorConfig:
+        """Identity joint names, one topic ``<namespace>pressure/<sensor>`` per pressure sensor."""
+        ns = namespace.rstrip("/") + "/"
+        return MonitorConfig(mechanism=spec, pressure_topics={f"{ns}pressure/{p.name}": p.name
+                                                              for p in mech.measurements.pressures})
+
+    def with_overrides(self, overrides: Mapping[str, float]) -> MonitorConfig:
+        """A copy with these dotted-key overrides added (later values win)."""
+        return replace(self, overrides={**self.overrides, **overrides})
+
+    def to_yaml(self) -> str:
+        """The configuration as YAML text (what the bag records)."""
+        data = asdict(self)
+        data["overrides"] = dict(self.overrides)
+        return yaml.safe_dump(data, sort_keys=False)
+
+    @staticmethod
+    def from_yaml(text: str, source: str = "recorded configuration") -> MonitorConfig:
+        """Parse ``to_yaml`` output; InputError naming ``source`` if it is not one."""
+        try:
+            data = yaml.safe_load(text)
+            known = {f.name for f in fields(MonitorConfig)}
+            unknown = sorted(set(data) - known)
+            if unknown:
+                raise InputError(f"{source}: unknown key(s) {', '.join(unknown)}")
+            data["topics"] = Topics(**data.get("topics", {}))
+            return MonitorConfig(**data)
+        except (yaml.YAMLError, TypeError, AttributeError) as exc:
+            raise InputError(f"{source}: not a monitor configuration ({exc})") from exc
+
+    def describe(self) -> dict[str, Any]:
+        """Short key-values for logs: what differs from the defaults."""
+        base = MonitorConfig(self.mechanism)
+        return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) != getattr(base, f.name)}

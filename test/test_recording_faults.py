@@ -1,0 +1,91 @@
+"""Recording faults, made real: a full disk (a 256 KiB tmpfs), a read-only directory (a read-only
+tmpfs), a file where the directory should be, and stamps MCAP cannot store. The writer reports
+the fault (``error``), never raises from ``write``/``close``, and the bag on disk stays readable
+by readers we did not write (mcap, rosbags) up to its last complete chunk."""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+import pytest
+from mcap.reader import NonSeekingReader
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import Stores, get_typestore
+from std_msgs.msg import String
+
+from linkage_monitor.bag.writer import BagError, BagWriter
+
+T0 = 1_700_000_000_000_000_000  # ns, an arbitrary recording start
+
+
+@pytest.fixture
+def tmpfs(tmp_path):
+    """Mount a tmpfs of the given options at a fresh directory (the tests run as root, as CI does)."""
+    mounted = []
+
+    def mount(options: str) -> Path:
+        where = tmp_path / f"mnt{len(mounted)}"
+        where.mkdir()
+        subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(where)], check=True)
+        mounted.append(where)
+        return where
+    yield mount
+    for where in mounted:
+        subprocess.run(["umount", str(where)], check=False)
+
+
+def _count_readable(bag: Path) -> tuple[int, int]:
+    """Messages read back by mcap (linear scan) and by rosbags."""
+    with open(next(bag.glob("*.mcap")), "rb") as f:
+        by_mcap = sum(1 for _ in NonSeekingReader(f).iter_messages())
+    with AnyReader([bag], default_typestore=get_typestore(Stores.EMPTY)) as reader:
+        by_rosbags = sum(1 for _ in reader.messages())
+    return by_mcap, by_rosbags
+
+
+def test_full_disk_is_reported_and_the_bag_stays_readable(tmpfs):
+    disk = tmpfs("size=256k")
+    writer = BagWriter(disk / "run", chunk_size=16 * 1024, flush_period_s=0.05)
+    payload = "x" * 2000   # incompressible enough: 2 kB per message
+    written = 0
+    import random
+    rng = random.Random(1)
+    for i in range(2000):
+        text = "".join(rng.choice("abcdefghijklmnopqrstuvwxyz0123456789") for _ in range(len(payload)))
+        writer.write("/chatter", String(data=text), T0 + i, log_time_ns=T0 + i)   # never raises
+        if writer.error is None:
+            written = i + 1
+        writer.flush()
+    assert writer.error is not None and "No space left" in writer.error and str(disk) in writer.error
+    assert writer.unwritten > 0
+    writer.close()   # never raises
+    by_mcap, by_rosbags = _count_readable(disk / "run")
+    assert 0 < by_mcap == by_rosbags <= written
+
+
+def test_read_only_directory_is_one_clear_error(tmpfs):
+    ro = tmpfs("size=64k,ro")
+    with pytest.raises(BagError) as err:
+        BagWriter(ro / "run")
+    assert str(ro) in str(err.value) and "Read-only" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_file_in_the_path_is_one_clear_error(tmp_path):
+    (tmp_path / "bags").write_text("not a directory")
+    with pytest.raises(BagError) as err:
+        BagWriter(tmp_path / "bags" / "run")
+    assert "bags" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_stamps_mcap_cannot_store_are_written_as_zero(tmp_path):
+    with BagWriter(tmp_path / "run") as writer:
+        writer.write("/a", String(data="negative"), -5_000_000_000, log_time_ns=T0)
+        writer.write("/a", String(data="beyond 2^64"), 1 << 70, log_time_ns=T0 + 1)
+        writer.write("/a", String(data="negative log time"), T0, log_time_ns=-1)
+        assert writer.error is None
+    with open(next((tmp_path / "run").glob("*.mcap")), "rb") as f:
+        times = [(m.publish_time, m.log_time) for _, _, m in NonSeekingReader(f).iter_messages()]
+    assert times[0] == (0, T0) and times[1] == (0, T0 + 1)
+    assert times[2][0] == T0 and times[2][1] >= T0 + 1   # receive time: now, never before the last
+    assert _count_readable(tmp_path / "run") == (3, 3)
