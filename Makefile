@@ -47,6 +47,7 @@ setup: $(PKG_STAMP) $(SYS_STAMP)
 	@test -f linkage_monitor/msg/__init__.py || { rm -f $(PKG_STAMP); $(MAKE) $(PKG_STAMP); }
 
 test: setup
+	$(PY) -m mypy linkage_monitor
 	$(PY) -m pytest $(PYTEST_ARGS)
 
 demo: setup

@@ -17,6 +17,9 @@ from hypothesis import strategies as st
 
 from linkage_monitor.mechanics import Inputs, Solver, load_preset, mechanism_from_dict
 from linkage_monitor.mechanics.capacity import reference_length, stroke_mechanism
+from linkage_monitor.monitoring.config import MonitorConfig
+from linkage_monitor.monitoring.core import Monitor
+from linkage_monitor.monitoring.findings import Code, Level
 from linkage_monitor.mechanics.machine import MachineModel
 
 STROKE = (0.515, 0.715)  # m, seed 003 Table 1's range of S
@@ -116,12 +119,25 @@ def test_margin_below_zero_and_reserve_below_one_are_flagged():
     # global equilibrium then holds to ~1e-5 only
     np.testing.assert_allclose(out.steerability["ratio"], k, rtol=1e-4)
     assert out.steerability["margin"] < 0.0 and out.lift_capacity["reserve"] < 1.0
-    assert any("steerability margin" in w and f"{k - 0.2:+.3f}" in w for w in out.warnings), out.warnings
-    assert any("lift reserve" in w and "< 1" in w for w in out.warnings), out.warnings
-    # the preset's own 15.0 kN header: k = 0.254 (docs/seed003_belarus.md), G_s 23.03 kN > 15 kN: no warning
+    # the monitor turns them into WARN findings (the same numbers, the codes of monitoring.findings)
+    steps = _monitor_steps(mech, 3000.0)
+    codes = {f.code for f in steps.findings}
+    assert {Code.STEERABILITY_LOW, Code.LIFT_RESERVE_LOW} <= codes and steps.level == Level.WARN
+    assert any(f"{k - 0.2:+.3f}" in f.text for f in steps.findings if f.code is Code.STEERABILITY_LOW)
+    # the preset's own 15.0 kN header: k = 0.254 (docs/seed003_belarus.md), G_s 23.03 kN > 15 kN: no finding
     light = load_preset("belarus_1221")
-    solver = Solver(light)
-    assert MachineModel(light, solver).evaluate(solver.solve(_reference_inputs(light))).warnings == []
+    assert _monitor_steps(light, None).findings == ()
+
+
+def _monitor_steps(mech, mass: float | None):
+    """The monitoring core's Step for the reference pose (no pressures: the load is the weight)."""
+    base = load_preset("belarus_1221")
+    config = MonitorConfig(mechanism="belarus_1221", overrides={"implement.mass": mass} if mass else {})
+    monitor = Monitor(base, config)
+    ref = mech.reference_inputs
+    names = ["lift_cylinder", "lift_arm_angle"]
+    values = [ref["cylinders"]["lift_cylinder"], ref["angles"]["lift_arm_angle"]]
+    return monitor.on_joint_state(names, values, [], 10**18, 10**18)
 
 
 def _reference_inputs(mech) -> Inputs:

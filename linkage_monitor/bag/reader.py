@@ -154,7 +154,7 @@ def _messages(path: str | os.PathLike[str], topics: Collection[str] | None,
             if channel.message_encoding != "cdr":
                 raise BagError(f"{file}: topic {channel.topic!r} is encoded as "
                                f"{channel.message_encoding!r}, only 'cdr' is supported")
-            msg = deserialize_message(message.data, _message_class(type_name))
+            msg: Any = deserialize_message(message.data, _message_class(type_name))
             header = getattr(msg, "header", None)
             stamp = (header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
                      if header is not None else message.publish_time)

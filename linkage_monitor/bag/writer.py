@@ -191,7 +191,8 @@ class BagWriter:
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
             self._file = _TailedFile(self.mcap_path)
-            self._writer = Writer(self._file, chunk_size=chunk_size, compression=compression)
+            self._writer = Writer(self._file, chunk_size=chunk_size,  # type: ignore[arg-type]  # file-like: write/tell/flush
+                                  compression=compression)
             self._writer.start(profile="ros2", library="linkage_monitor.bag.writer")
             self._file.enable_tail()
             self._file.write(b"")  # end the header in a valid tail right away
@@ -348,7 +349,7 @@ class BagWriter:
         """rosbag2 `rosbag2_bagfile_information` (metadata version 9) of what is written."""
         span = self._span
         start = span.start or 0
-        duration = (span.end - span.start) if span.start is not None else 0
+        duration = (span.end - span.start) if span.start is not None and span.end is not None else 0
         return {
             "version": ROSBAG2_VERSION,
             "storage_identifier": "mcap",

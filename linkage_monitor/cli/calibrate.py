@@ -14,18 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from linkage_monitor.cli.arguments import (
-    add_mechanism_group,
-    mechanism_from_args,
-    output_file,
-)
+from linkage_monitor.cli.arguments import add_mechanism_group, mechanism_from_args, output_file
 from linkage_monitor.mechanics import InputError, LinkageError, Mechanism
-from linkage_monitor.mechanics.calibration import (
-    UNITS,
-    FitResult,
-    calibrate,
-    fitted_yaml,
-)
+from linkage_monitor.mechanics.calibration import UNITS, FitResult, calibrate, fitted_yaml
 from linkage_monitor.monitoring.name_value import name_value, number
 
 ATMOSPHERE = 101325.0  # Pa, ISO 2533; sensor_msgs/FluidPressure carries absolute pressure

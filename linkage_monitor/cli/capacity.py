@@ -11,19 +11,10 @@ import json
 
 import numpy as np
 
-from linkage_monitor.cli.arguments import (
-    add_mechanism_group,
-    bounded,
-    mechanism_from_args,
-    output_file,
-)
+from linkage_monitor.cli.arguments import add_mechanism_group, bounded, mechanism_from_args, output_file
 from linkage_monitor.mechanics import LinkageError, Mechanism, Solver
-from linkage_monitor.mechanics.capacity import (
-    interval_around,
-    lift_cylinder,
-    reference_length,
-    stroke_mechanism,
-)
+from linkage_monitor.mechanics.capacity import (interval_around, lift_cylinder, reference_length, relief_pressure,
+                                                stroke_mechanism)
 from linkage_monitor.mechanics.machine import MachineBatch, MachineModel
 from linkage_monitor.mechanics.results import Status
 
@@ -76,6 +67,7 @@ def capacity_curve(mech: Mechanism, stroke: tuple[float, float] | None, points: 
     lengths = np.linspace(stroke[0], stroke[1], points)
     batch, machine = model.capacity_curve(cyl.name, lengths)
     listed = lambda a: [None if np.isnan(v) else float(v) for v in a]  # noqa: E731
+    assert mech.implement is not None   # lift_cylinder/capacity_points above require one
     out = {"mechanism": mech.name, "cylinder": cyl.name, "capacity_force": model.capacity_force,
            "implement_weight": mech.implement.mass * mech.gravity, "length": listed(lengths),
            "status": [int(s) for s in batch.status],
@@ -119,7 +111,7 @@ def run_capacity(args: argparse.Namespace) -> int:
     curve, machine = capacity_curve(mech, tuple(args.stroke) if args.stroke else None, args.points)
     if args.plot:
         cyl = mech.cylinder(curve["cylinder"])
-        title = (f"{mech.name}: lift capacity at p_max {cyl.relief_pressure / 1e6:.1f} MPa × η {cyl.efficiency:.2f}"
+        title = (f"{mech.name}: lift capacity at p_max {relief_pressure(cyl) / 1e6:.1f} MPa × η {cyl.efficiency:.2f}"
                  f" (transport)")
         plot_capacity(np.array(curve["length"], dtype=float), machine, mech.gravity, curve["implement_weight"],
                       title, args.plot, mech.tractor.steerability_reference if mech.tractor else "unit")

@@ -12,29 +12,16 @@ import math
 import os
 import sys
 from pathlib import Path
-from typing import Sequence
+from typing import NoReturn, Sequence
 
 import yaml
 
 from linkage_monitor.bag.writer import BagError
-from linkage_monitor.cli.arguments import (
-    add_mechanism_group,
-    bounded,
-    mechanism_from_args,
-    new_directory,
-    output_file,
-)
+from linkage_monitor.cli.arguments import add_mechanism_group, bounded, mechanism_from_args, new_directory, output_file
 from linkage_monitor.cli.calibrate import add_calibrate_parser, run_calibrate
 from linkage_monitor.cli.capacity import add_capacity_parser, run_capacity
 from linkage_monitor.cli.simulate import add_simulate_parser, run_simulate
-from linkage_monitor.mechanics import (
-    Inputs,
-    LinkageError,
-    Mechanism,
-    Result,
-    Solver,
-    preset_names,
-)
+from linkage_monitor.mechanics import Inputs, LinkageError, Mechanism, Result, Solver, preset_names
 from linkage_monitor.mechanics.machine import machine_summary
 from linkage_monitor.mechanics.presets import preset_description
 from linkage_monitor.monitoring.name_value import name_value, number
@@ -42,7 +29,7 @@ from linkage_monitor.offline.replay import replay
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line on stderr, exit code 2
+    def error(self, message: str) -> NoReturn:  # one line on stderr, exit code 2
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
@@ -144,8 +131,8 @@ def _table(res: Result) -> str:
     lines.append("cylinder        length [m]  force [kN]  cap pressure [MPa]")
     for n, c in res.cylinders.items():
         lines.append(f"{n:<15} {c.length:10.4f} {c.force / 1e3:11.3f} {c.cap_pressure_predicted / 1e6:19.3f}")
-    for n, c in res.contacts.items():
-        lines.append(f"contact {n}: normal {c.normal / 1e3:.3f} kN, friction {c.tangential / 1e3:.3f} kN")
+    for n, contact in res.contacts.items():
+        lines.append(f"contact {n}: normal {contact.normal / 1e3:.3f} kN, friction {contact.tangential / 1e3:.3f} kN")
     if not math.isnan(res.implement_load):
         cg = res.implement_cg
         lines.append(f"implement load {res.implement_load / 1e3:.3f} kN at cg ({cg[0]:.3f}, {cg[1]:.3f}) m")

@@ -10,11 +10,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from linkage_monitor.cli.arguments import (
-    add_mechanism_group,
-    bounded,
-    mechanism_from_args,
-)
+from linkage_monitor.cli.arguments import add_mechanism_group, bounded, mechanism_from_args
 from linkage_monitor.mechanics import LinkageError
 from linkage_monitor.sim.telemetry import SCENARIOS, Noise
 

@@ -29,10 +29,11 @@ def lift_cylinder(mech: Mechanism, name: str | None = None) -> Cylinder:
                                      f"(cylinders: {', '.join(c.name for c in mech.cylinders) or 'none'})")
         cyl = mech.cylinder(name)
     else:
-        cyl = next((c for c in mech.cylinders if c.relief_pressure is not None), None)
-        if cyl is None:
+        found = next((c for c in mech.cylinders if c.relief_pressure is not None), None)
+        if found is None:
             raise MechanismFileError(mech.file, "cylinders", "no cylinder has a 'relief_pressure': set it "
                                      "(Pa) on the lift cylinder to compute lift capacity")
+        cyl = found
     if cyl.relief_pressure is None:
         raise MechanismFileError(mech.file, f"cylinders.{cyl.name}.relief_pressure",
                                  "required for lift capacity (Pa, the relief valve setting p_max)")
@@ -47,7 +48,15 @@ def reference_length(mech: Mechanism, cylinder: str) -> float:
 
 def capacity_force(cyl: Cylinder) -> float:
     """Largest pushing force of the lift cylinder(s), N: count·p_max·η·A_cap (seed 003, G·I = p_max·η·A)."""
-    return cyl.count * cyl.relief_pressure * cyl.efficiency * cyl.cap_area
+    return cyl.count * relief_pressure(cyl) * cyl.efficiency * cyl.cap_area
+
+
+def relief_pressure(cyl: Cylinder) -> float:
+    """The cylinder's relief pressure p_max (Pa); MechanismFileError naming the key if the file has none."""
+    if cyl.relief_pressure is None:
+        raise MechanismFileError("", f"cylinders.{cyl.name}.relief_pressure",
+                                 "required for lift capacity (Pa, the relief valve setting p_max)")
+    return cyl.relief_pressure
 
 
 def capacity_points(mech: Mechanism, distance: float = BEHIND_DISTANCE) -> dict[str, np.ndarray]:
@@ -90,7 +99,7 @@ def capacity_mechanism(mech: Mechanism, cyl: Cylinder, point: np.ndarray) -> Mec
     meas = raw.setdefault("measurements", {})
     meas["pressures"] = [{"name": CAPACITY_SENSOR, "cylinder": cyl.name, "chamber": "cap"}]
     ref = raw.setdefault("reference_inputs", {}) or {}
-    ref["pressures"] = {CAPACITY_SENSOR: cyl.relief_pressure * cyl.efficiency}
+    ref["pressures"] = {CAPACITY_SENSOR: relief_pressure(cyl) * cyl.efficiency}
     raw["reference_inputs"] = ref
     return mechanism_from_dict(raw, file=f"{mech.file} (lift capacity copy)")
 

@@ -56,7 +56,7 @@ class Kinematics:
         self.q_ref = np.column_stack([origins, np.zeros(len(moving))]).ravel()
         self._origins = origins
         self._att: dict[tuple[str, str], int] = {}
-        self._arrays: tuple[np.ndarray, np.ndarray] | None = None
+        self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._att_body: list[int] = []
         self._att_ref: list[np.ndarray] = []
         # constraint rows
@@ -172,10 +172,10 @@ class Kinematics:
         self._jac0 = jac0
         self._theta = (np.array(theta_att, dtype=int), 1j * np.array(theta_sign))
         self._cyl = (np.array(cyl_end, dtype=int), np.array(cyl_att, dtype=int), np.array(cyl_sign))
-        cyl_flat = np.array(cyl_flat, dtype=int).reshape(-1, 3)
+        cyl_entries = np.array(cyl_flat, dtype=int).reshape(-1, 3)
         # pose-dependent entries in the order ``_jacobian`` concatenates them: hinge θ (x row, z row)
         # per term, then the cylinder x, z and θ entries, each for all terms
-        self._jac_flat = np.concatenate([np.array(flat, dtype=int), cyl_flat.T.ravel()])
+        self._jac_flat = np.concatenate([np.array(flat, dtype=int), cyl_entries.T.ravel()])
         # gap = P(hinge bodies[0]) − P(bodies[1]) and cylinder vector = P(rod end) − P(base): P(a) − P(b)
         self._diff_att = (np.concatenate([self.hinge_att[0], self.cyl_att[1]]),
                           np.concatenate([self.hinge_att[1], self.cyl_att[0]]))

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Mapping
 
 import numpy as np
 
@@ -92,7 +93,7 @@ def input_limits(mech: Mechanism) -> dict[str, Limit]:
     return out
 
 
-def _reference_length(mech: Mechanism, name: str, reference: dict) -> float:
+def _reference_length(mech: Mechanism, name: str, reference: Mapping[str, float]) -> float:
     cyl = mech.cylinder(name)
     return float(reference.get(name, np.hypot(*(mech.points[cyl.rod_end.point] - mech.points[cyl.base.point]))))
 
@@ -131,15 +132,15 @@ def _swept_spans(mech: Mechanism) -> dict[str, tuple[float, float]]:
         for name, values in angle_readings(mech, batch).items():
             angle_values[name].append(values[inside])
     for a, entry in zip(mech.measurements.angles, mech.raw["measurements"].get("angles") or []):
-        values = [v for v in angle_values[a.name] if v.size]
-        if not values:
+        spans_of: list[np.ndarray] = [v for v in angle_values[a.name] if v.size]
+        if not spans_of:
             solver = _driven_by(mech, "angles", entry)
             if solver is not None:
                 grid = a.reference + np.linspace(-math.pi, math.pi, SWEEP_POINTS)
                 batch = solver.solve_batch(angles={a.name: grid})
                 interval = interval_around(grid, batch.status != Status.ASSEMBLY, a.reference)
-                values = [np.array(interval)] if interval is not None else []
-        if values:
-            allv = np.concatenate(values)
+                spans_of = [np.array(interval)] if interval is not None else []
+        if spans_of:
+            allv = np.concatenate(spans_of)
             spans[a.name] = (float(allv.min()) - ANGLE_MARGIN, float(allv.max()) + ANGLE_MARGIN)
     return spans

@@ -14,7 +14,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .capacity import capacity_force, capacity_mechanism, capacity_points, lift_cylinder, reference_length
+from .capacity import (capacity_force, capacity_mechanism, capacity_points, lift_cylinder, reference_length,
+                       relief_pressure)
 from .errors import LinkageError
 from .model import Mechanism, Tractor
 from .results import BatchResult, Status, Result, angle_readings
@@ -33,30 +34,25 @@ class MachineBatch:
     ``lift_capacity`` keys = the capacity points (``hitch_axis``, ``behind_610mm``,
     ``implement_cg``; N, vertical load the cylinder holds at p_max·η) plus ``reserve``
     (capacity at the implement cg / present implement load, -). Empty dicts when the mechanism
-    has no ``tractor`` block / no lift cylinder. ``warnings[i]`` lists pose i's limit violations.
+    has no ``tractor`` block / no lift cylinder. Judging them against limits is the monitor's
+    (monitoring.core: steerability margin < 0, lift reserve < 1).
     """
 
     steerability: dict[str, np.ndarray]
     lift_capacity: dict[str, np.ndarray]
-    warnings: list[list[str]]
 
     def result(self, i: int) -> "MachineResult":
         """Pose i as a :class:`MachineResult` (floats), as ``MachineModel.evaluate`` returns it."""
         return MachineResult({k: float(v[i]) for k, v in self.steerability.items()},
-                             {k: float(v[i]) for k, v in self.lift_capacity.items()}, list(self.warnings[i]))
-
-    def summary(self, i: int) -> dict:
-        """Pose i as ``{"lift_capacity": {...} | None, "steerability": {...} | None}`` of floats (JSON-ready)."""
-        return _summary({k: v[i] for k, v in self.lift_capacity.items()}, {k: v[i] for k, v in self.steerability.items()})
+                             {k: float(v[i]) for k, v in self.lift_capacity.items()})
 
 
 @dataclass(frozen=True)
 class MachineResult:
-    """Machine-level results of one pose: dicts as in :class:`MachineBatch` (floats) and warnings."""
+    """Machine-level results of one pose: dicts as in :class:`MachineBatch` (floats)."""
 
     steerability: dict[str, float] = field(default_factory=dict)
     lift_capacity: dict[str, float] = field(default_factory=dict)
-    warnings: list[str] = field(default_factory=list)
 
 
 def _summary(capacity: dict, steer: dict) -> dict:
@@ -122,23 +118,6 @@ def steerability(tractor: Tractor, gravity: float, front: np.ndarray, rear: np.n
             "ratio_tractor": ratio_tractor, "max_implement_mass": max_mass}
 
 
-def limit_warnings(steer: dict[str, np.ndarray], capacity: dict[str, np.ndarray], implement_load: np.ndarray,
-                   reference: str) -> list[list[str]]:
-    """Per pose: a sentence for each limit violated (steerability margin < 0, lift reserve < 1)."""
-    out: list[list[str]] = [[] for _ in range(len(implement_load))]
-    if steer:
-        for i in np.flatnonzero(steer["margin"] < 0.0):
-            out[i].append(f"steerability margin {steer['margin'][i]:+.3f} < 0: the front axle carries "
-                          f"{steer['ratio'][i]:.1%} of the {reference} weight, below ratio_min "
-                          f"{steer['ratio_min'][i]:.0%}; front ballast needed {steer['front_ballast_needed'][i]:.0f} kg")
-    if capacity:
-        for i in np.flatnonzero(capacity["reserve"] < 1.0):
-            out[i].append(f"lift reserve {capacity['reserve'][i]:.2f} < 1: implement load "
-                          f"{implement_load[i] / 1e3:.2f} kN exceeds the lift capacity "
-                          f"{capacity['implement_cg'][i] / 1e3:.2f} kN at its centre of gravity")
-    return out
-
-
 class MachineModel:
     """Everything machine-level that depends only on the mechanism, built once.
 
@@ -166,7 +145,7 @@ class MachineModel:
             self.capacity_solvers = {k: Solver(capacity_mechanism(mech, cyl, pt), solver.dead_centre_cond,
                                                solver.consistency_tol)
                                      for k, pt in self.capacity_points.items()}
-            self._capacity_pressure = {k: {s.mech.measurements.pressures[0].name: cyl.relief_pressure * cyl.efficiency}
+            self._capacity_pressure = {k: {s.mech.measurements.pressures[0].name: relief_pressure(cyl) * cyl.efficiency}
                                        for k, s in self.capacity_solvers.items()}
 
     @property
@@ -196,32 +175,32 @@ class MachineModel:
             for name, solver in self.capacity_solvers.items():
                 res = solver.solve_batch(cylinders=cylinders, angles=angles, pressures=self._capacity_pressure[name])
                 capacity[name] = np.where(ok, res.implement_load, np.nan)
-        return self._combine(batch, capacity, [[] for _ in range(len(batch))])
+        return self._combine(batch, capacity)
 
     def evaluate(self, result: Result) -> MachineResult:
         """Machine-level results of one solved pose (a ``Result`` of ``self.solver``); cheap: the
-        capacity solvers continue from their previous pose."""
+        capacity copies share its kinematics, so their solves start from its pose. A capacity that
+        cannot be computed (e.g. a dead centre of the copy) is NaN, as in ``evaluate_batch``."""
         batch = _as_batch(result, self.solver.frame_load_names)
         capacity: dict[str, np.ndarray] = {}
-        problems: list[str] = []
         if self.has_capacity:
             cylinders, angles = self.pose_inputs(batch)
             inputs = Inputs(cylinders={k: float(v[0]) for k, v in cylinders.items()},
                             angles={k: float(v[0]) for k, v in angles.items()})
             for name, solver in self.capacity_solvers.items():
                 try:
-                    load = solver.solve(replace(inputs, pressures=self._capacity_pressure[name])).implement_load
-                except LinkageError as exc:
+                    load = solver.solve(replace(inputs, pressures=self._capacity_pressure[name]),
+                                        previous=result).implement_load
+                except LinkageError:
                     load = float("nan")
-                    problems.append(f"lift capacity at {name} not computed: {exc}")
                 capacity[name] = np.array([load])
-        return self._combine(batch, capacity, [problems]).result(0)
+        return self._combine(batch, capacity).result(0)
 
-    def _combine(self, batch: BatchResult, capacity: dict[str, np.ndarray], problems: list[list[str]]) -> MachineBatch:
-        """Steerability from the frame loads, reserve from the capacity, and all warnings."""
+    def _combine(self, batch: BatchResult, capacity: dict[str, np.ndarray]) -> MachineBatch:
+        """Steerability from the frame loads and the lift reserve from the capacity."""
         mech = self.mech
         steer: dict[str, np.ndarray] = {}
-        if self.has_steerability:
+        if self.has_steerability and mech.tractor is not None:
             front, rear = axle_loads(mech.tractor, mech.gravity, batch.frame_load_points, batch.frame_load_forces)
             steer = steerability(mech.tractor, mech.gravity, front, rear, batch.implement_load, batch.implement_cg[:, 0])
         if capacity:
@@ -231,9 +210,7 @@ class MachineModel:
             with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
                 capacity["reserve"] = np.where(batch.implement_load > 0.0,
                                                capacity["implement_cg"] / batch.implement_load, np.inf)
-        reference = mech.tractor.steerability_reference if mech.tractor else "unit"
-        limits = limit_warnings(steer, capacity, batch.implement_load, reference)
-        return MachineBatch(steer, capacity, [p + w for p, w in zip(problems, limits)])
+        return MachineBatch(steer, capacity)
 
     def stroke_poses(self, cylinder: str, lengths: np.ndarray) -> BatchResult:
         """Transport poses with ``cylinder`` at ``lengths`` (m), solved batched by ``self.solver``.

@@ -145,7 +145,7 @@ class BatchResult:
         return Result(
             points={k: v[i].copy() for k, v in self.points.items()},
             body_poses={k: v[i].copy() for k, v in self.body_poses.items()},
-            hinges={k: _hinge(*v[i].tolist(), *self.hinge_bodies[k]) for k, v in self.hinge_force.items()},
+            hinges={k: _hinge(float(v[i, 0]), float(v[i, 1]), *self.hinge_bodies[k]) for k, v in self.hinge_force.items()},
             cylinders={k: CylinderResult(length=float(self.cylinder_length[k][i]), force=float(self.cylinder_force[k][i]),
                                          cap_pressure_predicted=float(self.cap_pressure_predicted[k][i]),
                                          cap_pressure_measured=float(self.cap_pressure_measured[k][i]),

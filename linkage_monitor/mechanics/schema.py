@@ -59,7 +59,7 @@ def load_mechanism(path: str | Path) -> Mechanism:
 class _StrictLoader(yaml.SafeLoader):
     """SafeLoader that refuses aliases (no expansion bombs), deep nesting and duplicate keys."""
 
-    def compose_node(self, parent, index):  # type: ignore[no-untyped-def]
+    def compose_node(self, parent, index):
         if self.check_event(yaml.events.AliasEvent):
             mark = self.peek_event().start_mark
             raise yaml.constructor.ConstructorError(None, None, "aliases (*name) are not allowed in a mechanism "
@@ -73,7 +73,7 @@ class _StrictLoader(yaml.SafeLoader):
         finally:
             self._depth -= 1
 
-    def construct_mapping(self, node, deep=False):  # type: ignore[no-untyped-def]
+    def construct_mapping(self, node, deep=False):
         seen = set()
         for key_node, _ in node.value:
             key = self.construct_object(key_node, deep=deep)
@@ -82,7 +82,7 @@ class _StrictLoader(yaml.SafeLoader):
             seen.add(key)
         return super().construct_mapping(node, deep=deep)
 
-    def construct_yaml_int(self, node):  # type: ignore[no-untyped-def]
+    def construct_yaml_int(self, node):
         if len(str(node.value)) > 30:
             raise yaml.constructor.ConstructorError(None, None, f"integer of {len(str(node.value))} digits: "
                                                     "not a quantity of a linkage", node.start_mark)
@@ -171,7 +171,7 @@ class _Reader:
         return MechanismFileError(self.file, key, reason)
 
     # ---- primitive readers -------------------------------------------------------------
-    def mapping(self, value: Any, key: str, allowed: set[str], required: set[str] = frozenset()) -> dict:
+    def mapping(self, value: Any, key: str, allowed: set[str], required: frozenset[str] | set[str] = frozenset()) -> dict:
         if not isinstance(value, dict):
             raise self.fail(key, f"expected a mapping, got {type(value).__name__}")
         unknown = sorted(set(map(str, value)) - allowed)
@@ -300,10 +300,10 @@ class _Reader:
     def check_geometry(self, mech: Mechanism) -> None:
         """Degenerate geometry, named: a moving body whose points coincide (no direction to rotate
         about), a cylinder or spring of zero length."""
-        for i, b in enumerate(mech.bodies):
-            pts = np.array([mech.points[p] for p in b.points])
-            if not b.ground and len(pts) >= 2 and np.ptp(pts, axis=0).max() < 1e-6:
-                raise self.fail(f"bodies[{i}].points", f"all points of body '{b.name}' coincide: a rigid body needs "
+        for i, body in enumerate(mech.bodies):
+            pts = np.array([mech.points[p] for p in body.points])
+            if not body.ground and len(pts) >= 2 and np.ptp(pts, axis=0).max() < 1e-6:
+                raise self.fail(f"bodies[{i}].points", f"all points of body '{body.name}' coincide: a rigid body needs "
                                 "two distinct points")
         members = [("cylinders", c.name, c.base.point, c.rod_end.point) for c in mech.cylinders]
         members += [("springs", s.name, s.a.point, s.b.point) for s in mech.springs]

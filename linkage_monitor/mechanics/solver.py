@@ -93,7 +93,8 @@ class Solver:
         code = int(batch.status[0])
         if code in (Status.OK, Status.LIFT_OFF):
             return replace(res, state=ks)
-        raise {Status.INPUT: InputError, Status.ASSEMBLY: AssemblyError, Status.DEAD_CENTRE: DeadCentreError}[code](res.message)
+        raise {Status.INPUT: InputError, Status.ASSEMBLY: AssemblyError, Status.DEAD_CENTRE: DeadCentreError}[Status(code)](
+            res.message)
 
     def solve_batch(self, cylinders: ArrayMap | None = None, angles: ArrayMap | None = None,
                     pressures: ArrayMap | None = None, rates: ArrayMap | None = None,
@@ -247,11 +248,11 @@ class Solver:
                            f"{sol.condition[i]:.3g} > {self.dead_centre_cond:.3g} (a member is aligned with a "
                            f"hinge; forces would be unbounded)")
         u = sol.unknowns
-        for c in mech.contacts:
-            normal = u[:, layout.contact_col[c.name]]
+        for contact in mech.contacts:
+            normal = u[:, layout.contact_col[contact.name]]
             for i in np.flatnonzero((status == Status.OK) & (normal < 0.0)):
                 status[i] = Status.LIFT_OFF
-                messages[i] = f"contact '{c.name}' lifts off: its normal force would be {normal[i]:.1f} N (pulling)"
+                messages[i] = f"contact '{contact.name}' lifts off: its normal force would be {normal[i]:.1f} N (pulling)"
         failed = status >= Status.INPUT
         u = np.where(failed[:, None], np.nan, u)
         q = np.where(failed[:, None], np.nan, ks.q)

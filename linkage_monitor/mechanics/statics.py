@@ -11,6 +11,7 @@ The index structure (:class:`StaticsLayout`) is built once per set of measured c
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -49,14 +50,14 @@ class StaticsLayout:
         bi = kin.body_index
         self.n_eq = kin.n
         self.columns: list[str] = []
-        terms: list[tuple[int, int, int, str, object]] = []  # (column, attachment, body, kind, parameter)
+        terms: list[tuple[int, int, int, str, Any]] = []  # (column, attachment, body, kind, parameter)
 
         def column(name: str, parts: list[tuple[str, str, str, object]]) -> None:
             col = len(self.columns)
             self.columns.append(name)
             for body, key, kind, param in parts:
                 if bi[body] >= 0:
-                    pos = param if kind == "down" else None
+                    pos = np.asarray(param, dtype=float) if kind == "down" else None
                     terms.append((col, kin.attach(body, key, pos), bi[body], kind, param))
 
         for h in mech.hinges:
@@ -71,9 +72,10 @@ class StaticsLayout:
                 column(f"cylinder '{c.name}' force", [(c.rod_end.body, c.rod_end.point, "cyl", (k, 1.0)),
                                                       (c.base.body, c.base.point, "cyl", (k, -1.0))])
         self.contact_col = {}
-        for c in mech.contacts:
-            self.contact_col[c.name] = len(self.columns)
-            column(f"contact '{c.name}' normal force", [(c.body, c.point, "dir", c.force_direction)])
+        for contact in mech.contacts:
+            self.contact_col[contact.name] = len(self.columns)
+            column(f"contact '{contact.name}' normal force", [(contact.body, contact.point, "dir",
+                                                              contact.force_direction)])
         self.implement_col: int | None = None
         imp = mech.implement
         if imp is not None and force_known and len(self.columns) < self.n_eq:
@@ -88,15 +90,16 @@ class StaticsLayout:
         cyl_t, cyl_k, cyl_s = [], [], []
         for i, (_, _, _, kind, param) in enumerate(terms):
             if kind in ("x", "z"):
-                const[i] = np.array(_UNIT[kind]) * param
+                const[i] = np.array(_UNIT[kind]) * float(param)   # a sign, ±1.0
             elif kind == "down":
                 const[i] = _UNIT["down"]
             elif kind == "dir":
-                const[i] = param
+                const[i] = np.asarray(param, dtype=float)
             else:
+                k_cyl, sign = param   # (cylinder index, ±1.0)
                 cyl_t.append(i)
-                cyl_k.append(param[0])
-                cyl_s.append(param[1])
+                cyl_k.append(k_cyl)
+                cyl_s.append(sign)
         self.t_const = const
         self.t_cyl = (np.array(cyl_t, dtype=int), np.array(cyl_k, dtype=int), np.array(cyl_s))
         # where term t's (Fx, Fz, M/lc) lands in the flattened matrix: rows 3·body + j, its column
@@ -123,7 +126,8 @@ class StaticsLayout:
             mass_body.append(bi[b.name])
             masses.append(mass)
             inertias.append(inertia)
-            if mass > 0.0 and not (self.implement_col is not None and b.name == mech.implement.body):
+            if mass > 0.0 and not (self.implement_col is not None and mech.implement is not None
+                                   and b.name == mech.implement.body):
                 att.append(k)
                 body.append(bi[b.name])
                 force.append((0.0, -mass * mech.gravity))
@@ -138,8 +142,8 @@ class StaticsLayout:
         self.member_att = np.array([[kin.attach(a.body, a.point) for a, _ in members],
                                     [kin.attach(b.body, b.point) for _, b in members]], dtype=int).reshape(2, -1)
         end_member, end_sign = [], []
-        for m, (a, b) in enumerate(members):
-            for end, sign in ((b, 1.0), (a, -1.0)):
+        for m, (mount_a, mount_b) in enumerate(members):
+            for end, sign in ((mount_b, 1.0), (mount_a, -1.0)):
                 if bi[end.body] >= 0:
                     end_member.append(m)
                     end_sign.append(sign)
@@ -192,13 +196,14 @@ class StaticsLayout:
         forces = [np.broadcast_to(self.const_force, (n_pose,) + self.const_force.shape),
                   self.end_sign * member_force.take(self.end_member, axis=1)[..., None] * axes.take(self.end_member, axis=1)]
         att, scatter = self.known_att, self._scatter_static
-        moments = 0.0
+        moments: float | np.ndarray = 0.0
         if accel is not None:  # kinetostatics (seed 004): −m·a_cg at the cg, −I·α about it
             a_att, alpha = accel
             forces.append(-self.mass[:, None] * a_att[:, self.mass_att])
             att, scatter = self.known_att_accel, self._scatter_accel
-            moments = np.zeros((n_pose, self.n_eq))
-            moments[:, 3 * self.mass_body + 2] -= self.inertia * alpha[:, self.mass_body] / self.kin.lc
+            inertial = np.zeros((n_pose, self.n_eq))
+            inertial[:, 3 * self.mass_body + 2] -= self.inertia * alpha[:, self.mass_body] / self.kin.lc
+            moments = inertial
         g = generalized(p.take(att, axis=1), np.concatenate(forces, axis=1), self.kin.lc)
         return g.reshape(n_pose, scatter.shape[0]) @ scatter + moments
 

@@ -178,16 +178,22 @@ class LinkageMonitorNode(Node):
         self.input_qos = SENSOR_QOS[p["sensor_qos"]]
         self._subscribe(JointState, config.topics.joint_states, self.on_joint_state)
         for topic in config.pressure_topics:
-            self._subscribe(FluidPressure, topic, lambda msg, info, topic=topic: self.on_pressure(topic, msg, info))
+            self._subscribe(FluidPressure, topic, self._pressure_callback(topic))
         self.create_timer(HEARTBEAT_S, self.on_heartbeat)
         self.add_on_set_parameters_callback(self.validate_parameters)
         self.add_post_set_parameters_callback(self.apply_parameters)
         self.get_logger().info(f"monitoring '{description.name}': {config.topics.joint_states} + "
                                f"{', '.join(config.pressure_topics) or 'no pressures'}")
 
+    def _pressure_callback(self, topic: str) -> Callable[[FluidPressure, dict], None]:
+        def callback(msg: FluidPressure, info: dict) -> None:
+            self.on_pressure(topic, msg, info)
+        return callback
+
     def _subscribe(self, msg_type: type, topic: str, callback: Callable[[Any, Any], None]) -> None:
-        events = SubscriptionEventCallbacks(
-            message_lost=lambda info, topic=topic: self.loss.on_lost_event(topic, info.total_count_change))
+        def lost(info: Any) -> None:
+            self.loss.on_lost_event(topic, info.total_count_change)
+        events = SubscriptionEventCallbacks(message_lost=lost)
         self.create_subscription(msg_type, topic, callback, self.input_qos, event_callbacks=events)
 
     def _now(self) -> int:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
 from builtin_interfaces.msg import Time
 from rclpy.node import Node
@@ -37,7 +38,7 @@ def play(node: Node, messages: list[tuple[str, str, int, int, object]], rate: fl
     between them, so a gap keeps the recorded order when it matters (e.g. a joint state and
     a pressure with the same stamp).
     """
-    publishers = {}
+    publishers: dict[str, Any] = {}
     clock = node.create_publisher(Clock, "/clock", PLAYER_QOS)
     for topic, type_name, *_ in messages:
         if topic not in publishers:

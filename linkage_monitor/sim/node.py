@@ -18,6 +18,7 @@ from typing import Sequence
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.timer import Timer
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 
@@ -44,7 +45,7 @@ class SimulatorNode(Node):
         self.pressure_pubs = {name: self.create_publisher(FluidPressure, f"{prefix}pressure/{name}",
                                                           qos_profile_sensor_data)
                               for name in self.stream.pressure_names}
-        self.timer = None
+        self.timer: Timer | None = None
         self._t0_ns = int(self.stream.stamps_ns[0])
 
     def start(self) -> None:
@@ -73,7 +74,7 @@ def run(mechanism: Mechanism, scenario: str = "lift", rate_hz: float = 50.0, noi
 
     ``args``: ROS arguments for ``rclpy.init`` (``--ros-args -r ...``). Ctrl-C ends it cleanly.
     """
-    rclpy.init(args=args)
+    rclpy.init(args=list(args) if args is not None else None)
     node = None
     try:
         node = SimulatorNode(mechanism, scenario, rate_hz, noise, duration_s, gauge, prefix, loop, seed)

@@ -195,6 +195,7 @@ class _Poses:
 
     def steerability_margin(self, mech: Mechanism, load: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(k − ratio_min, largest steerable implement load N) per sample (seed 003, via mechanics.machine)."""
+        assert mech.tractor is not None   # the callers check: only mechanisms with a tractor block
         front, rear = axle_loads(mech.tractor, mech.gravity, self.frame_load_points, self.frame_load_forces)
         steer = steerability(mech.tractor, mech.gravity, front, rear, load, self.implement_cg[:, 0])
         return steer["margin"], steer["max_implement_mass"] * mech.gravity
@@ -410,6 +411,7 @@ def simulate(mechanism: Mechanism, scenario: str = "lift", rate_hz: float = 50.0
     w_max = float("nan")
     if tractor is not None:   # largest steerable load at the transport pose (margin(W) = 0)
         w_max = float(plant.poses(np.array([stroke.transport]), np.zeros(1)).steerability_margin(mech, np.zeros(1))[1][0])
+    assert mech.implement is not None   # the plant (above) refuses a mechanism without an implement
     setting = _Setting(stroke=stroke, w0=mech.implement.mass * g, w_max=w_max,
                        w_relief=plant.relief_load(stroke.transport))
     if scenario == "overload":

@@ -155,10 +155,6 @@ class RerunView:
         recording.connect_grpc(url, default_blueprint=blueprint or default_blueprint(mechanism))
         return cls(mechanism, recording, force_scale=force_scale)
 
-    def send_blueprint(self, blueprint: rrb.Blueprint | None = None) -> None:
-        """Send ``blueprint`` (default :func:`default_blueprint`) to the recording's viewer/file."""
-        self.recording.send_blueprint(blueprint or default_blueprint(self.mechanism))
-
     def close(self) -> None:
         """Flush everything logged so far and close the sink (the .rrd file is complete afterwards)."""
         self.recording.flush()
@@ -265,7 +261,7 @@ class RerunView:
         rec.log("linkage/cylinders/forces", rr.Arrows2D.from_fields(colors=_CYLINDER_FORCE_COLOR, radii=0.012,
                                                                            draw_order=40.0), static=True)
         pts = np.array(list(mech.points.values()))
-        rec.log("linkage/ground", rr.LineStrips2D([drawing_xy([[pts[:, 0].min() - 1.0, 0.0], [pts[:, 0].max() + 1.0, 0.0]])],
+        rec.log("linkage/ground", rr.LineStrips2D([drawing_xy(np.array([[pts[:, 0].min() - 1.0, 0.0], [pts[:, 0].max() + 1.0, 0.0]]))],
                                                   colors=_GROUND_COLOR, radii=0.01), static=True)
         rec.log("linkage/ground/origin", rr.Points2D([[0.0, 0.0]], labels="origin: rear wheels' ground contact",
                                                      colors=_GROUND_COLOR, radii=0.03), static=True)
