@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from linkage_monitor.mechanics import Solver, load_preset
-from linkage_monitor.mechanics.capacity import capacity_force, lift_cylinder, stroke_mechanism
+from linkage_monitor.mechanics.capacity import capacity_force, lift_cylinder, reference_length, stroke_mechanism
 from linkage_monitor.mechanics.machine import MachineModel
 
 # seed 003 Table 1 (S [m], I_S [-]) and Table 2 (G_s [kN]); REFERENCE.md section 003
@@ -123,3 +123,25 @@ def test_no_negative_capacity_where_the_cylinder_lowers_the_point():
     result = solver.solve(Inputs(cylinders=dict(mech.reference_inputs["cylinders"])))
     assert result.cylinders["base_change_cylinder"].force > 0.0  # pushing holds the axle load
     assert machine_summary(solver, result)["lift_capacity"]["implement_cg"] is None
+
+
+@pytest.mark.parametrize("preset", ["belarus_1221", "damping_hitch", "ttz1080_base_change"])
+def test_capacity_at_the_solved_pose_equals_solving_each_capacity_copy(preset):
+    """The oracle: each capacity copy solved as a mechanism of its own (its own loop closure from
+    the measured inputs read back from the pose, then its statics), against the statics of the
+    copy at the already solved pose — to 1e-9 over the stroke."""
+    mech = load_preset(preset)
+    stroke = stroke_mechanism(mech)
+    model = MachineModel(stroke, Solver(stroke))
+    cyl = lift_cylinder(mech).name
+    length = reference_length(mech, cyl)
+    batch = model.stroke_poses(cyl, np.linspace(0.97, 1.08, 25) * length)
+    got = model.evaluate_batch(batch).lift_capacity
+    lengths = {c: batch.cylinder_length[c] for c in stroke.measurements.cylinders}
+    for name, copy in model.capacity_solvers.items():
+        sensor = copy.mech.measurements.pressures[0]
+        lift = copy.mech.cylinder(sensor.cylinder)
+        oracle = copy.solve_batch(cylinders=lengths, pressures={sensor.name: lift.relief_pressure * lift.efficiency})
+        expected = np.where(oracle.implement_load > 0.0, oracle.implement_load, np.nan)
+        np.testing.assert_allclose(got[name], expected, rtol=1e-9, equal_nan=True)
+        assert np.isfinite(got[name]).any() or preset == "ttz1080_base_change"

@@ -10,16 +10,14 @@ moments M = x·Fz − z·Fx (positive turns +x towards +z).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .capacity import (capacity_force, capacity_mechanism, capacity_points, lift_cylinder, reference_length,
-                       relief_pressure)
-from .errors import LinkageError
+from .capacity import (capacity_force, capacity_mechanism, capacity_points, lift_cylinder, reference_length)
 from .model import Mechanism, Tractor
-from .results import BatchResult, Status, Result, angle_readings
-from .solver import Inputs, Solver
+from .results import BatchResult, Status, Result
+from .solver import Solver
 
 STEERABILITY_KEYS = ("front_axle_load", "rear_axle_load", "total_weight", "wheelbase", "ratio", "ratio_min",
                      "margin", "front_ballast_needed", "ratio_unit", "ratio_tractor", "max_implement_mass")
@@ -122,8 +120,8 @@ class MachineModel:
     """Everything machine-level that depends only on the mechanism, built once.
 
     ``solver`` solves the present poses (its mechanism must be ``mech``); for lift capacity one
-    solver per capacity point (``capacity_points``) runs a copy of the mechanism with the lift
-    cylinder at p_max·η (``capacity.capacity_mechanism``). ``lift_cylinder``: name, default the
+    copy of the mechanism per capacity point (``capacity_points``, ``capacity.capacity_mechanism``)
+    gives the statics with the lift cylinder at p_max·η. ``lift_cylinder``: name, default the
     first cylinder with a ``relief_pressure``. Parts the file cannot support are left out:
     ``has_steerability`` needs a ``tractor`` block, ``has_capacity`` an implement and a cylinder
     with ``relief_pressure``.
@@ -145,56 +143,46 @@ class MachineModel:
             self.capacity_solvers = {k: Solver(capacity_mechanism(mech, cyl, pt), solver.dead_centre_cond,
                                                solver.consistency_tol)
                                      for k, pt in self.capacity_points.items()}
-            self._capacity_pressure = {k: {s.mech.measurements.pressures[0].name: relief_pressure(cyl) * cyl.efficiency}
-                                       for k, s in self.capacity_solvers.items()}
+            self._lift = cyl.name
+            self._lift_index = [c.name for c in mech.cylinders].index(cyl.name)
 
     @property
     def has_capacity(self) -> bool:
         """True when lift capacity is computed (implement and a cylinder with relief_pressure)."""
         return bool(self.capacity_solvers)
 
-    # ---- inputs of a solved pose ----------------------------------------------------------
-    def pose_inputs(self, batch: BatchResult) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
-        """Measured cylinder lengths (m) and angle-sensor readings (rad) of solved poses, (N,) each.
-
-        Read back from the solution (exact pose, even when the inputs were redundant and noisy):
-        an angle sensor reads reference + θ(bodies[1]) − θ(bodies[0]) (θ: rotation from the reference pose).
-        """
-        cylinders = {c: batch.cylinder_length[c] for c in self.mech.measurements.cylinders}
-        angles = angle_readings(self.mech, batch)
-        return cylinders, angles
-
     # ---- batched (replay, capacity curve) and one pose (the node) ------------------------------
     def evaluate_batch(self, batch: BatchResult) -> MachineBatch:
-        """Axle loads, steerability, lift capacity and warnings for every pose of ``batch`` (from ``self.solver``)."""
-        capacity: dict[str, np.ndarray] = {}
-        if self.has_capacity:
-            cylinders, angles = self.pose_inputs(batch)
-            ok = batch.status < Status.INPUT
-            cylinders = {k: np.where(ok, v, np.nan) for k, v in cylinders.items()}
-            for name, solver in self.capacity_solvers.items():
-                res = solver.solve_batch(cylinders=cylinders, angles=angles, pressures=self._capacity_pressure[name])
-                capacity[name] = np.where(ok, res.implement_load, np.nan)
-        return self._combine(batch, capacity)
+        """Axle loads, steerability and lift capacity for every pose of ``batch`` (from ``self.solver``)."""
+        return self._combine(batch, self._capacity(batch) if self.has_capacity else {})
 
     def evaluate(self, result: Result) -> MachineResult:
-        """Machine-level results of one solved pose (a ``Result`` of ``self.solver``); cheap: the
-        capacity copies share its kinematics, so their solves start from its pose. A capacity that
-        cannot be computed (e.g. a dead centre of the copy) is NaN, as in ``evaluate_batch``."""
-        batch = _as_batch(result, self.solver.frame_load_names)
-        capacity: dict[str, np.ndarray] = {}
-        if self.has_capacity:
-            cylinders, angles = self.pose_inputs(batch)
-            inputs = Inputs(cylinders={k: float(v[0]) for k, v in cylinders.items()},
-                            angles={k: float(v[0]) for k, v in angles.items()})
-            for name, solver in self.capacity_solvers.items():
-                try:
-                    load = solver.solve(replace(inputs, pressures=self._capacity_pressure[name]),
-                                        previous=result).implement_load
-                except LinkageError:
-                    load = float("nan")
-                capacity[name] = np.array([load])
-        return self._combine(batch, capacity).result(0)
+        """Machine-level results of one solved pose (a ``Result`` of ``self.solver``)."""
+        return self.evaluate_batch(_as_batch(result, self.solver.frame_load_names)).result(0)
+
+    def _capacity(self, batch: BatchResult) -> dict[str, np.ndarray]:
+        """Lift capacity (N) at each capacity point for the solved poses of ``batch``.
+
+        Each capacity copy has the same bodies and kinematic constraints as the solved mechanism
+        (only loads, sensors and the implement's load point differ), so its pose is the very same
+        q: only its statics is solved, with the lift cylinder pushing at p_max·η and the vertical
+        load at the point unknown (seed 003, G = p_max·η·A / I, by equilibrium of every body).
+        NaN where the pose failed or the copy's statics is at a dead centre.
+        """
+        q = np.concatenate([batch.body_poses[b.name] for b in self.mech.moving_bodies], axis=1)
+        ok = (batch.status < Status.INPUT) & np.isfinite(q).all(axis=1)
+        q = np.where(ok[:, None], q, self.solver.kin.q_ref)   # failed poses: solved anywhere, masked below
+        out: dict[str, np.ndarray] = {}
+        for name, solver in self.capacity_solvers.items():
+            layout = solver.statics_layout(frozenset({self._lift}))
+            assert layout.implement_col is not None   # the copy's implement load is its unknown
+            p, _ = solver.kin.positions(q)
+            force = np.full((len(q), len(solver.mech.cylinders)), np.nan)
+            force[:, self._lift_index] = self.capacity_force
+            sol = layout.solve(p, force, None)
+            stable = sol.condition <= solver.dead_centre_cond
+            out[name] = np.where(ok & stable, sol.unknowns[:, layout.implement_col], np.nan)
+        return out
 
     def _combine(self, batch: BatchResult, capacity: dict[str, np.ndarray]) -> MachineBatch:
         """Steerability from the frame loads and the lift reserve from the capacity."""

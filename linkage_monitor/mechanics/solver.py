@@ -121,7 +121,8 @@ class Solver:
                 f"({measured}) close only {dof - free}: {free} free DOF cannot be determined; add a cylinder "
                 f"length or joint angle to 'measurements'")
 
-    def _layout(self, force_known: frozenset[str]) -> StaticsLayout:
+    def statics_layout(self, force_known: frozenset[str]) -> StaticsLayout:
+        """The equilibrium layout with the forces of these cylinders measured (UnobservableError if it is not determined)."""
         layout = self._layouts[force_known]
         if layout.null_space_error is not None:
             raise layout.null_space_error
@@ -240,7 +241,7 @@ class Solver:
             if c.name in force_known:
                 measured_force[:, k] = c.count * (np.nan_to_num(cap[c.name]) * c.cap_area
                                                   - np.nan_to_num(rod[c.name]) * c.rod_area)
-        layout = self._layout(force_known)
+        layout = self.statics_layout(force_known)
         sol = layout.solve(p, measured_force, accel)
         for i in np.flatnonzero((status == Status.OK) & ~(sol.condition <= self.dead_centre_cond)):
             status[i] = Status.DEAD_CENTRE
