@@ -20,11 +20,13 @@ from linkage_monitor.bag.writer import BagError
 from linkage_monitor.cli.arguments import add_mechanism_group, bounded, mechanism_from_args, new_directory, output_file
 from linkage_monitor.cli.calibrate import add_calibrate_parser, run_calibrate
 from linkage_monitor.cli.capacity import add_capacity_parser, run_capacity
+from linkage_monitor.cli.fleet import add_fleet_parser, add_spectrum_arguments, run_fleet_command
 from linkage_monitor.cli.simulate import add_simulate_parser, run_simulate
 from linkage_monitor.mechanics import Inputs, LinkageError, Mechanism, Result, Solver, preset_names
 from linkage_monitor.mechanics.machine import machine_summary
 from linkage_monitor.mechanics.presets import preset_description
 from linkage_monitor.monitoring.name_value import name_value, number
+from linkage_monitor.offline.history import LoadHistory, spectra_table
 from linkage_monitor.offline.replay import replay
 
 
@@ -34,7 +36,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argparse parser with the ``presets``, ``solve``, ``capacity`` and ``simulate`` subcommands."""
+    """The argparse parser with its subcommands (presets, solve, capacity, calibrate, simulate, replay, fleet)."""
     parser = _Parser(prog="linkage-monitor", description="Loads in a tractor hitch linkage from cylinder "
                      "strokes, joint angles and pressures (SI units: m, rad, N, Pa).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -68,6 +70,10 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument("--rate", type=bounded(0.0, 1e6, "times real time", lo_open=True), metavar="X",
                         help="write at X times real time (default: as fast as possible)")
     replay.add_argument("--quiet", action="store_true", help="no progress bar")
+    replay.add_argument("--spectra", action="store_true",
+                        help="print each hinge's rainflow load spectrum and damage-equivalent load (docs/fleet.md)")
+    add_spectrum_arguments(replay)
+    add_fleet_parser(sub)
     return parser
 
 
@@ -160,9 +166,12 @@ def _solve(args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
-    summary = replay(Path(args.bag), mechanism_from_args(args), out_dir=args.out, rrd=args.rrd, rate=args.rate,
-                     progress=None if args.quiet else sys.stderr).summary
+    replayed = replay(Path(args.bag), mechanism_from_args(args), out_dir=args.out, rrd=args.rrd, rate=args.rate,
+                      progress=None if args.quiet else sys.stderr)
+    summary = replayed.summary
     print(summary.table())
+    if args.spectra:
+        print("\n" + spectra_table(LoadHistory.from_run(replayed.run), args.slope, args.bin))
     if summary.solved == 0:
         print(f"linkage-monitor: error: no pose of {args.bag} was solved ({summary.inputs} inputs; see the findings "
               "above): is it the right mechanism?", file=sys.stderr)
@@ -191,6 +200,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return run_calibrate(args)
         if args.command == "simulate":
             return run_simulate(args)
+        if args.command == "fleet":
+            return run_fleet_command(args)
         if args.command == "replay":
             return _replay(args)
         return _solve(args)

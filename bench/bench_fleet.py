@@ -1,0 +1,56 @@
+"""Fleet analysis on Dask: 40 bags (10 copies of each bundled sample bag) through
+`offline.fleet.run_fleet` on a LocalCluster of 1 and of 2 worker processes, against the same
+bags analysed one after the other in this process (`analyse_bag`, no Dask) — the baseline of
+the same run. Prints wall times, bags/s, the 2-worker speed-up beside the ideal (2.0 on 2
+cores; goal >= 1.8) and the Dask overhead against the single-process loop.
+
+Run: .venv/bin/python bench/bench_fleet.py [--copies N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from linkage_monitor.offline.fleet import analyse_bag, find_bags, run_fleet
+
+SAMPLES = Path(__file__).resolve().parent.parent / "bags"
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--copies", type=int, default=10, help="copies of each sample bag (default 10: 40 bags)")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(args.copies):
+            for bag in sorted(SAMPLES.iterdir()):
+                shutil.copytree(bag, Path(tmp) / f"{bag.name}_{k:02d}")
+        bags = find_bags([Path(tmp)])
+        started = time.perf_counter()
+        for bag in bags:
+            analyse_bag(bag)
+        single = time.perf_counter() - started
+        walls = {}
+        for workers in (1, 2):
+            started = time.perf_counter()
+            fleet = run_fleet(bags, workers=workers, progress=None)
+            walls[workers] = time.perf_counter() - started
+            assert all(r["error"] is None for r in fleet.rows), [r["error"] for r in fleet.rows if r["error"]]
+    n = len(bags)
+    print(f"{n} bags, {os.cpu_count()} cores (times include starting and stopping the LocalCluster)")
+    print(f"{'run':<34} {'wall [s]':>9} {'bags/s':>8} {'ratio':>8}")
+    print(f"{'single process, no Dask (baseline)':<34} {single:9.2f} {n / single:8.2f} {1.0:8.2f}")
+    for workers, wall in walls.items():
+        print(f"{f'Dask LocalCluster, {workers} worker(s)':<34} {wall:9.2f} {n / wall:8.2f} {single / wall:8.2f}")
+    speedup = walls[1] / walls[2]
+    print(f"\nspeed-up 2 workers over 1: {speedup:.2f}x (ideal 2.00x, goal >= 1.8x)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

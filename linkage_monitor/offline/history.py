@@ -1,0 +1,66 @@
+"""Load histories of a replayed bag: per hinge the reaction magnitude over time, and the
+machine-level margins, at every solved pose (what the fleet analysis and `replay --spectra` count).
+
+Time t (s) is the header stamp from the first input of the bag. Units SI (N); the steerability
+margin is the front-axle share minus its minimum (−, < 0 is too little weight on the steered
+axle), the lift reserve the lift capacity over the implement load (−, < 1 cannot lift).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from linkage_monitor.monitoring.core import Run
+
+from .spectra import Spectrum, rainflow_spectrum
+
+
+@dataclass(frozen=True)
+class LoadHistory:
+    """Solved poses of one run: t (N,) s; hinge[name] (N,) reaction magnitude N; margin (N,)
+    and reserve (N,) (NaN where the machine model has none); duration_s from the first to the
+    last input stamp."""
+
+    t: np.ndarray
+    hinge: dict[str, np.ndarray]
+    margin: np.ndarray
+    reserve: np.ndarray
+    duration_s: float
+
+    @classmethod
+    def from_run(cls, run: Run) -> LoadHistory:
+        stamps = [s.stamp_ns for s in run.steps]
+        start = min(stamps, default=0)
+        duration = (max(stamps, default=0) - start) * 1e-9
+        poses = [(s.stamp_ns, s.pose) for s in run.steps if s.pose is not None]
+        t = np.array([(stamp - start) * 1e-9 for stamp, _ in poses])
+        names = list(poses[0][1].result.hinges) if poses else []
+        hinge = {name: np.array([p.result.hinges[name].magnitude for _, p in poses]) for name in names}
+        margin = np.array([p.machine.steerability.get("margin", np.nan) for _, p in poses])
+        reserve = np.array([p.machine.lift_capacity.get("reserve", np.nan) for _, p in poses])
+        return cls(t, hinge, margin, reserve, duration)
+
+    def time_below(self, values: np.ndarray, limit: float) -> float:
+        """Seconds spent with ``values`` < limit: each solved pose holds until the next one."""
+        if self.t.size < 2:
+            return 0.0
+        dt = np.diff(self.t)
+        return float(np.sum(np.where(values[:-1] < limit, dt, 0.0)))
+
+    def spectra(self) -> dict[str, Spectrum]:
+        """Rainflow spectrum of each hinge's reaction magnitude over the bag's duration."""
+        return {name: rainflow_spectrum(values, self.duration_s) for name, values in self.hinge.items()}
+
+
+def spectra_table(history: LoadHistory, slope: float, bin_width: float) -> str:
+    """Each hinge's rainflow spectrum (cycles per range bin, kN) and damage-equivalent load, as text."""
+    lines = [f"load spectra over {history.duration_s:.2f} s (rainflow, ASTM E1049; DEL at 1 Hz, m = {slope:g})"]
+    for name, spectrum in history.spectra().items():
+        lines.append(f"\nhinge {name}: {spectrum.counts.sum():g} cycles, damage-equivalent load "
+                     f"{spectrum.damage_equivalent(slope) / 1e3:.3f} kN")
+        lines.append("  range [kN]          cycles")
+        for lower, count in zip(*spectrum.binned(bin_width)):
+            lines.append(f"  {lower / 1e3:8.2f} - {(lower + bin_width) / 1e3:<8.2f} {count:8g}")
+    return "\n".join(lines)
