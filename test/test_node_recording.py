@@ -69,7 +69,7 @@ def test_bag_holds_every_topic_and_three_readers_decode_it(node):
     info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert info["version"] == 9 and info["storage_identifier"] == "mcap"
     counts = {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
-    assert set(counts) == {*INPUT_TOPICS, *OUTPUT_TOPICS, MECHANISM_TOPIC, CONFIG_TOPIC}
+    assert set(counts) == {*INPUT_TOPICS, *OUTPUT_TOPICS, "/linkage_markers", MECHANISM_TOPIC, CONFIG_TOPIC}
     by_topic: dict[str, list] = {}
     for topic, _, msg in rows:
         by_topic.setdefault(topic, []).append(msg)

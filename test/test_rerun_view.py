@@ -14,8 +14,8 @@ import pytest
 from rerun.chunk import RrdReader
 
 from linkage_monitor.mechanics import BatchResult, Inputs, Mechanism, Solver, load_preset, mechanism_from_dict
-from linkage_monitor.viz.rerun_view import (ARROW_LENGTH, CYLINDER_COLOR, RerunView, default_blueprint,
-                                        largest_hinges, linkage_bounds)
+from linkage_monitor.viz.drawing import ARROW_LENGTH, CYLINDER_COLOR
+from linkage_monitor.viz.rerun_view import RerunView, default_blueprint, largest_hinges, linkage_bounds
 
 RERUN = Path(sys.executable).with_name("rerun")
 T0_NS = 1_700_000_000_000_000_000  # an arbitrary ROS header stamp, ns

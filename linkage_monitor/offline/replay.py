@@ -187,6 +187,7 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
                raw: list[tuple[str, int, int, object]], run: Run, rate: float | None, progress: TextIO | None) -> None:
     """Inputs, outputs and diagnostics in recording order, as the node records them."""
     from linkage_monitor.ros.diagnostics import DiagnosticGate, diagnostic_array
+    from linkage_monitor.ros.markers import DEFAULT_RATE_HZ, DisplayGate, LinkageMarkers
     from linkage_monitor.ros.messages import outputs
 
     writer = BagWriter(out_dir)
@@ -196,6 +197,7 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
         from std_msgs.msg import String
         writer.write(CONFIG_TOPIC, String(data=config.to_yaml()), first, log_time_ns=first)
         gate, name = DiagnosticGate(), f"linkage_monitor: {description.name}"
+        markers, marker_gate = LinkageMarkers(monitor.mechanism), DisplayGate(DEFAULT_RATE_HZ)
         pace_start = time.perf_counter()
         topics = config.topics
         for (topic, stamp, receive, msg), step in tqdm(list(zip(raw, run.steps)), desc="replay", unit="msg",
@@ -211,6 +213,9 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
                                            (topics.hitch_state, out.hitch_state),
                                            (topics.steerability, out.steerability)):
                     writer.write(out_topic, out_msg, step.stamp_ns, log_time_ns=receive)
+            if step.pose is not None and marker_gate.due(step.stamp_ns):
+                writer.write(topics.markers, markers.markers(step.stamp_ns, step.pose.result), step.stamp_ns,
+                             log_time_ns=receive)
             if gate.due(step):
                 writer.write(topics.diagnostics, diagnostic_array(step, name, description.name, receive),
                              step.stamp_ns, log_time_ns=receive)

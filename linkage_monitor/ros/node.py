@@ -4,7 +4,9 @@ steerability and /diagnostics out — a thin rclpy driver of monitoring.core.Mon
 Topics (defaults, relative to the node's namespace): `joint_states` (sensor_msgs/JointState:
 angles rad, cylinder lengths m, velocities rad/s, m/s), `pressure/<sensor>`
 (sensor_msgs/FluidPressure, Pa), out `hinge_reactions`, `hitch_state`, `steerability`,
-`/diagnostics`, `mechanism_description` (std_msgs/String, the mechanism YAML, transient local).
+`/diagnostics`, `mechanism_description` (std_msgs/String, the mechanism YAML, transient local),
+`linkage_markers` (visualization_msgs/MarkerArray, frame `linkage`: the x-z plane at y = 0, m;
+at `marker_rate`).
 Units SI; frame x forward, z up, origin at the rear wheels' ground contact (REP 103). Outputs
 carry the header stamp of the triggering input; receive times come from the node's clock
 (`use_sim_time` is honoured).
@@ -29,6 +31,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import String
+from visualization_msgs.msg import MarkerArray
 
 from linkage_monitor.bag.writer import BagError, BagWriter
 from linkage_monitor.mechanics import LinkageError, Mechanism, load_description
@@ -41,6 +44,8 @@ from linkage_monitor.monitoring.loss import LossCounter
 from linkage_monitor.monitoring.name_value import name_value
 from linkage_monitor.msg import HingeReactions, HitchState, Steerability
 from linkage_monitor.ros.diagnostics import DiagnosticGate, diagnostic_array
+from linkage_monitor.ros.markers import DEFAULT_RATE_HZ as DEFAULT_MARKER_RATE_HZ
+from linkage_monitor.ros.markers import DisplayGate, LinkageMarkers
 from linkage_monitor.ros.messages import outputs, stamp_ns
 
 NODE_NAME = "linkage_monitor"
@@ -85,6 +90,9 @@ PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
     "rerun_path": ("out/linkage_monitor.rrd", "The .rrd file written when rerun = 'save'", True, None),
     "rerun_rate": (30.0, "Hz, largest rate at which solved poses are logged to Rerun (the bag keeps every one)",
                    True, (0.1, 10_000.0)),
+    "marker_rate": (DEFAULT_MARKER_RATE_HZ, "Hz, largest rate at which the linkage is published as a "
+                    "visualization_msgs/MarkerArray on linkage_markers (frame 'linkage'); 0: not at all", True,
+                    (0.0, 1000.0)),
 }
 SENSOR_QOS = {"sensor_data": qos_profile_sensor_data, "reliable": RELIABLE_INPUT_QOS}
 RERUN_MODES = ("off", "save", "connect")
@@ -167,9 +175,11 @@ class LinkageMonitorNode(Node):
             self._record_config(config, now)
             self.get_logger().info(f"recording to {bag_dir}")
 
+        self.markers = LinkageMarkers(description)
+        self.marker_gate = DisplayGate(float(p["marker_rate"]))
+        self.pub_markers = self.create_publisher(MarkerArray, config.topics.markers, OUTPUT_QOS)
         self.rerun = None
-        self._rerun_period_ns = int(1e9 / float(p["rerun_rate"]))
-        self._rerun_last_ns: int | None = None
+        self.rerun_gate = DisplayGate(float(p["rerun_rate"]))
         if p["rerun"] != "off":
             from linkage_monitor.viz.rerun_view import RerunView
             self.rerun = (RerunView.to_file(description, p["rerun_path"]) if p["rerun"] == "save"
@@ -296,6 +306,10 @@ class LinkageMonitorNode(Node):
                                     (topics.steerability, self.pub_steer, out.steerability)):
                 pub.publish(msg)
                 self._record(topic, msg, step.stamp_ns, now, OUTPUT_QOS)
+        if step.pose is not None and self.marker_gate.due(step.stamp_ns):
+            markers = self.markers.markers(step.stamp_ns, step.pose.result)
+            self.pub_markers.publish(markers)
+            self._record(topics.markers, markers, step.stamp_ns, now, OUTPUT_QOS)
         if self.rerun is not None:
             self._log_rerun(step)
         if self.diagnostic_gate.due(step):
@@ -312,10 +326,9 @@ class LinkageMonitorNode(Node):
 
         assert self.rerun is not None
         if step.pose is not None:
-            if self._rerun_last_ns is None or abs(step.stamp_ns - self._rerun_last_ns) >= self._rerun_period_ns:
+            if self.rerun_gate.due(step.stamp_ns):
                 m = step.pose.machine
                 self.rerun.log_pose(step.stamp_ns, step.pose.result, machine_series(m.steerability, m.lift_capacity))
-                self._rerun_last_ns = step.stamp_ns
         elif step.level == Level.ERROR:
             self.rerun.log_status(step.stamp_ns, step.message)
 

@@ -28,24 +28,18 @@ import rerun.blueprint as rrb
 
 from linkage_monitor.mechanics import BatchResult, Mechanism, Result, Status
 
+from .drawing import BODY_COLORS, CYLINDER_COLOR, GROUND_COLOR, HINGE_FORCE_COLOR, body_outline, force_scale
+
 APPLICATION_ID = "linkage_monitor"
 TIMELINE = "ros_time"
-ARROW_LENGTH = 0.4
-"""m: drawn length of the largest force of the first pose (live) or of the whole batch (replay)."""
 BOUNDS_MARGIN = 0.35
 """m: free space around the linkage in the 2D view (room for the force arrows and labels)."""
 LARGEST_HINGES = 5
 """How many hinge reactions the hinge plot shows by default (see :func:`largest_hinges`)."""
 
 _DRAW = np.array([1.0, -1.0])  # (x, z) -> Rerun 2D (x, y down): flip z
-_BODY_COLORS = [(90, 170, 250), (120, 220, 120), (250, 200, 80), (200, 130, 250), (90, 220, 220),
-                (250, 140, 180), (180, 180, 120)]
-_GROUND_COLOR = (120, 120, 120)
-CYLINDER_COLOR = (255, 140, 0)
-"""RGB of the cylinders in the 2D view and of the first cylinder's force series."""
 _CYLINDER_SERIES_COLORS = [CYLINDER_COLOR, (255, 220, 0), (255, 90, 160), (160, 110, 40)]
 _HINGE_COLOR = (240, 240, 240)
-_HINGE_FORCE_COLOR = (255, 70, 70)
 _CYLINDER_FORCE_COLOR = (255, 200, 0)
 _SERIES_STYLES: dict[str, tuple[str, tuple[int, int, int], float]] = {
     "steerability/ratio": ("front axle share of the unit's weight", (90, 170, 250), 2.0),
@@ -119,7 +113,7 @@ class RerunView:
     """Logs solver results of one mechanism to a Rerun recording (entity paths: see the module docstring).
 
     force_scale: m of arrow per N of force; None = chosen so that the largest force of the first
-    logged pose (``log_pose``) or of the batch (``log_batch``) is drawn ``ARROW_LENGTH`` m long.
+    logged pose (``log_pose``) or of the batch (``log_batch``) is drawn ``drawing.ARROW_LENGTH`` m long.
     The recording's wall-clock timelines (log_time, log_tick) are switched off: ``ros_time`` only.
     """
 
@@ -128,7 +122,7 @@ class RerunView:
         self.mechanism = mechanism
         self.recording = recording
         self.force_scale = force_scale
-        self._bodies = [(b, _outline(mechanism, b.points)) for b in mechanism.bodies]
+        self._bodies = [(b, body_outline(mechanism, b.points)) for b in mechanism.bodies]
         self._hinge_names = [h.name for h in mechanism.hinges]
         self._hinge_points = [h.point for h in mechanism.hinges]
         self._cylinders = [(c.name, c.base.point, c.rod_end.point) for c in mechanism.cylinders]
@@ -244,7 +238,7 @@ class RerunView:
     def _log_static(self) -> None:
         """Labels, colours, widths and series styles, once, as static data."""
         rec, mech = self.recording, self.mechanism
-        colors = [_GROUND_COLOR if b.ground else _BODY_COLORS[k % len(_BODY_COLORS)]
+        colors = [GROUND_COLOR if b.ground else BODY_COLORS[k % len(BODY_COLORS)]
                   for k, (b, _) in enumerate(self._bodies)]
         rec.log("linkage/links", rr.LineStrips2D.from_fields(labels=[b.name for b, _ in self._bodies], colors=colors,
                                                              radii=[0.008 if b.ground else 0.018 for b, _ in self._bodies],
@@ -256,19 +250,19 @@ class RerunView:
         rec.log("linkage/cylinders", rr.LineStrips2D.from_fields(labels=[c for c, _, _ in self._cylinders],
                                                                  colors=CYLINDER_COLOR, radii=0.03,
                                                                  draw_order=20.0), static=True)
-        rec.log("linkage/hinges/forces", rr.Arrows2D.from_fields(colors=_HINGE_FORCE_COLOR, radii=0.012,
+        rec.log("linkage/hinges/forces", rr.Arrows2D.from_fields(colors=HINGE_FORCE_COLOR, radii=0.012,
                                                                         draw_order=40.0), static=True)
         rec.log("linkage/cylinders/forces", rr.Arrows2D.from_fields(colors=_CYLINDER_FORCE_COLOR, radii=0.012,
                                                                            draw_order=40.0), static=True)
         pts = np.array(list(mech.points.values()))
         rec.log("linkage/ground", rr.LineStrips2D([drawing_xy(np.array([[pts[:, 0].min() - 1.0, 0.0], [pts[:, 0].max() + 1.0, 0.0]]))],
-                                                  colors=_GROUND_COLOR, radii=0.01), static=True)
+                                                  colors=GROUND_COLOR, radii=0.01), static=True)
         rec.log("linkage/ground/origin", rr.Points2D([[0.0, 0.0]], labels="origin: rear wheels' ground contact",
-                                                     colors=_GROUND_COLOR, radii=0.03), static=True)
+                                                     colors=GROUND_COLOR, radii=0.03), static=True)
         for k, h in enumerate(self._hinge_names):
             rec.log(f"forces/hinges/{rr.escape_entity_path_part(h)}",
                     rr.SeriesLines(names=f"{h} (on {mech.hinges[k].bodies[1]})",
-                                   colors=_BODY_COLORS[k % len(_BODY_COLORS)]), static=True)
+                                   colors=BODY_COLORS[k % len(BODY_COLORS)]), static=True)
         for k, (c, _, _) in enumerate(self._cylinders):
             rec.log(f"forces/cylinders/{rr.escape_entity_path_part(c)}",
                     rr.SeriesLines(names=c, colors=_CYLINDER_SERIES_COLORS[k % len(_CYLINDER_SERIES_COLORS)]),
@@ -287,9 +281,7 @@ class RerunView:
     def _fix_scale(self, stamp_ns: int, hinge_f: np.ndarray, cyl_f: np.ndarray) -> None:
         """Choose the arrow scale (m/N) from the given forces if not set yet, and say it in ``linkage/force_scale``."""
         if self.force_scale is None:
-            largest = max(np.nanmax(np.hypot(hinge_f[..., 0], hinge_f[..., 1]), initial=0.0),
-                          np.nanmax(np.abs(cyl_f), initial=0.0))
-            self.force_scale = ARROW_LENGTH / max(float(largest), 1.0)
+            self.force_scale = force_scale(hinge_f, cyl_f)
         if not self._scale_logged:
             self.recording.set_time(TIMELINE, timestamp=np.datetime64(int(stamp_ns), "ns"))
             self.recording.log("linkage/force_scale", rr.TextLog(
@@ -336,18 +328,6 @@ class RerunView:
         if keep.any():
             self.recording.send_columns(path, [rr.TimeColumn(TIMELINE, timestamp=times[keep])],
                                         rr.Scalars.columns(scalars=values[keep]))
-
-
-def _outline(mechanism: Mechanism, names: Sequence[str]) -> list[str]:
-    """Point names of a body in drawing order: as listed for 2 points; for >= 3 points sorted by
-    angle about their centroid in the reference pose and closed (first point repeated)."""
-    if len(names) < 3:
-        return list(names)
-    xz = np.array([mechanism.points[p] for p in names])
-    centre = xz.mean(axis=0)
-    order = np.argsort(np.arctan2(xz[:, 1] - centre[1], xz[:, 0] - centre[0]))
-    ordered = [names[k] for k in order]
-    return ordered + ordered[:1]
 
 
 def _with_reference_lines(series: Mapping[str, np.ndarray]) -> list[tuple[str, np.ndarray]]:

@@ -1,0 +1,81 @@
+"""The linkage as visualization_msgs/MarkerArray: published by the live node at its display
+rate, recorded in its bag, decoded by rosbags and by mcap-ros2-support (readers we did not
+write), and checked against a fresh solver's points and forces (a replay of the same bag)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+
+from linkage_monitor.mechanics import load_preset
+from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
+from linkage_monitor.offline.replay import replay
+from linkage_monitor.ros.markers import FRAME
+from linkage_monitor.ros.messages import stamp_ns
+from linkage_monitor.viz.drawing import ARROW_LENGTH, body_outline
+from support.ros_harness import node_bag, read_bag_rosbags, settle, stop
+
+T0 = (time.time_ns() // 10**9) * 10**9
+JOINTS = ["lift_cylinder", "lift_arm_angle"]
+PRESSURE_TOPIC = "pressure/lift_cap_pressure"
+
+
+def _markers_mcap(bag) -> list:
+    with open(next(bag.glob("*.mcap")), "rb") as f:
+        return [m for _, c, _, m in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
+            topics=["/linkage_markers"])]
+
+
+def test_node_publishes_and_records_the_linkage_as_markers(node):
+    client, proc, tmp_path = node
+    mech = load_preset("belarus_1221")
+    from test_node_recording import _pose   # a consistent (stroke, angle) pair from the offline kinematics
+
+    strokes = [0.54, 0.58, 0.62, 0.66, 0.70]
+    for k, stroke in enumerate(strokes):   # 150 ms apart: every pose is due at the default 10 Hz
+        stamp = T0 + k * 150_000_000
+        client.publish_pressure(PRESSURE_TOPIC, stamp, 9e6 + ATMOSPHERIC_PRESSURE)
+        client.spin_until(lambda: False, 0.2)
+        client.publish_joint_state(stamp + 1000, JOINTS, list(_pose(stroke)))
+    assert client.spin_until(lambda: len(client.received["hinge_reactions"]) >= len(strokes), 20)
+    settle(client, "diagnostics", quiet=0.5)
+    assert stop(proc) == 0
+    bag = node_bag(tmp_path / "bags")
+
+    fresh = {s.stamp_ns: s.pose.result for s in replay(bag, progress=None).run.steps if s.pose is not None}
+    by_rosbags = [m for t, _, m in read_bag_rosbags(bag) if t == "/linkage_markers"]
+    by_mcap = _markers_mcap(bag)
+    assert len(by_rosbags) == len(by_mcap) == len(strokes)   # one per solved JointState pose, none lost
+    first = fresh[stamp_ns(by_mcap[0].markers[0].header)]
+    largest = max(max(h.magnitude for h in first.hinges.values()),
+                  max(abs(c.force) for c in first.cylinders.values()))
+    scale = ARROW_LENGTH / largest      # the Rerun view's rule: the first pose's largest force is 0.4 m
+    hinges = [(h.name, h.point) for h in mech.hinges]
+    for array in (*by_rosbags, *by_mcap):
+        stamp = stamp_ns(array.markers[0].header)
+        result = fresh[stamp]
+        ns = {}
+        for m in array.markers:
+            assert m.header.frame_id == FRAME and stamp_ns(m.header) == stamp
+            ns.setdefault(m.ns, []).append(m)
+        xz = lambda p: (p.x, p.z)   # noqa: E731 - the plane y = 0
+        assert all(p.y == 0.0 for m in array.markers for p in m.points)
+        for body, strip in zip(mech.bodies, ns["links"]):
+            want = [result.points[p] for p in body_outline(mech, body.points)]
+            np.testing.assert_allclose([xz(p) for p in strip.points], want, atol=1e-9)
+        np.testing.assert_allclose([xz(p) for p in ns["hinges"][0].points],
+                                   [result.points[p] for _, p in hinges], atol=1e-9)
+        for (name, point), arrow, label in zip(hinges, ns["reactions"], ns["labels"]):
+            r = result.hinges[name]
+            start, end = np.array(xz(arrow.points[0])), np.array(xz(arrow.points[1]))
+            np.testing.assert_allclose(start, result.points[point], atol=1e-9)
+            np.testing.assert_allclose((end - start) / scale, [r.fx, r.fz], rtol=1e-9, atol=1e-6)
+            assert label.text == f"{name} {r.magnitude / 1e3:.1f} kN"
+        (cylinder,) = mech.cylinders
+        arrow = ns["cylinder_forces"][0]
+        drawn = np.linalg.norm(np.subtract(xz(arrow.points[1]), xz(arrow.points[0]))) / scale
+        assert drawn == pytest.approx(abs(result.cylinders[cylinder.name].force), rel=1e-9)
