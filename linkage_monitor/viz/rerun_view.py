@@ -34,6 +34,11 @@ APPLICATION_ID = "linkage_monitor"
 TIMELINE = "ros_time"
 BOUNDS_MARGIN = 0.35
 """m: free space around the linkage in the 2D view (room for the force arrows and labels)."""
+FILE_BATCHING = rr.ChunkBatcherConfig(flush_tick=5.0, flush_num_bytes=64 * 2**20, flush_num_rows=100_000)
+"""Chunks of a file recording: one per entity per 5 s of logging. A live file of tiny chunks (the
+default 200 ms tick; out-of-order stamps split them further) opened in the viewer 0.41 with its
+side view stuck loading — no linkage drawn, deterministically — while `rerun rrd optimize` of
+the same file drew it (test/test_rerun_live.py)."""
 LARGEST_HINGES = 5
 """How many hinge reactions the hinge plot shows by default (see :func:`largest_hinges`)."""
 
@@ -137,7 +142,7 @@ class RerunView:
     def to_file(cls, mechanism: Mechanism, path: str | Path, *, blueprint: rrb.Blueprint | None = None,
                 force_scale: float | None = None) -> "RerunView":
         """A view writing to an .rrd file at ``path`` (opens with ``rerun <path>``), with ``default_blueprint``."""
-        recording = rr.RecordingStream(APPLICATION_ID)
+        recording = rr.RecordingStream(APPLICATION_ID, batcher_config=FILE_BATCHING)
         recording.save(path, default_blueprint=blueprint or default_blueprint(mechanism))
         return cls(mechanism, recording, force_scale=force_scale)
 
