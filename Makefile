@@ -13,7 +13,7 @@ SYS_STAMP  := $(VENV)/.sys-stamp
 MSGS   := $(wildcard msg/*.msg)
 PYTEST_ARGS ?=
 
-.PHONY: all setup demo test bench clean distclean
+.PHONY: all setup demo test bench colcon-check clean distclean
 
 all: test
 
@@ -55,6 +55,12 @@ demo: setup
 
 bench: setup
 	$(PY) bench/run_all.py
+
+# colcon build of the package in a throw-away workspace against the ROS wheels in .venv, then the
+# built messages imported and the node run from that workspace's install tree (tools/colcon_check.sh)
+colcon-check: setup
+	$(PIP) install colcon-core colcon-cmake colcon-ros colcon-python-setup-py colcon-library-path
+	sh tools/colcon_check.sh
 
 clean:
 	rm -rf build out .pytest_cache .hypothesis linkage_monitor/msg linkage_monitor/*.so
