@@ -21,7 +21,8 @@ import pytest
 
 from linkage_monitor.mechanics import Inputs, Solver, load_preset, mechanism_from_dict
 from linkage_monitor.cli.simulate import add_simulate_parser, run_simulate
-from linkage_monitor.sim.telemetry import SCENARIOS, Noise, find_stroke, simulate
+from linkage_monitor.sim.ground import COPY_RANGE_M, GroundDrive, ground_profile
+from linkage_monitor.sim.telemetry import CYLINDER_SCENARIOS, Noise, find_stroke, simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 G = 9.80665                   # m/s², the preset's gravity
@@ -46,7 +47,7 @@ def seed003_margin(tractor, load: np.ndarray, cg_x: np.ndarray) -> np.ndarray:
 
 
 # ---- consistency with the solver -----------------------------------------------------------------
-@pytest.mark.parametrize("scenario", SCENARIOS)
+@pytest.mark.parametrize("scenario", CYLINDER_SCENARIOS)
 def test_zero_noise_stream_gives_back_the_load_through_the_solver(belarus, solver, scenario):
     duration = 12.6 if scenario in ("lift", "overload") else 6.0   # a whole lift cycle; most of the ramp
     stream = simulate(belarus, scenario, rate_hz=20.0, duration_s=duration, noise=Noise(), seed=3, start_ns=0)
@@ -195,3 +196,31 @@ def test_node_publishes_joint_states_and_fluid_pressure(belarus, solver):
                         pressures={"lift_cap_pressure": fp.fluid_pressure - 101325.0})   # absolute -> gauge
         # the header's weight (seed 003: 15.00 kN = 1529.57 kg · g), whatever the pose of the lift cycle
         assert solver.solve(inputs).implement_load == pytest.approx(belarus.implement.mass * G, rel=1e-6)
+
+
+# ---- ground-driven scenarios (seeds 002, 004) ------------------------------------------------------
+@pytest.mark.parametrize("preset, scenario", [("ksu1_mower_adapter", "field_copy"), ("drill_coulter", "relief")])
+def test_ground_stream_puts_the_contact_on_the_ground_and_rates_match_the_angles(preset, scenario):
+    """Zero noise: the solver, given the stream's angle, puts the contact point at the ground
+    height the scenario prescribes (reference height + profile); the published angle rates equal
+    the central differences of the angles (oracle independent of the chain rule used)."""
+    mech = load_preset(preset)
+    rate = 1000.0
+    stream = simulate(mech, scenario, rate_hz=rate, duration_s=2.0, noise=Noise(), seed=5, start_ns=0)
+    res = Solver(mech).solve_batch(**stream.solver_inputs())
+    assert np.all(res.status != 2), res.messages          # assembled (lift-off is a statics verdict)
+    drive = GroundDrive(mech)
+    height, _, _ = ground_profile(scenario, np.arange(len(stream)) / rate, np.random.default_rng([5, 0]))
+    contact = mech.contacts[0].point
+    np.testing.assert_allclose(res.points[contact][:, 1], drive.reference_height + height, atol=1e-6)
+    angle, velocity = stream.joint_positions[:, 0], stream.joint_velocities[:, 0]
+    central = (angle[2:] - angle[:-2]) * rate / 2.0
+    smooth = np.abs(np.arange(1, len(stream) - 1) / rate - 1.0) > 1.5 / rate   # relief: the speed steps at 1 s
+    np.testing.assert_allclose(velocity[1:-1][smooth], central[smooth], atol=1e-3 * np.abs(velocity).max())
+    if scenario == "field_copy":
+        assert np.abs(height).max() <= COPY_RANGE_M
+
+
+def test_ground_scenario_needs_a_contact(belarus):
+    with pytest.raises(ValueError, match="one angle sensor .* and a ground contact"):
+        simulate(belarus, "field_copy", rate_hz=10.0, duration_s=1.0)

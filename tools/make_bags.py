@@ -28,6 +28,8 @@ SAMPLES: list[tuple[str, str, tuple[str, ...], tuple[str, ...]]] = [
     ("belarus_1221_overload", "belarus_1221", ("overload",), ()),
     ("damping_hitch_lift", "damping_hitch", ("lift",), ()),
     ("ttz1080_base_change_lift", "ttz1080_base_change", ("lift",), ()),
+    ("ksu1_mower_field_copy", "ksu1_mower_adapter", ("field_copy",), ()),
+    ("drill_coulter_relief", "drill_coulter", ("relief",), ("--rate", "100")),   # 50 samples per relief wave at 0.4 m/s
 ]
 RATE_HZ = 50.0
 

@@ -43,6 +43,9 @@ spans 0.515-0.715 m):
               ``truth.overload_index`` = first sample with a negative margin (50 Hz: 352, t = 7.04 s).
               Needs the mechanism's ``tractor`` block.
 
+``field_copy``, ``relief``: driven by the ground, not by a cylinder (seeds 002 and 004): see
+              :mod:`linkage_monitor.sim.ground`.
+
 Frame: x forward, z up, origin at the rear wheels' ground contact B; SI units.
 """
 
@@ -61,8 +64,11 @@ from linkage_monitor.mechanics.machine import axle_loads, steerability
 from linkage_monitor.mechanics.model import PressureSensor
 from linkage_monitor.mechanics.results import Status, angle_readings
 
+from .ground import GROUND_SCENARIOS, GroundDrive, ground_profile
+
 ATMOSPHERE = 101325.0   # Pa, ISO 2533 standard atmosphere; FluidPressure carries absolute pressure
-SCENARIOS = ("lift", "transport", "field", "overload")
+CYLINDER_SCENARIOS = ("lift", "transport", "field", "overload")   # driven by the lift cylinder
+SCENARIOS = (*CYLINDER_SCENARIOS, *GROUND_SCENARIOS)
 TRANSPORT_FRACTION = 0.6  # transport length = work + this share of the assemblable stroke above work
 _UNIT_MASS = 1000.0       # kg, implement mass of the second statics solve (the load is linear in it)
 
@@ -134,9 +140,10 @@ class SimulatedStream:
     pressure_values: np.ndarray
     angle_names: tuple[str, ...]
     cylinder_names: tuple[str, ...]
-    stroke: Stroke
+    stroke: Stroke | None   # None for ground-driven scenarios (no driving cylinder)
     noise: Noise
     truth: GroundTruth
+    joint_velocities: np.ndarray | None = None   # (N, J) rad/s, m/s when the scenario knows them
 
     def __len__(self) -> int:
         return len(self.stamps_ns)
@@ -149,13 +156,16 @@ class SimulatedStream:
                 "pressures": {n: self.pressure_values[:, k] for k, n in enumerate(self.pressure_names)}}
 
     def joint_state(self, i: int, stamp_ns: int | None = None) -> Any:
-        """Sample i as a ``sensor_msgs/JointState`` (position rad / m; velocity, effort empty)."""
+        """Sample i as a ``sensor_msgs/JointState`` (position rad / m; velocity rad/s, m/s when the
+        scenario gives rates, else empty; effort empty)."""
         from sensor_msgs.msg import JointState
 
         msg = JointState()
         _set_stamp(msg, self.stamps_ns[i] if stamp_ns is None else stamp_ns)
         msg.name = list(self.joint_names)
         msg.position = [float(v) for v in self.joint_positions[i]]
+        if self.joint_velocities is not None:
+            msg.velocity = [float(v) for v in self.joint_velocities[i]]
         return msg
 
     def pressures(self, i: int, gauge: bool = False, stamp_ns: int | None = None) -> dict[str, Any]:
@@ -358,12 +368,14 @@ _SCENARIOS: dict[str, tuple[Callable[..., _Profile], float]] = {
 
 
 def default_duration(scenario: str) -> float:
-    """Natural length of a scenario, s (one lift cycle, 20 s transport, 60 s field, 15 s overload)."""
-    return _SCENARIOS[_check_scenario(scenario)][1]
+    """Natural length of a scenario, s (one lift cycle, 20 s transport, 60 s field, 15 s overload,
+    30 s field_copy, 8 s relief)."""
+    scenario = _check_scenario(scenario)
+    return GROUND_SCENARIOS[scenario] if scenario in GROUND_SCENARIOS else _SCENARIOS[scenario][1]
 
 
 def _check_scenario(scenario: str) -> str:
-    if scenario not in _SCENARIOS:
+    if scenario not in SCENARIOS:
         raise ValueError(f"unknown scenario '{scenario}': choose one of {', '.join(SCENARIOS)}")
     return scenario
 
@@ -401,12 +413,15 @@ def simulate(mechanism: Mechanism, scenario: str = "lift", rate_hz: float = 50.0
     if not (math.isfinite(duration_s) and duration_s > 0.0):
         raise ValueError(f"duration_s is {duration_s}: it must be a positive number of seconds")
     mech = mechanism
-    plant = _Plant(mech)
-    stroke = plant.stroke()
     n = max(1, int(math.floor(duration_s * rate_hz + 1e-9)))
     t = np.arange(n) / rate_hz
-    g = mech.gravity
     rng_scenario, rng_noise = (np.random.default_rng([seed, k]) for k in (0, 1))
+    stamps = start_ns + np.round(np.arange(n) * (1e9 / rate_hz)).astype(np.int64)
+    if scenario in GROUND_SCENARIOS:
+        return _simulate_ground(mech, scenario, rate_hz, t, stamps, noise, rng_scenario, rng_noise)
+    plant = _Plant(mech)
+    stroke = plant.stroke()
+    g = mech.gravity
     tractor = mech.tractor
     w_max = float("nan")
     if tractor is not None:   # largest steerable load at the transport pose (margin(W) = 0)
@@ -435,7 +450,6 @@ def simulate(mechanism: Mechanism, scenario: str = "lift", rate_hz: float = 50.0
     joints = np.concatenate([truth_angles + noise.angle * rng_noise.standard_normal(truth_angles.shape),
                              truth_lengths + noise.length * rng_noise.standard_normal(truth_lengths.shape)], axis=1)
     measured_p = truth_pressures + noise.pressure * rng_noise.standard_normal(truth_pressures.shape)
-    stamps = start_ns + np.round(np.arange(n) * (1e9 / rate_hz)).astype(np.int64)
     return SimulatedStream(
         mechanism=mech.name, scenario=scenario, rate_hz=float(rate_hz), stamps_ns=stamps,
         joint_names=angle_names + cyl_names, joint_positions=joints,
@@ -444,6 +458,37 @@ def simulate(mechanism: Mechanism, scenario: str = "lift", rate_hz: float = 50.0
         truth=GroundTruth(cylinder_lengths=truth_lengths, angles=truth_angles, pressures=truth_pressures,
                           implement_load=load, implement_cg=cg, phase=profile.phase,
                           steerability_margin=margin, largest_steerable_load=w_max, overload_index=overload_index))
+
+
+def _simulate_ground(mech: Mechanism, scenario: str, rate_hz: float, t: np.ndarray, stamps: np.ndarray,
+                     noise: Noise, rng_scenario: np.random.Generator, rng_noise: np.random.Generator
+                     ) -> SimulatedStream:
+    """A ground-driven scenario (sim.ground): the angle reading and its rate from the ground's
+    height under the contact, cylinders held, pressures from the statics."""
+    drive = GroundDrive(mech)
+    n = t.size
+    dh, dh_dt, phase = ground_profile(scenario, t, rng_scenario)
+    angle, dtheta_dh = drive.angle(drive.reference_height + dh)
+    cyl_names = tuple(mech.measurements.cylinders)
+    truth_lengths = np.array([[drive.lengths[c] for c in cyl_names]] * n).reshape(n, len(cyl_names))
+    forces = drive.cylinder_forces(angle) if mech.measurements.pressures else {}
+    truth_pressures = np.column_stack([_chamber_pressure(mech, ps, forces[ps.cylinder])
+                                       for ps in mech.measurements.pressures] or [np.zeros((n, 0))])
+    truth_angles = angle[:, None]
+    joints = np.concatenate([truth_angles + noise.angle * rng_noise.standard_normal(truth_angles.shape),
+                             truth_lengths + noise.length * rng_noise.standard_normal(truth_lengths.shape)], axis=1)
+    rates = np.concatenate([(dtheta_dh * dh_dt)[:, None], np.zeros((n, len(cyl_names)))], axis=1)
+    nan = np.full(n, np.nan)
+    return SimulatedStream(
+        mechanism=mech.name, scenario=scenario, rate_hz=float(rate_hz), stamps_ns=stamps,
+        joint_names=(drive.sensor.name,) + cyl_names, joint_positions=joints,
+        pressure_names=tuple(p.name for p in mech.measurements.pressures),
+        pressure_values=truth_pressures + noise.pressure * rng_noise.standard_normal(truth_pressures.shape),
+        angle_names=(drive.sensor.name,), cylinder_names=cyl_names, stroke=None, noise=noise,
+        truth=GroundTruth(cylinder_lengths=truth_lengths, angles=truth_angles, pressures=truth_pressures,
+                          implement_load=nan, implement_cg=np.full((n, 2), np.nan), phase=phase,
+                          steerability_margin=nan, largest_steerable_load=math.nan, overload_index=None),
+        joint_velocities=rates)
 
 
 def _chamber_pressure(mech: Mechanism, sensor: PressureSensor, force: np.ndarray) -> np.ndarray:
