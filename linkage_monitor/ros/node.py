@@ -159,6 +159,7 @@ class LinkageMonitorNode(Node):
         self.diagnostic_gate = DiagnosticGate()
         self.loss = LossCounter()
         self._last_step: Step | None = None
+        self._diagnosed_step: Step | None = None   # the last step whose diagnostic was published
         self._last_heartbeat = 0.0
         self._recording_reported = False
         self._pending_params: dict[str, Any] = {}
@@ -244,7 +245,8 @@ class LinkageMonitorNode(Node):
         try:
             now = self._now()
             if self._last_step is not None and time.monotonic() - self._last_heartbeat >= HEARTBEAT_S:
-                self._publish_diagnostic(self._last_step, now, record=False)   # a repeat: the bag has it
+                # a repeat is not recorded again; a step the gate held back is (the bag holds what the wire had)
+                self._publish_diagnostic(self._last_step, now, record=self._last_step is not self._diagnosed_step)
             new_lost = self.loss.new_since_report()
             if new_lost:
                 self._publish_status("inputs", Level.WARN, f"{new_lost} input message(s) lost in the last "
@@ -333,6 +335,7 @@ class LinkageMonitorNode(Node):
             self.rerun.log_status(step.stamp_ns, step.message)
 
     def _publish_diagnostic(self, step: Step, now: int, record: bool = True) -> None:
+        self._diagnosed_step = step
         msg = diagnostic_array(step, self.status_name, self.monitor.mechanism.name, now)
         self.pub_diag.publish(msg)
         if record:
