@@ -158,8 +158,7 @@ class LinkageMonitorNode(Node):
         self.status_name = f"{NODE_NAME}: {description.name}"
         self.diagnostic_gate = DiagnosticGate()
         self.loss = LossCounter()
-        self._last_step: Step | None = None
-        self._diagnosed_step: Step | None = None   # the last step whose diagnostic was published
+        self._reported: Step | None = None   # the last step the gate let through: what the heartbeat repeats
         self._last_heartbeat = 0.0
         self._recording_reported = False
         self._pending_params: dict[str, Any] = {}
@@ -244,9 +243,9 @@ class LinkageMonitorNode(Node):
         recording statuses (diagnostic_updater style)."""
         try:
             now = self._now()
-            if self._last_step is not None and time.monotonic() - self._last_heartbeat >= HEARTBEAT_S:
-                # a repeat is not recorded again; a step the gate held back is (the bag holds what the wire had)
-                self._publish_diagnostic(self._last_step, now, record=self._last_step is not self._diagnosed_step)
+            if self._reported is not None and time.monotonic() - self._last_heartbeat >= HEARTBEAT_S:
+                # the last reported status again (diagnostic_updater style); the bag holds it once already
+                self._publish_diagnostic(self._reported, now, record=False)
             new_lost = self.loss.new_since_report()
             if new_lost:
                 self._publish_status("inputs", Level.WARN, f"{new_lost} input message(s) lost in the last "
@@ -315,8 +314,8 @@ class LinkageMonitorNode(Node):
         if self.rerun is not None:
             self._log_rerun(step)
         if self.diagnostic_gate.due(step):
+            self._reported = step
             self._publish_diagnostic(step, now)
-        self._last_step = step
         if step.level == Level.ERROR:
             self.get_logger().error(step.message, throttle_duration_sec=1.0)
         elif step.level == Level.WARN:
@@ -335,7 +334,6 @@ class LinkageMonitorNode(Node):
             self.rerun.log_status(step.stamp_ns, step.message)
 
     def _publish_diagnostic(self, step: Step, now: int, record: bool = True) -> None:
-        self._diagnosed_step = step
         msg = diagnostic_array(step, self.status_name, self.monitor.mechanism.name, now)
         self.pub_diag.publish(msg)
         if record:
