@@ -10,6 +10,7 @@ PIP    := $(PY) -m pip --disable-pip-version-check -q
 DEPS_STAMP := $(VENV)/.deps-stamp
 PKG_STAMP  := $(VENV)/.pkg-stamp
 SYS_STAMP  := $(VENV)/.sys-stamp
+WARM_STAMP := $(VENV)/.numba-stamp
 MSGS   := $(wildcard msg/*.msg)
 PYTEST_ARGS ?=
 
@@ -43,8 +44,16 @@ $(PKG_STAMP): $(DEPS_STAMP) setup.py CMakeLists.txt package.xml $(MSGS)
 	$(PIP) install --no-build-isolation --no-deps -e .
 	@touch $@
 
+# The physics kernels compiled once into numba's on-disk cache (about a minute the first time),
+# so that the node and the tests load machine code instead of compiling it.
+$(WARM_STAMP): $(PKG_STAMP) linkage_monitor/mechanics/kernels.py
+	@echo ">> compiling the physics kernels (numba, cached on disk)"
+	$(PY) -m linkage_monitor.mechanics.warm
+	@touch $@
+
 setup: $(PKG_STAMP) $(SYS_STAMP)
 	@test -f linkage_monitor/msg/__init__.py || { rm -f $(PKG_STAMP); $(MAKE) $(PKG_STAMP); }
+	@$(MAKE) --no-print-directory $(WARM_STAMP)
 
 test: setup
 	$(PY) -m mypy linkage_monitor

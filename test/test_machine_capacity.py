@@ -1,7 +1,7 @@
 """Lift capacity (linkage_monitor.mechanics.machine + capacity) against seed 003 and virtual work.
 
-Production method: statics of a mechanism copy with the lift cylinder at p_max·η (the solver's
-implement-load estimate). Oracles: seed 003's G = p_max·η·A / I with I = dz_point/dS from central
+Production method: virtual work at the solved pose (mechanics.kernels.lift_capacity). Oracles: a
+mechanism copy per capacity point solved on its own by the frozen numpy solver (oracles.capacity_copies), seed 003's G = p_max·η·A / I with I = dz_point/dS from central
 differences of the kinematics (virtual work, weightless links), and Tables 1-2 of seed 003.
 """
 
@@ -13,6 +13,7 @@ import pytest
 from linkage_monitor.mechanics import Solver, load_preset
 from linkage_monitor.mechanics.capacity import capacity_force, lift_cylinder, reference_length, stroke_mechanism
 from linkage_monitor.mechanics.machine import MachineModel
+from oracles.capacity_copies import capacity_copies
 
 # seed 003 Table 1 (S [m], I_S [-]) and Table 2 (G_s [kN]); REFERENCE.md section 003
 TABLE_S = np.array([0.535, 0.555, 0.575, 0.595, 0.615, 0.635, 0.655, 0.675, 0.695, 0.715])
@@ -126,10 +127,10 @@ def test_no_negative_capacity_where_the_cylinder_lowers_the_point():
 
 
 @pytest.mark.parametrize("preset", ["belarus_1221", "damping_hitch", "ttz1080_base_change"])
-def test_capacity_at_the_solved_pose_equals_solving_each_capacity_copy(preset):
-    """The oracle: each capacity copy solved as a mechanism of its own (its own loop closure from
-    the measured inputs read back from the pose, then its statics), against the statics of the
-    copy at the already solved pose — to 1e-9 over the stroke."""
+def test_capacity_by_virtual_work_equals_solving_each_capacity_copy(preset):
+    """The oracle: each capacity copy solved as a mechanism of its own by the numpy solver (its own
+    loop closure from the measured inputs read back from the pose, then its statics), against
+    virtual work at the already solved pose — to 1e-9 over the stroke."""
     mech = load_preset(preset)
     stroke = stroke_mechanism(mech)
     model = MachineModel(stroke, Solver(stroke))
@@ -138,10 +139,8 @@ def test_capacity_at_the_solved_pose_equals_solving_each_capacity_copy(preset):
     batch = model.stroke_poses(cyl, np.linspace(0.97, 1.08, 25) * length)
     got = model.evaluate_batch(batch).lift_capacity
     lengths = {c: batch.cylinder_length[c] for c in stroke.measurements.cylinders}
-    for name, copy in model.capacity_solvers.items():
-        sensor = copy.mech.measurements.pressures[0]
-        lift = copy.mech.cylinder(sensor.cylinder)
-        oracle = copy.solve_batch(cylinders=lengths, pressures={sensor.name: lift.relief_pressure * lift.efficiency})
+    for name, (copy, pressures) in capacity_copies(stroke).items():
+        oracle = copy.solve_batch(cylinders=lengths, pressures=pressures)
         expected = np.where(oracle.implement_load > 0.0, oracle.implement_load, np.nan)
         np.testing.assert_allclose(got[name], expected, rtol=1e-9, equal_nan=True)
         assert np.isfinite(got[name]).any() or preset == "ttz1080_base_change"

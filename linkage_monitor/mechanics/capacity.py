@@ -1,8 +1,5 @@
-"""Mechanism copies that turn lift capacity and stroke sweeps into ordinary solver runs.
-
-Lift capacity (seed 003: G = p_max·η·A / I): a copy of the mechanism whose implement load acts
-at the point of interest and whose lift cylinder's cap pressure is "measured" at p_max·η; the
-solver's implement-load estimate in that copy is the vertical load (N) the cylinder holds there.
+"""Lift capacity inputs (seed 003: G = p_max·η·A / I): the lift cylinder, its largest force, the
+points where capacity is reported; and the stroke-only copy of a mechanism for stroke sweeps.
 SI units; frame x forward, z up, origin at the rear wheels' ground contact B.
 """
 
@@ -17,7 +14,6 @@ from .model import Cylinder, Mechanism
 from .schema import mechanism_from_dict
 from .solver import Solver
 
-CAPACITY_SENSOR = "capacity_cap_pressure"
 BEHIND_DISTANCE = 0.610  # m, ISO 730 / seed 003: "610 mm behind the hitch axis"
 
 
@@ -83,25 +79,6 @@ def capacity_points(mech: Mechanism, distance: float = BEHIND_DISTANCE) -> dict[
             out["behind_610mm"] = hitch + distance * normal
     out["implement_cg"] = np.asarray(imp.cg, dtype=float)
     return out
-
-
-def capacity_mechanism(mech: Mechanism, cyl: Cylinder, point: np.ndarray) -> Mechanism:
-    """Copy of ``mech`` for lift capacity at ``point`` ([x, z] m, reference pose, on the implement).
-
-    The implement load acts at ``point``; the only pressure sensor is the lift cylinder's cap at
-    p_max·η (``CAPACITY_SENSOR``, rod chamber at 0 gauge); extra loads and ground contacts are
-    removed (capacity is a transport-pose rating, ISO 730). Measured lengths and angles are kept.
-    """
-    raw = copy.deepcopy(dict(mech.raw))
-    raw["implement"]["cg"] = [float(point[0]), float(point[1])]
-    raw.pop("loads", None)
-    raw.pop("contacts", None)
-    meas = raw.setdefault("measurements", {})
-    meas["pressures"] = [{"name": CAPACITY_SENSOR, "cylinder": cyl.name, "chamber": "cap"}]
-    ref = raw.setdefault("reference_inputs", {}) or {}
-    ref["pressures"] = {CAPACITY_SENSOR: relief_pressure(cyl) * cyl.efficiency}
-    raw["reference_inputs"] = ref
-    return mechanism_from_dict(raw, file=f"{mech.file} (lift capacity copy)")
 
 
 def stroke_mechanism(mech: Mechanism) -> Mechanism:

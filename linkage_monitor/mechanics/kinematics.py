@@ -4,7 +4,8 @@ Coordinates: (x, z, θ) per moving body: (x, z) the position (m) of the body's o
 centroid of its points in the reference pose), θ its rotation from the reference pose (rad,
 from +x towards +z). Constraints (rows, all in metres): hinge coincidence (2 per hinge),
 measured cylinder lengths, measured relative angles (scaled by the length scale ``lc``).
-Every function works on a stack of N poses.
+Every function works on a stack of N poses; the per-pose work runs in compiled code
+(:mod:`.kernels`) over the index arrays built here once.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components, maximum_bipartite_matching
 
-from .linalg import condition_1, det_sign_and_condition, solve_square
+from . import kernels
 from .model import Mechanism
 from .results import Status
 
@@ -38,10 +39,10 @@ class KinematicState:
 class Kinematics:
     """Constraint equations of one mechanism; index structure built once.
 
-    Inside, points are complex numbers x + i·z: rotating an offset by θ is a multiplication by
-    e^{iθ}, which keeps the per-pose work to a few whole-array operations (what makes a single
-    pose cheap). The ground is the body index −1; its (x, z, θ) are three zero columns appended
-    to q (``_padded``), so ground attachments need no special case.
+    An attachment is a point fixed on a body (body index, offset from the body's origin in the
+    reference pose); the ground is the body index −1. The compiled kernels take these as plain
+    arrays (``geometry``); the ground's (x, z, θ) are three zero columns appended to q
+    (``_padded``) where rates are formed.
     """
 
     def __init__(self, mech: Mechanism) -> None:
@@ -56,7 +57,7 @@ class Kinematics:
         self.q_ref = np.column_stack([origins, np.zeros(len(moving))]).ravel()
         self._origins = origins
         self._att: dict[tuple[str, str], int] = {}
-        self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._arrays: tuple | None = None
         self._att_body: list[int] = []
         self._att_ref: list[np.ndarray] = []
         # constraint rows
@@ -64,14 +65,14 @@ class Kinematics:
         for h in mech.hinges:
             hinge_a.append(self.attach(h.bodies[0], h.point))
             hinge_b.append(self.attach(h.bodies[1], h.point))
-        self.hinge_att = np.array([hinge_a, hinge_b], dtype=int).reshape(2, -1)
+        self.hinge_att = np.array([hinge_a, hinge_b], dtype=np.int64).reshape(2, -1)
         cyls = [mech.cylinder(c) for c in mech.measurements.cylinders]
         self.cyl_att = np.array([[self.attach(c.base.body, c.base.point) for c in cyls],
-                                 [self.attach(c.rod_end.body, c.rod_end.point) for c in cyls]], dtype=int).reshape(2, -1)
+                                 [self.attach(c.rod_end.body, c.rod_end.point) for c in cyls]], dtype=np.int64).reshape(2, -1)
         hinges = {h.name: h for h in mech.hinges}
         self.angle_bodies = np.array([[self.body_index[hinges[a.hinge].bodies[k]] for a in mech.measurements.angles]
-                                      for k in (0, 1)], dtype=int).reshape(2, -1)
-        self.angle_reference = np.array([a.reference for a in mech.measurements.angles])
+                                      for k in (0, 1)], dtype=np.int64).reshape(2, -1)
+        self.angle_reference = np.array([a.reference for a in mech.measurements.angles], dtype=float)
         nh, nc, na = len(mech.hinges), len(cyls), len(mech.measurements.angles)
         self.m = 2 * nh + nc + na
         self.n_inputs = nc + na
@@ -79,16 +80,18 @@ class Kinematics:
                           + [f"cylinder '{c.name}' length" for c in cyls]
                           + [f"angle '{a.name}'" for a in mech.measurements.angles])
         self.input_names = [c.name for c in cyls] + [a.name for a in mech.measurements.angles]
-        self._angle_theta = np.where(self.angle_bodies >= 0, 3 * self.angle_bodies + 2, self.n + 2)
-        self._constraint_arrays = self._attachment_arrays()  # only these enter Φ: Newton skips the rest
-        self._build_jacobian_template(nh, nc)
         self._column_scale = np.tile([1.0, 1.0, 1.0 / self.lc], self.n // 3)
-        p, _ = self._complex_positions(self._padded(self.q_ref[None]), self._constraint_arrays)
-        self._s_ref = np.concatenate([np.abs(p[0, self.cyl_att[1]] - p[0, self.cyl_att[0]]), self.angle_reference])
+        p, _ = self.positions(self.q_ref[None])
+        self._s_ref = np.concatenate([np.hypot(*(p[0, self.cyl_att[1]] - p[0, self.cyl_att[0]]).T),
+                                      self.angle_reference])
         phi_ref, jac_ref = self.residual_jacobian(self.q_ref[None], self._s_ref[None])
-        _, ref_cond = self._branch_and_condition(jac_ref)
         self._loops = self._loop_blocks(jac_ref[0])
+        rows = [r for r, _ in self._loops]
+        self._loop_arrays = (np.concatenate(rows or [np.zeros(0, dtype=int)]).astype(np.int64),
+                             np.concatenate([c for _, c in self._loops] or [np.zeros(0, dtype=int)]).astype(np.int64),
+                             np.cumsum([0] + [len(r) for r in rows]).astype(np.int64))
         self._ref_branch = self.branch(jac_ref)[0]   # the assembly branch (one sign per loop) every pose keeps
+        ref_cond = np.array([kernels.condition(jac_ref[0], self._column_scale)])
         self._reference = KinematicState(s=self._s_ref[None], q=self.q_ref[None], phi=phi_ref, jac=jac_ref,
                                          status=np.zeros(1, dtype=int), messages=[""], condition=ref_cond)
 
@@ -105,109 +108,33 @@ class Kinematics:
             self._arrays = None
         return self._att[ident]
 
-    def _attachment_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Columns of each attachment's body x, z, θ in the padded q (K,) each, and its reference
-        offset x + i·z (K,)."""
+    @property
+    def geometry(self) -> tuple:
+        """The loop closure as the kernels take it: attachment bodies (K,) and offsets (K, 2) m,
+        hinge attachments (2, n_hinges), measured cylinders' (base, rod end) attachments (2, nc),
+        angle sensors' bodies (2, na), their reference angles (na,) rad, the length scale lc m."""
         if self._arrays is None:
-            body = np.array(self._att_body, dtype=int)
-            ref = np.array(self._att_ref).reshape(-1, 2)
-            col = np.where(body >= 0, 3 * body, self.n)
-            self._arrays = (col, col + 1, col + 2, ref[:, 0] + 1j * ref[:, 1])
+            self._arrays = (np.array(self._att_body, dtype=np.int64), np.array(self._att_ref).reshape(-1, 2),
+                            self.hinge_att, self.cyl_att, self.angle_bodies, self.angle_reference, self.lc)
         return self._arrays
 
     def _padded(self, q: np.ndarray) -> np.ndarray:
         """q (N, n) with the ground's (x, z, θ) = 0 appended as columns n..n+2."""
         return np.concatenate([q, np.zeros((q.shape[0], 3))], axis=1)
 
-    @staticmethod
-    def _complex_positions(qp: np.ndarray, arrays: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray]:
-        """Positions and offsets from their body's origin, x + i·z (N, K), of the attachments in
-        ``arrays`` (from ``_attachment_arrays``), for padded q."""
-        cx, cz, ct, ref = arrays
-        theta = qp.take(ct, axis=1)             # take: a fraction of the cost of fancy indexing
-        turn = np.empty(theta.shape, dtype=complex)
-        np.cos(theta, out=turn.real)             # cheaper than exp(iθ) on large batches
-        np.sin(theta, out=turn.imag)
-        rel = ref * turn
-        p = rel + qp.take(cx, axis=1)
-        p.imag += qp.take(cz, axis=1)
-        return p, rel
-
     def positions(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Positions P (N, K, 2) m of all attachments and their offsets from their body's origin.
 
         Ground attachments are offset from the global origin B, i.e. the offset is their position.
         """
-        p, rel = self._complex_positions(self._padded(q), self._attachment_arrays())
-        return as_xz(p), as_xz(rel)
+        att_body, att_ref = self.geometry[:2]
+        return kernels.positions_batch(np.ascontiguousarray(q, dtype=float), att_body, att_ref)
 
     # ---- constraints ----------------------------------------------------------------------
-    def _build_jacobian_template(self, nh: int, nc: int) -> None:
-        """Constant Jacobian entries (±1, ±lc) and flat indices of the pose-dependent ones."""
-        col = self._attachment_arrays()[0]
-        moving = col < self.n
-        n = self.n
-        jac0 = np.zeros((self.m, n))
-        theta_att, theta_sign, flat = [], [], []
-        for h in range(nh):  # gap = P(bodies[0]) − P(bodies[1]); ∂P/∂(x, z) = I, ∂P/∂θ = i·rel
-            for sign, att in ((1.0, self.hinge_att[0, h]), (-1.0, self.hinge_att[1, h])):
-                if moving[att]:
-                    jac0[2 * h, col[att]] = jac0[2 * h + 1, col[att] + 1] = sign
-                    theta_att.append(att)
-                    theta_sign.append(sign)
-                    flat += [2 * h * n + col[att] + 2, (2 * h + 1) * n + col[att] + 2]
-        r0 = 2 * nh + nc
-        for k in range(self.angle_bodies.shape[1]):
-            for sign, b in ((-1.0, self.angle_bodies[0, k]), (1.0, self.angle_bodies[1, k])):
-                if b >= 0:
-                    jac0[r0 + k, 3 * b + 2] = sign * self.lc
-        cyl_end, cyl_att, cyl_sign, cyl_flat = [], [], [], []  # length = |rod end − base|; ∂/∂(x, z, θ) = ±(u, u·(i·rel))
-        for k in range(nc):
-            for sign, att in ((-1.0, self.cyl_att[0, k]), (1.0, self.cyl_att[1, k])):
-                if moving[att]:
-                    cyl_end.append(k)
-                    cyl_att.append(att)
-                    cyl_sign.append(sign)
-                    cyl_flat += [(2 * nh + k) * n + col[att] + j for j in range(3)]
-        self._jac0 = jac0
-        self._theta = (np.array(theta_att, dtype=int), 1j * np.array(theta_sign))
-        self._cyl = (np.array(cyl_end, dtype=int), np.array(cyl_att, dtype=int), np.array(cyl_sign))
-        cyl_entries = np.array(cyl_flat, dtype=int).reshape(-1, 3)
-        # pose-dependent entries in the order ``_jacobian`` concatenates them: hinge θ (x row, z row)
-        # per term, then the cylinder x, z and θ entries, each for all terms
-        self._jac_flat = np.concatenate([np.array(flat, dtype=int), cyl_entries.T.ravel()])
-        # gap = P(hinge bodies[0]) − P(bodies[1]) and cylinder vector = P(rod end) − P(base): P(a) − P(b)
-        self._diff_att = (np.concatenate([self.hinge_att[0], self.cyl_att[1]]),
-                          np.concatenate([self.hinge_att[1], self.cyl_att[0]]))
-
     def residual_jacobian(self, q: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Constraint residual Φ (N, m) m and Jacobian ∂Φ/∂q (N, m, n) for inputs s (N, n_inputs)."""
-        n_pose = q.shape[0]
-        nh = self.hinge_att.shape[1]
-        nc = self.cyl_att.shape[1]
-        qp = self._padded(q)
-        p, rel = self._complex_positions(qp, self._constraint_arrays)
-        diff = p.take(self._diff_att[0], axis=1) - p.take(self._diff_att[1], axis=1)
-        d = diff[:, nh:]
-        length = np.abs(d)
-        ang = qp.take(self._angle_theta[1], axis=1) - qp.take(self._angle_theta[0], axis=1) + self.angle_reference
-        phi = np.concatenate([as_xz(diff[:, :nh]).reshape(n_pose, 2 * nh), length - s[:, :nc],
-                              self.lc * wrap_angle(ang - s[:, nc:])], axis=1)
-        return phi, self._jacobian(rel, d / length)
-
-    def _jacobian(self, rel: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """∂Φ/∂q (N, m, n) from constraint offsets rel (N, K) and cylinder unit axes u (N, nc), x + i·z."""
-        n_pose = rel.shape[0]
-        t_att, t_sign = self._theta
-        hinge_theta = as_xz(t_sign * rel.take(t_att, axis=1))            # (x row, z row) per term
-        c_end, c_att, c_sign = self._cyl
-        uc = c_sign * u.take(c_end, axis=1)
-        # u · (i·rel) = −Im(conj(u)·rel): the length change per unit rotation of the body
-        cyl_theta = -(uc.conj() * rel.take(c_att, axis=1)).imag
-        jac = np.repeat(self._jac0[None], n_pose, axis=0)
-        jac.reshape(n_pose, self.m * self.n)[:, self._jac_flat] = np.concatenate(
-            [hinge_theta.reshape(n_pose, 2 * t_att.size), uc.real, uc.imag, cyl_theta], axis=1)
-        return jac
+        return kernels.residual_jacobian_batch(np.ascontiguousarray(q, dtype=float),
+                                               np.ascontiguousarray(s, dtype=float), *self.geometry)
 
     def reference_inputs(self) -> np.ndarray:
         """Inputs (cylinder lengths m, angles rad) that the reference pose satisfies, shape (n_inputs,)."""
@@ -215,32 +142,14 @@ class Kinematics:
 
     # ---- solving --------------------------------------------------------------------------
     def newton(self, q: np.ndarray, s: np.ndarray, max_iter: int = 25) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Newton / Gauss-Newton iterations from q (N, n).
+        """Newton / Gauss-Newton iterations from q (N, n) (``kernels.newton``).
 
-        Returns q, its residual Φ (N, m) and Jacobian (N, m, n), both evaluated at the returned q
-        (callers reuse the Jacobian for the branch and condition checks). A pose stops when
-        |Φ| ≤ 1e-13·lc, or before a step that is not finite (singular) or, overdetermined, below
-        1e-13·lc (the least-squares residual need not reach 0).
+        Returns q, its residual Φ (N, m) and Jacobian (N, m, n), both evaluated at the returned q.
+        A pose stops when |Φ| ≤ 1e-13·lc, or before a step that is not finite (singular) or,
+        overdetermined, below 1e-13·lc (the least-squares residual need not reach 0).
         """
-        q = q.copy()
-        tol = 1e-13 * self.lc
-        phi, jac = self.residual_jacobian(q, s)
-        idx = np.flatnonzero(np.abs(phi).max(axis=1) > tol)   # poses still iterating
-        for _ in range(max_iter):
-            if not idx.size:
-                break
-            every = idx.size == q.shape[0]   # then plain arrays: fancy indexing costs µs per call
-            dq = self._solve_linear(jac, -phi) if every else self._solve_linear(jac[idx], -phi[idx])
-            moves = np.abs(dq).max(axis=1) > tol if self.m > self.n else np.isfinite(dq).all(axis=1)
-            if every and moves.all():
-                q += dq
-                phi, jac = self.residual_jacobian(q, s)
-            else:
-                idx, dq = idx[moves], dq[moves]
-                q[idx] += dq
-                phi[idx], jac[idx] = self.residual_jacobian(q[idx], s[idx])
-            idx = idx[np.abs(phi[idx]).max(axis=1) > tol]
-        return q, phi, jac
+        return kernels.newton_batch(np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(s, dtype=float),
+                                    max_iter, *self.geometry)
 
     def reachable_fraction(self, s: np.ndarray, steps: int = 30) -> np.ndarray:
         """Largest t in [0, 1] (N,) such that inputs s_ref + t·(s − s_ref) still assemble (bisection)."""
@@ -256,14 +165,6 @@ class Kinematics:
             lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
             q_lo[ok] = q[ok]
         return lo
-
-    def _branch_and_condition(self, jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Sign of det ∂Φ/∂q (1 when overdetermined) (N,) and the 1-norm condition number (N,) of the
-        Jacobian made dimensionless (θ columns / lc; positive scaling keeps the sign)."""
-        js = jac * self._column_scale
-        if self.m != self.n:
-            return np.ones(jac.shape[0]), np.sqrt(condition_1(np.swapaxes(js, 1, 2) @ js))
-        return det_sign_and_condition(js)
 
     # ---- assembly branch: one sign per loop ------------------------------------------------------
     def _loop_blocks(self, jac_ref: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -282,9 +183,9 @@ class Kinematics:
                 rows.append(r)
         if len(rows) != self.n or np.linalg.matrix_rank(jac_ref[rows]) < self.n:
             return []                         # not closable by a square subsystem: no branch to keep
-        pattern = np.zeros((self.m, self.n), dtype=bool)
-        pattern.flat[self._jac_flat] = True
-        pattern |= self._jac0 != 0.0
+        # the structural non-zeros: those of the Jacobian at a pose in general position (jittered)
+        q = self.q_ref + 0.1 * np.random.default_rng(0).standard_normal(self.n)
+        pattern = self.residual_jacobian(q[None], self._s_ref[None])[1][0] != 0.0
         sub = csr_matrix(pattern[rows].astype(np.int8))
         match = maximum_bipartite_matching(sub, perm_type="column")   # match[row] = its column
         if np.any(match < 0):
@@ -300,30 +201,12 @@ class Kinematics:
 
     def branch(self, jac: np.ndarray) -> np.ndarray:
         """Sign of the determinant of each loop's block (N, n_loops): +1, −1, or 0 at a dead centre."""
-        out = np.ones((jac.shape[0], len(self._loops)))
-        for k, (rows, cols) in enumerate(self._loops):
-            out[:, k] = np.linalg.slogdet(jac[:, rows][:, :, cols])[0]
-        return out
+        return np.array([kernels.loop_signs(j, *self._loop_arrays) for j in jac]).reshape(len(jac), len(self._loops))
 
     def on_branch(self, jac: np.ndarray) -> np.ndarray:
         """True (N,) where no loop is in the opposite assembly of the reference pose's (a loop at a
         dead centre, sign 0, is left to the dead-centre check)."""
         return ~np.any(self.branch(jac) * self._ref_branch < 0.0, axis=1)
-
-    def predict(self, previous: KinematicState, s: np.ndarray) -> np.ndarray:
-        """Poses q (N, n) predicted for inputs s (N, n_inputs) along the tangent at one solved pose.
-
-        This is the first Newton step from ``previous.q`` with ``previous.jac`` (no new evaluation,
-        one factorization for all N): only the input rows of Φ depend on s (∂Φ/∂s = −1 for
-        cylinders, −lc for angles), so J·dq = E·(s − s_prev) with E those unit / lc entries.
-        """
-        nc = self.cyl_att.shape[1]
-        r0 = self.m - self.n_inputs            # input rows follow the hinge rows
-        ds = s - previous.s
-        shift = np.zeros((s.shape[0], self.m))
-        shift[:, r0:r0 + nc] = ds[:, :nc]
-        shift[:, r0 + nc:] = self.lc * ds[:, nc:]
-        return previous.q + self._solve_linear(previous.jac, shift)
 
     def solve(self, s: np.ndarray, previous: KinematicState | None, dead_centre_cond: float,
               consistency_tol: float) -> KinematicState:
@@ -338,10 +221,11 @@ class Kinematics:
         s = s.copy()   # angles as the nearest equivalent (modulo 2π) of the reference pose's: a sensor
         s[:, nc:] = self.angle_reference + wrap_angle(s[:, nc:] - self.angle_reference)  # in [−π, π) or [0, 2π)
         start = self._reference if previous is None else previous
-        q, phi, jac = self.newton(self.predict(start, s), s)
-        _, cond = self._branch_and_condition(jac)
+        q, phi, jac, cond, on_branch = kernels.solve_poses(start.q[-1:], start.jac[-1:], start.s[-1:], s, 25,
+                                                           *self.geometry, self._column_scale, *self._loop_arrays,
+                                                           self._ref_branch)
         limit = 1e-9 * self.lc if self.m == self.n else consistency_tol
-        retry = np.flatnonzero(~self.on_branch(jac) | ~(np.abs(phi).max(axis=1) <= limit))
+        retry = np.flatnonzero(~on_branch | ~(np.abs(phi).max(axis=1) <= limit))
         still = np.zeros(0, dtype=int)
         if retry.size:  # continuation from the reference pose along a straight input path
             s_ref = self._s_ref
@@ -350,7 +234,7 @@ class Kinematics:
                 qr, _, _ = self.newton(qr, s_ref + t * (s[retry] - s_ref), max_iter=12)
             qr, phir, jacr = self.newton(qr, s[retry])
             q[retry], phi[retry], jac[retry] = qr, phir, jacr
-            cond[retry] = self._branch_and_condition(jacr)[1]
+            cond[retry] = [kernels.condition(j, self._column_scale) for j in jacr]
             still = retry[~(np.abs(phir).max(axis=1) <= limit)]
             off = retry[~self.on_branch(jacr) & (np.abs(phir).max(axis=1) <= limit)]
         status = np.zeros(n_pose, dtype=int)
@@ -427,20 +311,20 @@ class Kinematics:
 
     def point_rates(self, q_dot: np.ndarray, rel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Velocities (N, K, 2) of all attachments and their centripetal accelerations −θ̇²·rel."""
-        cx, cz, ct, _ = self._attachment_arrays()
+        att_body = self.geometry[0]
+        col = np.where(att_body >= 0, 3 * att_body, self.n)
         qp = self._padded(q_dot)        # the ground's rates are the appended zeros
-        w = qp[:, ct]
+        w = qp[:, col + 2]
         relc = rel[..., 0] + 1j * rel[..., 1]
-        v = qp[:, cx] + 1j * qp[:, cz] + 1j * w * relc
+        v = qp[:, col] + 1j * qp[:, col + 1] + 1j * w * relc
         return as_xz(v), as_xz(-w * w * relc)
 
     def _solve_linear(self, jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-        """x (N, n) with jac·x = rhs (N, m), least squares (normal equations) when overdetermined;
-        jac (N, m, n), or (1, m, n) shared by all N right-hand sides."""
-        if self.m == self.n:
-            return solve_square(jac, rhs)
-        jt = np.swapaxes(jac, 1, 2)
-        return solve_square(jt @ jac, (jt @ rhs[..., None])[..., 0])
+        """x (N, n) with jac·x = rhs (N, m), least squares (normal equations) when overdetermined."""
+        if self.m != self.n:
+            jt = np.swapaxes(jac, 1, 2)
+            jac, rhs = jt @ jac, (jt @ rhs[..., None])[..., 0]
+        return np.linalg.solve(jac, rhs[..., None])[..., 0]
 
 
 def wrap_angle(a: np.ndarray) -> np.ndarray:

@@ -14,7 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .capacity import (capacity_force, capacity_mechanism, capacity_points, lift_cylinder, reference_length)
+from . import kernels
+from .capacity import capacity_force, capacity_points, lift_cylinder, reference_length
 from .model import Mechanism, Tractor
 from .results import BatchResult, Status, Result
 from .solver import Solver
@@ -119,37 +120,45 @@ def steerability(tractor: Tractor, gravity: float, front: np.ndarray, rear: np.n
 class MachineModel:
     """Everything machine-level that depends only on the mechanism, built once.
 
-    ``solver`` solves the present poses (its mechanism must be ``mech``); for lift capacity one
-    copy of the mechanism per capacity point (``capacity_points``, ``capacity.capacity_mechanism``)
-    gives the statics with the lift cylinder at p_max·η. ``lift_cylinder``: name, default the
-    first cylinder with a ``relief_pressure``. Parts the file cannot support are left out:
-    ``has_steerability`` needs a ``tractor`` block, ``has_capacity`` an implement and a cylinder
-    with ``relief_pressure``.
+    ``solver`` solves the present poses (its mechanism must be ``mech``). Lift capacity at each
+    capacity point (``capacity_points``) comes from virtual work at the solved pose
+    (``kernels.lift_capacity``: the lift cylinder at p_max·η, the implement's weight replaced by
+    the unknown load at the point, the other bodies' weights and the springs as they are; loads
+    and ground contacts left out: capacity is a transport-pose rating, ISO 730).
+    ``lift_cylinder``: name, default the first cylinder with a ``relief_pressure``. Parts the file
+    cannot support are left out: ``has_steerability`` needs a ``tractor`` block, ``has_capacity``
+    an implement and a cylinder with ``relief_pressure``.
     """
 
     def __init__(self, mech: Mechanism, solver: Solver, lift_cylinder_name: str | None = None) -> None:
         self.mech, self.solver = mech, solver
         self.has_steerability = mech.tractor is not None
-        self.capacity_solvers: dict[str, Solver] = {}
         self.capacity_points: dict[str, np.ndarray] = {}
         self.capacity_force = float("nan")
         self.capacity_error = ""
         if mech.implement is None or not any(c.relief_pressure is not None for c in mech.cylinders):
             self.capacity_error = "no implement or no cylinder with relief_pressure: lift capacity not computed"
-        else:
-            cyl = lift_cylinder(mech, lift_cylinder_name)
-            self.capacity_force = capacity_force(cyl)
-            self.capacity_points = capacity_points(mech)
-            self.capacity_solvers = {k: Solver(capacity_mechanism(mech, cyl, pt), solver.dead_centre_cond,
-                                               solver.consistency_tol)
-                                     for k, pt in self.capacity_points.items()}
-            self._lift = cyl.name
-            self._lift_index = [c.name for c in mech.cylinders].index(cyl.name)
+            return
+        cyl = lift_cylinder(mech, lift_cylinder_name)
+        self.capacity_force = capacity_force(cyl)
+        self.capacity_points = capacity_points(mech)
+        kin, imp = solver.kin, mech.implement
+        layout = solver.statics_layout(frozenset())
+        others = kin.body_index[imp.body] != layout.mass_body   # the implement's weight is the unknown load
+        all_cylinders = np.array([[kin.attach(c.base.body, c.base.point) for c in mech.cylinders],
+                                  [kin.attach(c.rod_end.body, c.rod_end.point) for c in mech.cylinders]],
+                                 dtype=np.int64)
+        point_att = np.array([kin.attach(imp.body, f"capacity point {k}", pt) for k, pt in self.capacity_points.items()],
+                             dtype=np.int64)
+        self._layout = layout
+        self._capacity_args = (kin.hinge_att, all_cylinders, [c.name for c in mech.cylinders].index(cyl.name),
+                               self.capacity_force, mech.gravity, layout.mass_att[others], layout.mass[others],
+                               layout.member_att[:, :layout.n_springs].copy(), point_att)
 
     @property
     def has_capacity(self) -> bool:
         """True when lift capacity is computed (implement and a cylinder with relief_pressure)."""
-        return bool(self.capacity_solvers)
+        return bool(self.capacity_points)
 
     # ---- batched (replay, capacity curve) and one pose (the node) ------------------------------
     def evaluate_batch(self, batch: BatchResult) -> MachineBatch:
@@ -161,28 +170,24 @@ class MachineModel:
         return self.evaluate_batch(_as_batch(result, self.solver.frame_load_names)).result(0)
 
     def _capacity(self, batch: BatchResult) -> dict[str, np.ndarray]:
-        """Lift capacity (N) at each capacity point for the solved poses of ``batch``.
-
-        Each capacity copy has the same bodies and kinematic constraints as the solved mechanism
-        (only loads, sensors and the implement's load point differ), so its pose is the very same
-        q: only its statics is solved, with the lift cylinder pushing at p_max·η and the vertical
-        load at the point unknown (seed 003, G = p_max·η·A / I, by equilibrium of every body).
-        NaN where the pose failed or the copy's statics is at a dead centre.
-        """
+        """Lift capacity (N) at each capacity point for the solved poses of ``batch`` (virtual work,
+        ``kernels.lift_capacity``); NaN where the pose failed or the motion is at a dead centre."""
+        kin = self.solver.kin
         q = np.concatenate([batch.body_poses[b.name] for b in self.mech.moving_bodies], axis=1)
         ok = (batch.status < Status.INPUT) & np.isfinite(q).all(axis=1)
-        q = np.where(ok[:, None], q, self.solver.kin.q_ref)   # failed poses: solved anywhere, masked below
-        out: dict[str, np.ndarray] = {}
-        for name, solver in self.capacity_solvers.items():
-            layout = solver.statics_layout(frozenset({self._lift}))
-            assert layout.implement_col is not None   # the copy's implement load is its unknown
-            p, _ = solver.kin.positions(q)
-            force = np.full((len(q), len(solver.mech.cylinders)), np.nan)
-            force[:, self._lift_index] = self.capacity_force
-            sol = layout.solve(p, force, None)
-            stable = sol.condition <= solver.dead_centre_cond
-            out[name] = np.where(ok & stable, sol.unknowns[:, layout.implement_col], np.nan)
-        return out
+        q = np.ascontiguousarray(np.where(ok[:, None], q, kin.q_ref))   # failed poses: solved anywhere, masked below
+        hinge_att, cylinder_att, lift, force, gravity, weight_att, weight_mass, spring_att, point_att = self._capacity_args
+        layout = self._layout
+        if layout.n_springs:
+            length = layout.member_axes(kin.positions(q)[0])[1][:, :layout.n_springs]
+            spring_force = layout.spring_stiffness * (layout.spring_free_length - length) + layout.spring_preload
+        else:
+            spring_force = np.zeros((len(q), 0))
+        att_body, att_ref = kin.geometry[:2]
+        g = kernels.lift_capacity(q, att_body, att_ref, hinge_att, cylinder_att, lift, force, gravity, weight_att,
+                                  weight_mass, spring_att, spring_force, point_att, kin._column_scale,
+                                  self.solver.dead_centre_cond)
+        return {name: np.where(ok, g[:, k], np.nan) for k, name in enumerate(self.capacity_points)}
 
     def _combine(self, batch: BatchResult, capacity: dict[str, np.ndarray]) -> MachineBatch:
         """Steerability from the frame loads and the lift reserve from the capacity."""

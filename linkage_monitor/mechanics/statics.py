@@ -5,7 +5,8 @@ the length scale ``lc`` so the matrix is dimensionless). Unknowns: hinge reactio
 force on ``bodies[1]`` from ``bodies[0]``), axial forces of cylinders whose force is not measured
 (+ = pushing), contact normal forces (friction T = f·N folded into the column, seed 002), and,
 when measured cylinder forces leave an extra equation, the vertical load at the implement cg.
-The index structure (:class:`StaticsLayout`) is built once per set of measured cylinder forces.
+The index structure (:class:`StaticsLayout`) is built once per set of measured cylinder forces;
+the per-pose assembly and solution run compiled (``kernels.solve_statics``).
 """
 
 from __future__ import annotations
@@ -17,16 +18,10 @@ import numpy as np
 
 from .errors import UnobservableError
 from .kinematics import Kinematics
-from .linalg import inverse_and_condition
+from . import kernels
 from .model import Mechanism
 
 _UNIT = {"x": (1.0, 0.0), "z": (0.0, 1.0), "down": (0.0, -1.0)}
-
-
-def generalized(points: np.ndarray, forces: np.ndarray, lc: float) -> np.ndarray:
-    """[Fx, Fz, (x·Fz − z·Fx)/lc] (N, T, 3) of forces (N, T, 2) N acting at points (N, T, 2) m."""
-    moment = points[..., 0] * forces[..., 1] - points[..., 1] * forces[..., 0]
-    return np.concatenate([forces, (moment / lc)[..., None]], axis=-1)
 
 
 @dataclass
@@ -83,9 +78,9 @@ class StaticsLayout:
             column(f"implement '{imp.body}' vertical load", [(imp.body, f"cg of {imp.body}", "down", imp.cg)])
         self.n_unknowns = len(self.columns)
         # column terms as arrays
-        self.t_col = np.array([t[0] for t in terms], dtype=int)
-        self.t_att = np.array([t[1] for t in terms], dtype=int)
-        self.t_body = np.array([t[2] for t in terms], dtype=int)
+        self.t_col = np.array([t[0] for t in terms], dtype=np.int64)
+        self.t_att = np.array([t[1] for t in terms], dtype=np.int64)
+        self.t_body = np.array([t[2] for t in terms], dtype=np.int64)
         const = np.zeros((len(terms), 2))
         cyl_t, cyl_k, cyl_s = [], [], []
         for i, (_, _, _, kind, param) in enumerate(terms):
@@ -101,11 +96,12 @@ class StaticsLayout:
                 cyl_k.append(k_cyl)
                 cyl_s.append(sign)
         self.t_const = const
-        self.t_cyl = (np.array(cyl_t, dtype=int), np.array(cyl_k, dtype=int), np.array(cyl_s))
-        # where term t's (Fx, Fz, M/lc) lands in the flattened matrix: rows 3·body + j, its column
-        rows = 3 * self.t_body[:, None] + np.arange(3)
-        self._matrix_flat = (rows * self.n_unknowns + self.t_col[:, None]).ravel()
         self._build_known_terms()
+        # a cylinder's column terms act along its axis: member n_springs + k, with its sign
+        self.t_member = np.full(len(terms), -1, dtype=np.int64)
+        self.t_sign = np.zeros(len(terms))
+        self.t_member[cyl_t] = self.n_springs + np.array(cyl_k, dtype=np.int64)
+        self.t_sign[cyl_t] = cyl_s
         self.null_space_error: UnobservableError | None = self._check_observable()
 
     # ---- known loads --------------------------------------------------------------------------
@@ -140,7 +136,7 @@ class StaticsLayout:
         members = [(s.a, s.b) for s in mech.springs] + [(c.base, c.rod_end) for c in mech.cylinders]
         self.n_springs = len(mech.springs)
         self.member_att = np.array([[kin.attach(a.body, a.point) for a, _ in members],
-                                    [kin.attach(b.body, b.point) for _, b in members]], dtype=int).reshape(2, -1)
+                                    [kin.attach(b.body, b.point) for _, b in members]], dtype=np.int64).reshape(2, -1)
         end_member, end_sign = [], []
         for m, (mount_a, mount_b) in enumerate(members):
             for end, sign in ((mount_b, 1.0), (mount_a, -1.0)):
@@ -149,27 +145,17 @@ class StaticsLayout:
                     end_sign.append(sign)
                     att.append(kin.attach(end.body, end.point))
                     body.append(bi[end.body])
-        self.end_member, self.end_sign = np.array(end_member, dtype=int), np.array(end_sign).reshape(-1, 1)
+        self.end_member, self.end_sign = np.array(end_member, dtype=np.int64), np.array(end_sign, dtype=float)
         # known-load terms in the order ``known`` stacks them: constant loads, member ends, then
         # (kinetostatics only) the inertia loads at each cg
-        self.mass_att, self.mass_body = np.array(mass_att, dtype=int), np.array(mass_body, dtype=int)
+        self.mass_att, self.mass_body = np.array(mass_att, dtype=np.int64), np.array(mass_body, dtype=np.int64)
         self.mass, self.inertia = np.array(masses, dtype=float), np.array(inertias, dtype=float)
-        self.known_att = np.array(att, dtype=int)
-        self.known_att_accel = np.concatenate([self.known_att, self.mass_att])
-        self._scatter_static = self._scatter(np.array(body, dtype=int))
-        self._scatter_accel = self._scatter(np.concatenate([np.array(body, dtype=int), self.mass_body]))
+        self.known_att, self.known_body = np.array(att, dtype=np.int64), np.array(body, dtype=np.int64)
         self.spring_stiffness = np.array([s.stiffness for s in mech.springs])
         self.spring_free_length = np.array([s.free_length for s in mech.springs])
         self.spring_preload = np.array([s.preload for s in mech.springs])
         self.unmeasured = self.n_springs + np.array([k for k, c in enumerate(mech.cylinders)
                                                       if c.name not in self.force_known], dtype=int)
-
-    def _scatter(self, bodies: np.ndarray) -> np.ndarray:
-        """0/1 matrix (3T, n_eq) adding generalized forces of T terms into their body's rows."""
-        s = np.zeros((3 * len(bodies), self.n_eq))
-        for t, b in enumerate(bodies):
-            s[3 * t:3 * t + 3, 3 * b:3 * b + 3] = np.eye(3)
-        return s
 
     # ---- assembly and solution ----------------------------------------------------------------
     def member_axes(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -178,54 +164,40 @@ class StaticsLayout:
         length = np.sqrt(np.sum(d * d, axis=-1))
         return d / length[..., None], length
 
+    @property
+    def program(self) -> tuple:
+        """The layout as ``kernels.solve_statics`` takes it (see there)."""
+        return (self.kin.lc, self.n_eq, self.t_col, self.t_att, self.t_body, self.t_const, self.t_member, self.t_sign,
+                self.const_force, self.known_att, self.known_body, self.end_member, self.end_sign, self.member_att,
+                self.mass_att, self.mass_body, self.mass, self.inertia)
+
     def matrix(self, p: np.ndarray, axes: np.ndarray) -> np.ndarray:
         """Equilibrium matrix A (N, n_eq, n_unknowns) at attachment positions p (N, K, 2)."""
-        n_pose = p.shape[0]
-        d = np.repeat(self.t_const[None], n_pose, axis=0)
-        ti, tk, ts = self.t_cyl
-        d[:, ti] = ts[:, None] * axes.take(self.n_springs + tk, axis=1)
-        g = generalized(p.take(self.t_att, axis=1), d, self.kin.lc)
-        a = np.zeros((n_pose, self.n_eq, self.n_unknowns))
-        a.reshape(n_pose, self.n_eq * self.n_unknowns)[:, self._matrix_flat] = g.reshape(n_pose, 3 * g.shape[1])
-        return a
-
-    def known(self, p: np.ndarray, axes: np.ndarray, member_force: np.ndarray,
-              accel: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
-        """Generalized known loads b (N, n_eq): gravity, loads, springs, measured cylinders, inertia."""
-        n_pose = p.shape[0]
-        forces = [np.broadcast_to(self.const_force, (n_pose,) + self.const_force.shape),
-                  self.end_sign * member_force.take(self.end_member, axis=1)[..., None] * axes.take(self.end_member, axis=1)]
-        att, scatter = self.known_att, self._scatter_static
-        moments: float | np.ndarray = 0.0
-        if accel is not None:  # kinetostatics (seed 004): −m·a_cg at the cg, −I·α about it
-            a_att, alpha = accel
-            forces.append(-self.mass[:, None] * a_att[:, self.mass_att])
-            att, scatter = self.known_att_accel, self._scatter_accel
-            inertial = np.zeros((n_pose, self.n_eq))
-            inertial[:, 3 * self.mass_body + 2] -= self.inertia * alpha[:, self.mass_body] / self.kin.lc
-            moments = inertial
-        g = generalized(p.take(att, axis=1), np.concatenate(forces, axis=1), self.kin.lc)
-        return g.reshape(n_pose, scatter.shape[0]) @ scatter + moments
+        return np.array([kernels.equilibrium_matrix(pi, ai, self.kin.lc, self.n_eq, self.n_unknowns, self.t_col,
+                                                    self.t_att, self.t_body, self.t_const, self.t_member, self.t_sign)
+                         for pi, ai in zip(p, axes)])
 
     def solve(self, p: np.ndarray, cylinder_force: np.ndarray, accel: tuple[np.ndarray, np.ndarray] | None
               ) -> StaticsSolution:
-        """Unknown reactions for N poses; ``cylinder_force`` (N, n_cyl) N is used where measured."""
-        axes, length = self.member_axes(p)
-        ns = self.n_springs
-        spring_force = self.spring_stiffness * (self.spring_free_length - length[:, :ns]) + self.spring_preload
-        member_force = np.concatenate([spring_force, cylinder_force], axis=1)
-        member_force[:, self.unmeasured] = 0.0   # their force is an unknown (NaN on input)
-        a = self.matrix(p, axes)
-        b = self.known(p, axes, member_force, accel)
-        if self.n_unknowns == self.n_eq:
-            u, cond = solve_with_condition(a, -b)
+        """Unknown reactions for N poses; ``cylinder_force`` (N, n_cyl) N is used where measured.
+        ``accel``: accelerations (N, K, 2) m/s² of every attachment and angular accelerations (N, n_bodies)
+        rad/s² of the bodies, for the inertia loads (kinetostatics, seed 004)."""
+        n_pose, ns = p.shape[0], self.n_springs
+        if ns:
+            spring_length = self.member_axes(p)[1][:, :ns]
+            spring_force = self.spring_stiffness * (self.spring_free_length - spring_length) + self.spring_preload
         else:
-            at = np.swapaxes(a, 1, 2)
-            u, cond = solve_with_condition(at @ a, -(at @ b[..., None])[..., 0])
-            cond = np.sqrt(cond)
-        res = (a @ u[..., None])[..., 0] + b
-        res[:, 2::3] *= self.kin.lc
-        return StaticsSolution(unknowns=u, residual=np.sqrt(np.sum(res * res, axis=1)), condition=cond,
+            spring_force = np.zeros((n_pose, 0))
+        member_force = np.ascontiguousarray(np.concatenate([spring_force, cylinder_force], axis=1), dtype=float)
+        member_force[:, self.unmeasured] = 0.0   # their force is an unknown (NaN on input)
+        if accel is None:
+            lin, alpha, has_accel = np.zeros((1, 1, 2)), np.zeros((1, 1)), False
+        else:
+            lin = np.ascontiguousarray(accel[0][:, self.mass_att])
+            alpha, has_accel = np.ascontiguousarray(accel[1][:, self.mass_body]), True
+        u, residual, cond, axes, length = kernels.solve_statics(np.ascontiguousarray(p, dtype=float), member_force,
+                                                                lin, alpha, has_accel, self.n_unknowns, *self.program)
+        return StaticsSolution(unknowns=u, residual=residual, condition=cond,
                                cylinder_axis=axes[:, ns:], cylinder_length=length[:, ns:],
                                spring_force=spring_force, spring_axis=axes[:, :ns])
 
@@ -254,9 +226,3 @@ class StaticsLayout:
             f"{self.mech.file}: the statics leave {null.shape[0]} load(s) undetermined ({self.n_unknowns} unknowns, "
             f"{self.n_eq} equations, rank {self.n_unknowns - null.shape[0]}); unknowns in the null space: "
             f"{', '.join(names)}. Measure a cylinder force (pressures; measured now: {known}) or remove a member.")
-
-
-def solve_with_condition(a: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Solve stacked square systems a x = rhs; returns x (N, k) and the 1-norm condition number (N,)."""
-    inv, cond = inverse_and_condition(a)
-    return (inv @ rhs[..., None])[..., 0], cond

@@ -1,4 +1,4 @@
-"""Dense linear algebra on stacks of small square matrices (N, k, k), fast for N = 1 too.
+"""Test oracle (frozen numpy implementation, see __init__). Dense linear algebra on stacks of small square matrices (N, k, k), fast for N = 1 too.
 
 numpy.linalg costs ~10 µs of Python overhead per call whatever the size, more than the
 arithmetic of a 15×15 system; a live node solves one pose at a time, so a single matrix goes

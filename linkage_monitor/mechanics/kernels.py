@@ -1,0 +1,595 @@
+"""Compiled per-pose physics (numba): loop closure, assembly branch, equilibrium, lift capacity.
+
+The one numeric path of the solver. Every function works on plain arrays that describe the
+mechanism (built once by :class:`~.kinematics.Kinematics` and :class:`~.statics.StaticsLayout`)
+and loops over poses in compiled code, so a single pose costs microseconds, not the ~150
+numpy calls of the array formulation it replaced (that formulation is kept as the test oracle,
+``test/oracles/numpy_solver.py``). Compiled once, cached on disk (``cache=True``).
+
+Conventions (as in kinematics.py / statics.py): q holds (x, z, θ) per moving body (m, m, rad;
+x forward, z up); an attachment is a point fixed on a body, at ``ref`` (m) from the body's
+origin in the reference pose, or at ``ref`` in the frame when its body is the ground (−1).
+Rows of the loop-closure system: 2 per hinge (x, z gap, m), 1 per measured cylinder (length
+error, m), 1 per measured angle (error · lc, m). Equilibrium rows: ΣFx, ΣFz, ΣM/lc per body.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numba import njit, prange
+
+TWO_PI = 2.0 * math.pi
+PARALLEL_MIN = 512  # poses: smaller batches stay on the calling thread (no thread-pool wake-up)
+
+
+# ---- small dense linear algebra (partial-pivoting LU) --------------------------------------------
+@njit(cache=True)
+def lu_factor(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, bool]:
+    """LU of a square matrix (a copy): (lu, row permutation, number of row swaps, singular)."""
+    k = a.shape[0]
+    lu = a.copy()
+    piv = np.arange(k)
+    swaps = 0
+    for j in range(k):
+        p = j
+        big = abs(lu[j, j])
+        for i in range(j + 1, k):
+            if abs(lu[i, j]) > big:
+                big, p = abs(lu[i, j]), i
+        if big == 0.0 or not math.isfinite(big):
+            return lu, piv, swaps, True
+        if p != j:
+            for c in range(k):
+                lu[j, c], lu[p, c] = lu[p, c], lu[j, c]
+            piv[j], piv[p] = piv[p], piv[j]
+            swaps += 1
+        inv = 1.0 / lu[j, j]
+        for i in range(j + 1, k):
+            f = lu[i, j] * inv
+            lu[i, j] = f
+            if f != 0.0:
+                for c in range(j + 1, k):
+                    lu[i, c] -= f * lu[j, c]
+    return lu, piv, swaps, False
+
+
+@njit(cache=True)
+def lu_solve(lu: np.ndarray, piv: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """x with a·x = b from ``lu_factor(a)``."""
+    k = lu.shape[0]
+    x = np.empty(k)
+    for i in range(k):
+        x[i] = b[piv[i]]
+    for i in range(k):
+        acc = x[i]
+        for c in range(i):
+            acc -= lu[i, c] * x[c]
+        x[i] = acc
+    for i in range(k - 1, -1, -1):
+        acc = x[i]
+        for c in range(i + 1, k):
+            acc -= lu[i, c] * x[c]
+        x[i] = acc / lu[i, i]
+    return x
+
+
+@njit(cache=True)
+def norm_1(a: np.ndarray) -> float:
+    """Matrix 1-norm: the largest absolute column sum."""
+    best = 0.0
+    for c in range(a.shape[1]):
+        acc = 0.0
+        for r in range(a.shape[0]):
+            acc += abs(a[r, c])
+        if acc > best:
+            best = acc
+    return best
+
+
+@njit(cache=True)
+def inverse_and_condition(a: np.ndarray) -> tuple[np.ndarray, float]:
+    """Inverse of a square matrix and its 1-norm condition number (NaN inverse, inf when singular)."""
+    k = a.shape[0]
+    lu, piv, _, singular = lu_factor(a)
+    inv = np.full((k, k), np.nan)
+    if singular:
+        return inv, np.inf
+    e = np.zeros(k)
+    for c in range(k):
+        e[:] = 0.0
+        e[c] = 1.0
+        inv[:, c] = lu_solve(lu, piv, e)
+    return inv, norm_1(a) * norm_1(inv)
+
+
+@njit(cache=True)
+def det_sign(a: np.ndarray) -> float:
+    """Sign of det(a): +1, −1, or 0 when singular."""
+    lu, _, swaps, singular = lu_factor(a)
+    if singular:
+        return 0.0
+    sign = -1.0 if swaps % 2 else 1.0
+    for i in range(a.shape[0]):
+        if lu[i, i] < 0.0:
+            sign = -sign
+    return sign
+
+
+@njit(cache=True)
+def solve_linear(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """x with jac·x = rhs; least squares by the normal equations when jac has more rows than columns.
+    NaN where the system is singular."""
+    m, n = jac.shape
+    if m == n:
+        a, b = jac, rhs
+    else:
+        a, b = jac.T @ jac, jac.T @ rhs
+    lu, piv, _, singular = lu_factor(a)
+    if singular:
+        return np.full(n, np.nan)
+    return lu_solve(lu, piv, b)
+
+
+# ---- positions and loop closure --------------------------------------------------------------------
+@njit(cache=True)
+def positions(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positions p (K, 2) m of all attachments for one pose q, and their offsets rel (K, 2) from their
+    body's origin (rotated with the body; for ground attachments the position itself)."""
+    nb = q.shape[0] // 3
+    c = np.empty(nb)
+    s = np.empty(nb)
+    for b in range(nb):
+        c[b] = math.cos(q[3 * b + 2])
+        s[b] = math.sin(q[3 * b + 2])
+    k_att = att_body.shape[0]
+    p = np.empty((k_att, 2))
+    rel = np.empty((k_att, 2))
+    for a in range(k_att):
+        b = att_body[a]
+        rx, rz = att_ref[a, 0], att_ref[a, 1]
+        if b < 0:
+            rel[a, 0], rel[a, 1] = rx, rz
+            p[a, 0], p[a, 1] = rx, rz
+        else:
+            rel[a, 0] = c[b] * rx - s[b] * rz
+            rel[a, 1] = s[b] * rx + c[b] * rz
+            p[a, 0] = q[3 * b] + rel[a, 0]
+            p[a, 1] = q[3 * b + 1] + rel[a, 1]
+    return p, rel
+
+
+@njit(cache=True)
+def _wrap(a: float) -> float:
+    """An angle (rad) modulo 2π in [−π, π)."""
+    return a - TWO_PI * math.floor((a + math.pi) / TWO_PI)
+
+
+@njit(cache=True)
+def _theta(q: np.ndarray, body: int) -> float:
+    return q[3 * body + 2] if body >= 0 else 0.0
+
+
+@njit(cache=True)
+def _add_point_rows(jac: np.ndarray, row: int, att: int, sign: float, att_body: np.ndarray,
+                    rel: np.ndarray) -> None:
+    """∂P/∂(x, z, θ) of attachment ``att`` (= I and i·rel), times ``sign``, into rows row (x), row+1 (z)."""
+    b = att_body[att]
+    if b >= 0:
+        jac[row, 3 * b] += sign
+        jac[row + 1, 3 * b + 1] += sign
+        jac[row, 3 * b + 2] -= sign * rel[att, 1]
+        jac[row + 1, 3 * b + 2] += sign * rel[att, 0]
+
+
+@njit(cache=True)
+def _add_length_row(jac: np.ndarray, row: int, att: int, sign: float, ux: float, uz: float,
+                    att_body: np.ndarray, rel: np.ndarray) -> None:
+    """∂|P_rod − P_base|/∂(x, z, θ) of one end (u·∂P, u the unit axis), times ``sign``, into ``row``."""
+    b = att_body[att]
+    if b >= 0:
+        jac[row, 3 * b] += sign * ux
+        jac[row, 3 * b + 1] += sign * uz
+        jac[row, 3 * b + 2] += sign * (uz * rel[att, 0] - ux * rel[att, 1])
+
+
+@njit(cache=True)
+def residual_jacobian(q: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray,
+                      hinge_att: np.ndarray, cyl_att: np.ndarray, angle_body: np.ndarray,
+                      angle_reference: np.ndarray, lc: float) -> tuple[np.ndarray, np.ndarray]:
+    """Loop-closure residual Φ (m,) m and Jacobian ∂Φ/∂q (m, n) of one pose q for inputs s.
+
+    Hinge h: P(bodies[0]) − P(bodies[1]); cylinder k: |P(rod end) − P(base)| − s_k; angle k:
+    lc·wrap(θ(bodies[1]) − θ(bodies[0]) + reference − s) (angles modulo 2π).
+    """
+    n = q.shape[0]
+    nh, nc, na = hinge_att.shape[1], cyl_att.shape[1], angle_body.shape[1]
+    m = 2 * nh + nc + na
+    p, rel = positions(q, att_body, att_ref)
+    phi = np.empty(m)
+    jac = np.zeros((m, n))
+    for h in range(nh):
+        a, b = hinge_att[0, h], hinge_att[1, h]
+        phi[2 * h] = p[a, 0] - p[b, 0]
+        phi[2 * h + 1] = p[a, 1] - p[b, 1]
+        _add_point_rows(jac, 2 * h, a, 1.0, att_body, rel)
+        _add_point_rows(jac, 2 * h, b, -1.0, att_body, rel)
+    for k in range(nc):
+        base, rod = cyl_att[0, k], cyl_att[1, k]
+        dx, dz = p[rod, 0] - p[base, 0], p[rod, 1] - p[base, 1]
+        length = math.sqrt(dx * dx + dz * dz)
+        r = 2 * nh + k
+        phi[r] = length - s[k]
+        _add_length_row(jac, r, rod, 1.0, dx / length, dz / length, att_body, rel)
+        _add_length_row(jac, r, base, -1.0, dx / length, dz / length, att_body, rel)
+    for k in range(na):
+        b0, b1 = angle_body[0, k], angle_body[1, k]
+        r = 2 * nh + nc + k
+        phi[r] = lc * _wrap(_theta(q, b1) - _theta(q, b0) + angle_reference[k] - s[nc + k])
+        if b1 >= 0:
+            jac[r, 3 * b1 + 2] += lc
+        if b0 >= 0:
+            jac[r, 3 * b0 + 2] -= lc
+    return phi, jac
+
+
+@njit(cache=True)
+def _max_abs(v: np.ndarray) -> float:
+    """Largest |v_i|; NaN if any entry is NaN."""
+    big = 0.0
+    for x in v:
+        if not abs(x) <= big:
+            big = abs(x)
+    return big
+
+
+@njit(cache=True)
+def newton(q0: np.ndarray, s: np.ndarray, max_iter: int, att_body: np.ndarray, att_ref: np.ndarray,
+           hinge_att: np.ndarray, cyl_att: np.ndarray, angle_body: np.ndarray, angle_reference: np.ndarray,
+           lc: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Newton / Gauss-Newton from q0: (q, Φ, ∂Φ/∂q), both at the returned q.
+
+    Stops when |Φ| ≤ 1e-13·lc, or before a step that is not finite (singular) or, overdetermined,
+    not above 1e-13·lc (the least-squares residual need not reach 0).
+    """
+    tol = 1e-13 * lc
+    q = q0.copy()
+    phi, jac = residual_jacobian(q, s, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc)
+    m, n = jac.shape
+    for _ in range(max_iter):
+        if _max_abs(phi) <= tol:
+            break
+        dq = solve_linear(jac, -phi)
+        step = _max_abs(dq)
+        if not math.isfinite(step) or (m > n and not step > tol):
+            break
+        q += dq
+        phi, jac = residual_jacobian(q, s, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc)
+    return q, phi, jac
+
+
+@njit(cache=True)
+def condition(jac: np.ndarray, column_scale: np.ndarray) -> float:
+    """1-norm condition number of the Jacobian made dimensionless (θ columns / lc); for more rows
+    than columns the square root of that of JᵀJ."""
+    js = jac * column_scale
+    if js.shape[0] != js.shape[1]:
+        return math.sqrt(inverse_and_condition(js.T @ js)[1])
+    return inverse_and_condition(js)[1]
+
+
+@njit(cache=True)
+def loop_signs(jac: np.ndarray, loop_rows: np.ndarray, loop_cols: np.ndarray, loop_ptr: np.ndarray) -> np.ndarray:
+    """Sign of the determinant of each loop's diagonal block (+1, −1, 0 at a dead centre)."""
+    n_loops = loop_ptr.shape[0] - 1
+    out = np.ones(n_loops)
+    for k in range(n_loops):
+        rows = loop_rows[loop_ptr[k]:loop_ptr[k + 1]]
+        cols = loop_cols[loop_ptr[k]:loop_ptr[k + 1]]
+        block = np.empty((rows.shape[0], cols.shape[0]))
+        for i in range(rows.shape[0]):
+            for j in range(cols.shape[0]):
+                block[i, j] = jac[rows[i], cols[j]]
+        out[k] = det_sign(block)
+    return out
+
+
+@njit(cache=True)
+def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, jac_out: np.ndarray, cond: np.ndarray,
+                    on_branch: np.ndarray, q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray,
+                    s: np.ndarray, max_iter: int, att_body: np.ndarray, att_ref: np.ndarray, hinge_att: np.ndarray,
+                    cyl_att: np.ndarray, angle_body: np.ndarray, angle_reference: np.ndarray, lc: float,
+                    column_scale: np.ndarray, loop_rows: np.ndarray, loop_cols: np.ndarray, loop_ptr: np.ndarray,
+                    ref_branch: np.ndarray) -> None:
+    """Pose i of ``solve_poses``, written into the output arrays."""
+    m = jac_start.shape[1]
+    n_in = s.shape[1]
+    nc = cyl_att.shape[1]
+    r0 = m - n_in
+    shift = np.zeros(m)
+    for j in range(n_in):
+        ds = s[i, j] - s_start[0, j]
+        shift[r0 + j] = ds if j < nc else lc * ds
+    q0 = q_start[0] + solve_linear(jac_start[0], shift)
+    q, phi, jac = newton(q0, s[i], max_iter, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc)
+    q_out[i], phi_out[i], jac_out[i] = q, phi, jac
+    cond[i] = condition(jac, column_scale)
+    signs = loop_signs(jac, loop_rows, loop_cols, loop_ptr)
+    on_branch[i] = True
+    for k in range(signs.shape[0]):
+        if signs[k] * ref_branch[k] < 0.0:
+            on_branch[i] = False
+
+
+def _kinematic_outputs(s: np.ndarray, jac_start: np.ndarray) -> tuple[np.ndarray, ...]:
+    n_pose, (m, n) = s.shape[0], jac_start.shape[1:]
+    return (np.empty((n_pose, n)), np.empty((n_pose, m)), np.empty((n_pose, m, n)), np.empty(n_pose),
+            np.empty(n_pose, dtype=np.bool_))
+
+
+def solve_poses(q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray, s: np.ndarray, max_iter: int,
+                *mechanism: object) -> tuple[np.ndarray, ...]:
+    """Assemble N poses for inputs s (N, n_inputs): Newton from the tangent prediction off one solved
+    pose (q_start (1, n), its Jacobian (1, m, n) and inputs (1, n_inputs)) — J·dq = E·(s − s_start),
+    E the input rows' unit / lc entries — then the condition number and the assembly branch.
+
+    ``mechanism``: att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc,
+    column_scale, loop_rows, loop_cols, loop_ptr, ref_branch (``Kinematics.program``). Returns q
+    (N, n), Φ (N, m), ∂Φ/∂q (N, m, n), condition (N,), on_branch (N,): False where a loop is in the
+    opposite assembly of ``ref_branch`` (a loop at a dead centre, sign 0, counts as on it). Large
+    batches run on every core.
+    """
+    out = _kinematic_outputs(s, jac_start)
+    driver: Any = _kinematics_parallel if s.shape[0] >= PARALLEL_MIN else _kinematics_serial
+    driver(*out, q_start, jac_start, s_start, s, max_iter, *mechanism)
+    return out
+
+
+@njit(cache=True)
+def _kinematics_serial(*args):
+    n_pose = args[8].shape[0]   # s
+    for i in range(n_pose):
+        _kinematic_pose(i, *args)
+
+
+@njit(cache=True, parallel=True)
+def _kinematics_parallel(*args):
+    n_pose = args[8].shape[0]   # s
+    for i in prange(n_pose):
+        _kinematic_pose(i, *args)
+
+
+@njit(cache=True)
+def newton_batch(q0: np.ndarray, s: np.ndarray, max_iter: int, att_body: np.ndarray, att_ref: np.ndarray,
+                 hinge_att: np.ndarray, cyl_att: np.ndarray, angle_body: np.ndarray, angle_reference: np.ndarray,
+                 lc: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``newton`` for N poses q0 (N, n), s (N, n_inputs): q, Φ, ∂Φ/∂q stacked."""
+    n_pose, n = q0.shape
+    m = 2 * hinge_att.shape[1] + cyl_att.shape[1] + angle_body.shape[1]
+    q_out = np.empty((n_pose, n))
+    phi_out = np.empty((n_pose, m))
+    jac_out = np.empty((n_pose, m, n))
+    for i in range(n_pose):
+        q_out[i], phi_out[i], jac_out[i] = newton(q0[i], s[i], max_iter, att_body, att_ref, hinge_att, cyl_att,
+                                                  angle_body, angle_reference, lc)
+    return q_out, phi_out, jac_out
+
+
+@njit(cache=True)
+def residual_jacobian_batch(q: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray,
+                            hinge_att: np.ndarray, cyl_att: np.ndarray, angle_body: np.ndarray,
+                            angle_reference: np.ndarray, lc: float) -> tuple[np.ndarray, np.ndarray]:
+    """``residual_jacobian`` for N poses: Φ (N, m), ∂Φ/∂q (N, m, n)."""
+    n_pose, n = q.shape
+    m = 2 * hinge_att.shape[1] + cyl_att.shape[1] + angle_body.shape[1]
+    phi_out = np.empty((n_pose, m))
+    jac_out = np.empty((n_pose, m, n))
+    for i in range(n_pose):
+        phi_out[i], jac_out[i] = residual_jacobian(q[i], s[i], att_body, att_ref, hinge_att, cyl_att, angle_body,
+                                                   angle_reference, lc)
+    return phi_out, jac_out
+
+
+@njit(cache=True)
+def positions_batch(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``positions`` for N poses: p, rel (N, K, 2)."""
+    n_pose = q.shape[0]
+    k_att = att_body.shape[0]
+    p = np.empty((n_pose, k_att, 2))
+    rel = np.empty((n_pose, k_att, 2))
+    for i in range(n_pose):
+        p[i], rel[i] = positions(q[i], att_body, att_ref)
+    return p, rel
+
+
+# ---- equilibrium -----------------------------------------------------------------------------------
+@njit(cache=True)
+def _add_generalized(vec: np.ndarray, row0: int, px: float, pz: float, fx: float, fz: float, lc: float) -> None:
+    """Add [Fx, Fz, (x·Fz − z·Fx)/lc] of a force (fx, fz) N at (px, pz) m to vec[row0:row0+3]."""
+    vec[row0] += fx
+    vec[row0 + 1] += fz
+    vec[row0 + 2] += (px * fz - pz * fx) / lc
+
+
+@njit(cache=True)
+def equilibrium_matrix(p: np.ndarray, axes: np.ndarray, lc: float, n_eq: int, n_unknowns: int, t_col: np.ndarray,
+                       t_att: np.ndarray, t_body: np.ndarray, t_const: np.ndarray, t_member: np.ndarray,
+                       t_sign: np.ndarray) -> np.ndarray:
+    """Equilibrium matrix A (n_eq, n_unknowns) of one pose: attachment positions p (K, 2) m, member
+    axes (M, 2); column term t is a unit force (t_const, or t_sign times the axis of member
+    t_member ≥ 0) at attachment t_att on body t_body, in column t_col."""
+    a_mat = np.zeros((n_eq, n_unknowns))
+    col = np.zeros(3)
+    for t in range(t_col.shape[0]):
+        if t_member[t] >= 0:
+            fx, fz = t_sign[t] * axes[t_member[t], 0], t_sign[t] * axes[t_member[t], 1]
+        else:
+            fx, fz = t_const[t, 0], t_const[t, 1]
+        col[:] = 0.0
+        _add_generalized(col, 0, p[t_att[t], 0], p[t_att[t], 1], fx, fz, lc)
+        for j in range(3):
+            a_mat[3 * t_body[t] + j, t_col[t]] += col[j]
+    return a_mat
+
+
+def solve_statics(p: np.ndarray, member_force: np.ndarray, accel: np.ndarray, alpha: np.ndarray,
+                  has_accel: bool, n_unknowns: int, *layout: object) -> tuple[np.ndarray, ...]:
+    """Equilibrium of every moving body for N poses: unknowns u (N, n_unknowns) with A·u + b = 0.
+
+    p (N, K, 2): attachment positions, m. member_force (N, M): force of springs then cylinders, N
+    (+ = pushing; the unknown members' entries are ignored). accel (N, n_mass, 2), alpha (N, n_mass):
+    acceleration (m/s²) of each body's cg and its angular acceleration (rad/s²) when ``has_accel``.
+    ``layout`` (``StaticsLayout.program``): lc, n_eq; column terms t — a unit force (t_const, or
+    t_sign times the axis of member t_member ≥ 0) at attachment t_att on body t_body in column
+    t_col; known loads — const_force at the first known attachments (known_att, known_body), then
+    the member ends (end_sign · force · axis of end_member), then (kinetostatics) −m·a at each cg
+    (mass_att, mass_body, mass) and −I·α about it (inertia); member_att (2, M): the members' ends.
+    More equations than unknowns: least squares (normal equations).
+
+    Returns u, the equilibrium residual |A·u + b| (N,) N (moment rows × lc), the condition number
+    (N,) (1-norm; square root of that of AᵀA when least squares), member unit axes (N, M, 2) from
+    end a to end b and member lengths (N, M) m.
+    """
+    n_pose = p.shape[0]
+    n_members = layout[-5].shape[1]  # type: ignore[attr-defined]  # member_att
+    out = (np.empty((n_pose, n_unknowns)), np.empty(n_pose), np.empty(n_pose), np.empty((n_pose, n_members, 2)),
+           np.empty((n_pose, n_members)))
+    driver = _statics_parallel if n_pose >= PARALLEL_MIN else _statics_serial
+    driver(*out, p, member_force, accel, alpha, has_accel, *layout)
+    return out
+
+
+@njit(cache=True)
+def _statics_pose(i, u_out, residual, cond, axes, lengths, p, member_force, accel, alpha, has_accel,
+                  lc, n_eq, t_col, t_att, t_body, t_const, t_member, t_sign, const_force, known_att, known_body,
+                  end_member, end_sign, member_att, mass_att, mass_body, mass, inertia):
+    """Pose i of ``solve_statics``, written into the output arrays."""
+    n_unknowns = u_out.shape[1]
+    n_const = const_force.shape[0]
+    for k in range(member_att.shape[1]):
+        a, b = member_att[0, k], member_att[1, k]
+        dx, dz = p[i, b, 0] - p[i, a, 0], p[i, b, 1] - p[i, a, 1]
+        length = math.sqrt(dx * dx + dz * dz)
+        lengths[i, k] = length
+        axes[i, k, 0], axes[i, k, 1] = dx / length, dz / length
+    a_mat = equilibrium_matrix(p[i], axes[i], lc, n_eq, n_unknowns, t_col, t_att, t_body, t_const, t_member, t_sign)
+    b = np.zeros(n_eq)
+    for k in range(n_const):
+        att = known_att[k]
+        _add_generalized(b, 3 * known_body[k], p[i, att, 0], p[i, att, 1], const_force[k, 0], const_force[k, 1], lc)
+    for e in range(end_member.shape[0]):
+        att = known_att[n_const + e]
+        f = end_sign[e] * member_force[i, end_member[e]]
+        _add_generalized(b, 3 * known_body[n_const + e], p[i, att, 0], p[i, att, 1],
+                         f * axes[i, end_member[e], 0], f * axes[i, end_member[e], 1], lc)
+    if has_accel:
+        for k in range(mass_att.shape[0]):
+            att = mass_att[k]
+            _add_generalized(b, 3 * mass_body[k], p[i, att, 0], p[i, att, 1], -mass[k] * accel[i, k, 0],
+                             -mass[k] * accel[i, k, 1], lc)
+            b[3 * mass_body[k] + 2] -= inertia[k] * alpha[i, k] / lc
+    if n_unknowns == n_eq:
+        inv, c = inverse_and_condition(a_mat)
+        u = -(inv @ b)
+    else:
+        inv, c = inverse_and_condition(a_mat.T @ a_mat)
+        u = -(inv @ (a_mat.T @ b))
+        c = math.sqrt(c)
+    res = a_mat @ u + b
+    acc = 0.0
+    for r in range(n_eq):
+        v = res[r] * lc if r % 3 == 2 else res[r]
+        acc += v * v
+    u_out[i] = u
+    residual[i] = math.sqrt(acc)
+    cond[i] = c
+
+
+@njit(cache=True)
+def _statics_serial(*args):
+    n_pose = args[5].shape[0]   # p
+    for i in range(n_pose):
+        _statics_pose(i, *args)
+
+
+@njit(cache=True, parallel=True)
+def _statics_parallel(*args):
+    n_pose = args[5].shape[0]   # p
+    for i in prange(n_pose):
+        _statics_pose(i, *args)
+
+
+# ---- lift capacity by virtual work ------------------------------------------------------------------
+def lift_capacity(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray, hinge_att: np.ndarray,
+                  cyl_att: np.ndarray, lift: int, force: float, gravity: float, weight_att: np.ndarray,
+                  weight_mass: np.ndarray, spring_att: np.ndarray, spring_force: np.ndarray,
+                  point_att: np.ndarray, column_scale: np.ndarray, max_condition: float) -> np.ndarray:
+    """Vertical load (N, + = down) that the lift cylinder ``lift`` pushing with ``force`` (N) holds
+    at each capacity point (attachments ``point_att``), for N poses q (N, n): virtual work along
+    the motion with every hinge closed, every other cylinder held at its length and the lift
+    cylinder extending by δs:
+
+        G·δz_point = F·δs − Σ m·g·δz_cg + Σ F_spring·δL_spring        (seed 003: G = p_max·η·A·ds/dz)
+
+    (weights m at ``weight_att``, spring forces (N, n_springs) + = pushing). The motion δq solves
+    [hinge rows; cylinder rows]·δq = e_lift, one factorization per pose for every point. Returns
+    (N, n_points); NaN where that system is near-singular (condition > ``max_condition``: a dead
+    centre) or not square.
+    """
+    n_pose, n = q.shape
+    out = np.full((n_pose, point_att.shape[0]), np.nan)
+    if 2 * hinge_att.shape[1] + cyl_att.shape[1] == n:
+        driver = _capacity_parallel if n_pose >= PARALLEL_MIN else _capacity_serial
+        driver(out, q, att_body, att_ref, hinge_att, cyl_att, lift, force, gravity, weight_att, weight_mass,
+               spring_att, spring_force, point_att, column_scale, max_condition)
+    return out
+
+
+@njit(cache=True)
+def _capacity_pose(i, out, q, att_body, att_ref, hinge_att, cyl_att, lift, force, gravity, weight_att,
+                   weight_mass, spring_att, spring_force, point_att, column_scale, max_condition):
+    """Pose i of ``lift_capacity``, written into ``out``."""
+    n = q.shape[1]
+    nh, nc = hinge_att.shape[1], cyl_att.shape[1]
+    _, jac = residual_jacobian(q[i], np.zeros(nc), att_body, att_ref, hinge_att, cyl_att,
+                               np.zeros((2, 0), dtype=np.int64), np.zeros(0), 1.0)
+    if not condition(jac, column_scale) <= max_condition:
+        return
+    e = np.zeros(n)
+    e[2 * nh + lift] = 1.0
+    dq = solve_linear(jac, e)
+    p, rel = positions(q[i], att_body, att_ref)
+    work = force
+    for k in range(weight_att.shape[0]):
+        work -= weight_mass[k] * gravity * _dp(dq, weight_att[k], att_body, rel)[1]
+    for k in range(spring_att.shape[1]):
+        a, b = spring_att[0, k], spring_att[1, k]
+        dx, dz = p[b, 0] - p[a, 0], p[b, 1] - p[a, 1]
+        da = _dp(dq, a, att_body, rel)
+        db = _dp(dq, b, att_body, rel)
+        work += spring_force[i, k] * (dx * (db[0] - da[0]) + dz * (db[1] - da[1])) / math.sqrt(dx * dx + dz * dz)
+    for k in range(point_att.shape[0]):
+        out[i, k] = work / _dp(dq, point_att[k], att_body, rel)[1]
+
+
+@njit(cache=True)
+def _capacity_serial(out, q, *args):
+    for i in range(q.shape[0]):
+        _capacity_pose(i, out, q, *args)
+
+
+@njit(cache=True, parallel=True)
+def _capacity_parallel(out, q, *args):
+    for i in prange(q.shape[0]):
+        _capacity_pose(i, out, q, *args)
+
+
+@njit(cache=True)
+def _dp(dq: np.ndarray, att: int, att_body: np.ndarray, rel: np.ndarray) -> tuple[float, float]:
+    """Displacement (δx, δz) of an attachment for the body motion dq (∂P/∂θ = i·rel)."""
+    b = att_body[att]
+    if b < 0:
+        return 0.0, 0.0
+    return dq[3 * b] - rel[att, 1] * dq[3 * b + 2], dq[3 * b + 1] + rel[att, 0] * dq[3 * b + 2]

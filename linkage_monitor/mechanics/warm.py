@@ -1,0 +1,44 @@
+"""Compile the physics kernels ahead of use (``make`` runs this after installing): numba keeps the
+machine code in an on-disk cache beside ``kernels.py``, so a node or a replay started later loads
+it instead of compiling (first compile about a minute here; loading a warm cache well under 2 s).
+
+    .venv/bin/python -m linkage_monitor.mechanics.warm
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+from . import kernels
+from .machine import MachineModel
+from .presets import load_preset, preset_names
+from .results import Status
+from .solver import Inputs, Solver
+
+
+def warm_up() -> float:
+    """Solve every preset once per path (single pose warm-started, small and large batches, with
+    rates, lift capacity); returns the seconds it took."""
+    started = time.perf_counter()
+    for name in preset_names():
+        mech = load_preset(name)
+        solver = Solver(mech)
+        model = MachineModel(mech, solver)
+        ref = {k: dict(v) for k, v in mech.reference_inputs.items()}
+        result = solver.solve(Inputs(**ref))
+        model.evaluate(solver.solve(Inputs(**ref), previous=result))
+        for n_pose in (2, kernels.PARALLEL_MIN):
+            arrays = {k: {n: np.full(n_pose, v) for n, v in group.items()} for k, group in ref.items()}
+            names = list(arrays.get("cylinders", {})) + list(arrays.get("angles", {}))
+            rates = {n: np.zeros(n_pose) for n in names}
+            batch = solver.solve_batch(**arrays, rates=rates, accelerations=rates)
+            assert (batch.status < Status.INPUT).all(), f"{name}: the reference pose should solve"
+            model.evaluate_batch(batch)
+    return time.perf_counter() - started
+
+
+if __name__ == "__main__":
+    print(f"physics kernels ready ({warm_up():.1f} s)", file=sys.stderr)
