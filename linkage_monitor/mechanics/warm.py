@@ -15,6 +15,7 @@ import numpy as np
 from . import kernels
 from .machine import MachineModel
 from .presets import load_preset, preset_names
+from .errors import LinkageError
 from .results import Status
 from .solver import Inputs, Solver
 
@@ -37,6 +38,15 @@ def warm_up() -> float:
             batch = solver.solve_batch(**arrays, rates=rates, accelerations=rates)
             assert (batch.status < Status.INPUT).all(), f"{name}: the reference pose should solve"
             model.evaluate_batch(batch)
+        # poses out of reach: the continuation from the reference pose and the reach bisection
+        far = {"cylinders": {n: 1.6 * v for n, v in ref.get("cylinders", {}).items()},
+               "angles": {n: v + 2.0 for n, v in ref.get("angles", {}).items()},
+               "pressures": ref.get("pressures", {})}
+        solver.solve_batch(**{k: {n: np.full(2, v) for n, v in group.items()} for k, group in far.items()})
+        try:
+            solver.solve(Inputs(**far))
+        except LinkageError:
+            pass
     return time.perf_counter() - started
 
 
