@@ -31,6 +31,15 @@ def generate_launch_description():  # noqa: D103  (the ros2 launch entry point)
     ])
 
 
+def _stop_with_parent() -> None:
+    """In the node's process: have the kernel send SIGINT when this launcher dies, however it dies
+    (a launcher killed with SIGKILL would otherwise leave the node running on the network)."""
+    import ctypes
+
+    PR_SET_PDEATHSIG = 1
+    ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGINT)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the node with a parameter file, without launch_ros."""
     import argparse
@@ -39,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--params", type=Path, default=DEFAULT_PARAMS, help="config/<preset>.yaml")
     args = parser.parse_args(argv)
     command = [sys.executable, "-m", "linkage_monitor.ros.node", "--ros-args", "--params-file", str(args.params)]
-    node = subprocess.Popen(command)
+    node = subprocess.Popen(command, preexec_fn=_stop_with_parent if sys.platform == "linux" else None)
     try:
         return node.wait()
     except KeyboardInterrupt:  # pass Ctrl-C on, so the node closes its bag
