@@ -19,6 +19,7 @@ from pathlib import Path
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
+from linkage_monitor.mechanics import kernels  # noqa: E402
 from linkage_monitor.offline.replay import mechanism_in_bag, replay
 
 BAG = Path(__file__).resolve().parent.parent / "bags" / "belarus_1221_lift_transport"
@@ -35,6 +36,7 @@ def raw_decode(bag: Path) -> tuple[int, float]:
 
 
 def main() -> int:
+    kernels.allow_threads()   # as `linkage-monitor replay` does
     bag = Path(sys.argv[1]) if len(sys.argv) > 1 else BAG
     mech = mechanism_in_bag(bag)
     n_raw, t_raw = raw_decode(bag)

@@ -42,6 +42,7 @@ def per_call(fn, calls: int, repeat: int = 5) -> float:
 
 
 def main() -> None:
+    kernels.allow_threads()
     if "belarus_1221" in preset_names():
         mech, label = load_preset("belarus_1221"), "preset belarus_1221"
     else:

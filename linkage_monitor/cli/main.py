@@ -22,6 +22,7 @@ from linkage_monitor.cli.calibrate import add_calibrate_parser, run_calibrate
 from linkage_monitor.cli.capacity import add_capacity_parser, run_capacity
 from linkage_monitor.cli.fleet import add_fleet_parser, add_spectrum_arguments, run_fleet_command
 from linkage_monitor.cli.simulate import add_simulate_parser, run_simulate
+from linkage_monitor.mechanics import kernels
 from linkage_monitor.mechanics import Inputs, LinkageError, Mechanism, Result, Solver, preset_names
 from linkage_monitor.mechanics.machine import machine_summary
 from linkage_monitor.mechanics.presets import preset_description
@@ -186,6 +187,8 @@ def _replay(args: argparse.Namespace) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code (0 ok, 2 bad input: one line on stderr)."""
     args = build_parser().parse_args(argv)
+    if args.command in ("capacity", "calibrate", "replay"):
+        kernels.allow_threads()   # large batches on every core (fleet: one process per core instead)
     try:
         if args.command == "presets":
             try:

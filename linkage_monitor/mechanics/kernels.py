@@ -23,6 +23,18 @@ from numba import njit, prange
 
 TWO_PI = 2.0 * math.pi
 PARALLEL_MIN = 512  # poses: smaller batches stay on the calling thread (no thread-pool wake-up)
+_threads = {"allowed": False}
+
+
+def allow_threads(allowed: bool = True) -> None:
+    """Let batches of ≥ PARALLEL_MIN poses run on every core (numba's thread pool). Off by default:
+    the live node solves one pose at a time and keeps no thread pool; the offline commands
+    (replay, fleet, calibrate, capacity) turn it on."""
+    _threads["allowed"] = allowed
+
+
+def _parallel(n_pose: int) -> bool:
+    return _threads["allowed"] and n_pose >= PARALLEL_MIN
 
 
 # ---- small dense linear algebra (partial-pivoting LU) --------------------------------------------
@@ -339,10 +351,10 @@ def solve_poses(q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray,
     column_scale, loop_rows, loop_cols, loop_ptr, ref_branch (``Kinematics.program``). Returns q
     (N, n), Φ (N, m), ∂Φ/∂q (N, m, n), condition (N,), on_branch (N,): False where a loop is in the
     opposite assembly of ``ref_branch`` (a loop at a dead centre, sign 0, counts as on it). Large
-    batches run on every core.
+    batches run on every core (``allow_threads``).
     """
     out = _kinematic_outputs(s, jac_start)
-    driver: Any = _kinematics_parallel if s.shape[0] >= PARALLEL_MIN else _kinematics_serial
+    driver: Any = _kinematics_parallel if _parallel(s.shape[0]) else _kinematics_serial
     driver(*out, q_start, jac_start, s_start, s, max_iter, *mechanism)
     return out
 
@@ -456,7 +468,7 @@ def solve_statics(p: np.ndarray, member_force: np.ndarray, accel: np.ndarray, al
     n_members = layout[-5].shape[1]  # type: ignore[attr-defined]  # member_att
     out = (np.empty((n_pose, n_unknowns)), np.empty(n_pose), np.empty(n_pose), np.empty((n_pose, n_members, 2)),
            np.empty((n_pose, n_members)))
-    driver = _statics_parallel if n_pose >= PARALLEL_MIN else _statics_serial
+    driver = _statics_parallel if _parallel(n_pose) else _statics_serial
     driver(*out, p, member_force, accel, alpha, has_accel, *layout)
     return out
 
@@ -541,7 +553,7 @@ def lift_capacity(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray, hing
     n_pose, n = q.shape
     out = np.full((n_pose, point_att.shape[0]), np.nan)
     if 2 * hinge_att.shape[1] + cyl_att.shape[1] == n:
-        driver = _capacity_parallel if n_pose >= PARALLEL_MIN else _capacity_serial
+        driver = _capacity_parallel if _parallel(n_pose) else _capacity_serial
         driver(out, q, att_body, att_ref, hinge_att, cyl_att, lift, force, gravity, weight_att, weight_mass,
                spring_att, spring_force, point_att, column_scale, max_condition)
     return out

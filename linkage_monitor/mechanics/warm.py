@@ -24,6 +24,7 @@ def warm_up() -> float:
     """Solve every preset once per path (single pose warm-started, small and large batches, with
     rates, lift capacity); returns the seconds it took."""
     started = time.perf_counter()
+    kernels.allow_threads(True)   # compile the thread-pool drivers too
     for name in preset_names():
         mech = load_preset(name)
         solver = Solver(mech)
@@ -47,6 +48,7 @@ def warm_up() -> float:
             solver.solve(Inputs(**far))
         except LinkageError:
             pass
+    kernels.allow_threads(False)
     return time.perf_counter() - started
 
 
