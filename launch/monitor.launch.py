@@ -48,6 +48,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--params", type=Path, default=DEFAULT_PARAMS, help="config/<preset>.yaml")
     args = parser.parse_args(argv)
     command = [sys.executable, "-m", "linkage_monitor.ros.node", "--ros-args", "--params-file", str(args.params)]
+    # Ctrl-C and SIGTERM stop the node cleanly, also when this launcher was started with SIGINT
+    # ignored (a background job of a non-interactive shell: Python then installs no handler)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
     node = subprocess.Popen(command, preexec_fn=_stop_with_parent if sys.platform == "linux" else None)
     try:
         return node.wait()
