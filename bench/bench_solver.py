@@ -87,11 +87,9 @@ def main() -> None:
     # the compiled kernels alone (kinematics + statics, no Python result objects), one thread and all
     kin, layout = solver.kin, solver.statics_layout(frozenset())
     s_in = batch_strokes[:, None]
-    ref = kin._reference
 
     def kernels_only() -> None:
-        q = kernels.solve_poses(ref.q, ref.jac, ref.s, s_in, 25, *kin.geometry, kin._column_scale,
-                                *kin._loop_arrays, kin._ref_branch)[0]
+        q = kin.continue_from(kin.reference, s_in)[0]
         p, _ = kin.positions(q)
         kernels.solve_statics(p, np.zeros((n, len(mech.cylinders))), np.zeros((1, 1, 2)), np.zeros((1, 1)), False,
                               layout.n_unknowns, *layout.program)

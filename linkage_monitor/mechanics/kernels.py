@@ -355,20 +355,18 @@ def solve_poses(q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray,
     """
     out = _kinematic_outputs(s, jac_start)
     driver: Any = _kinematics_parallel if _parallel(s.shape[0]) else _kinematics_serial
-    driver(*out, q_start, jac_start, s_start, s, max_iter, *mechanism)
+    driver(s.shape[0], *out, q_start, jac_start, s_start, s, max_iter, *mechanism)
     return out
 
 
 @njit(cache=True)
-def _kinematics_serial(*args):
-    n_pose = args[8].shape[0]   # s
+def _kinematics_serial(n_pose, *args):
     for i in range(n_pose):
         _kinematic_pose(i, *args)
 
 
 @njit(cache=True, parallel=True)
-def _kinematics_parallel(*args):
-    n_pose = args[8].shape[0]   # s
+def _kinematics_parallel(n_pose, *args):
     for i in prange(n_pose):
         _kinematic_pose(i, *args)
 
@@ -465,11 +463,11 @@ def solve_statics(p: np.ndarray, member_force: np.ndarray, accel: np.ndarray, al
     end a to end b and member lengths (N, M) m.
     """
     n_pose = p.shape[0]
-    n_members = layout[-5].shape[1]  # type: ignore[attr-defined]  # member_att
+    n_members = member_force.shape[1]
     out = (np.empty((n_pose, n_unknowns)), np.empty(n_pose), np.empty(n_pose), np.empty((n_pose, n_members, 2)),
            np.empty((n_pose, n_members)))
     driver = _statics_parallel if _parallel(n_pose) else _statics_serial
-    driver(*out, p, member_force, accel, alpha, has_accel, *layout)
+    driver(n_pose, *out, p, member_force, accel, alpha, has_accel, *layout)
     return out
 
 
@@ -520,15 +518,13 @@ def _statics_pose(i, u_out, residual, cond, axes, lengths, p, member_force, acce
 
 
 @njit(cache=True)
-def _statics_serial(*args):
-    n_pose = args[5].shape[0]   # p
+def _statics_serial(n_pose, *args):
     for i in range(n_pose):
         _statics_pose(i, *args)
 
 
 @njit(cache=True, parallel=True)
-def _statics_parallel(*args):
-    n_pose = args[5].shape[0]   # p
+def _statics_parallel(n_pose, *args):
     for i in prange(n_pose):
         _statics_pose(i, *args)
 
@@ -554,7 +550,7 @@ def lift_capacity(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray, hing
     out = np.full((n_pose, point_att.shape[0]), np.nan)
     if 2 * hinge_att.shape[1] + cyl_att.shape[1] == n:
         driver = _capacity_parallel if _parallel(n_pose) else _capacity_serial
-        driver(out, q, att_body, att_ref, hinge_att, cyl_att, lift, force, gravity, weight_att, weight_mass,
+        driver(n_pose, out, q, att_body, att_ref, hinge_att, cyl_att, lift, force, gravity, weight_att, weight_mass,
                spring_att, spring_force, point_att, column_scale, max_condition)
     return out
 
@@ -587,15 +583,15 @@ def _capacity_pose(i, out, q, att_body, att_ref, hinge_att, cyl_att, lift, force
 
 
 @njit(cache=True)
-def _capacity_serial(out, q, *args):
-    for i in range(q.shape[0]):
-        _capacity_pose(i, out, q, *args)
+def _capacity_serial(n_pose, *args):
+    for i in range(n_pose):
+        _capacity_pose(i, *args)
 
 
 @njit(cache=True, parallel=True)
-def _capacity_parallel(out, q, *args):
-    for i in prange(q.shape[0]):
-        _capacity_pose(i, out, q, *args)
+def _capacity_parallel(n_pose, *args):
+    for i in prange(n_pose):
+        _capacity_pose(i, *args)
 
 
 @njit(cache=True)

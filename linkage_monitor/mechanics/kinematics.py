@@ -80,7 +80,7 @@ class Kinematics:
                           + [f"cylinder '{c.name}' length" for c in cyls]
                           + [f"angle '{a.name}'" for a in mech.measurements.angles])
         self.input_names = [c.name for c in cyls] + [a.name for a in mech.measurements.angles]
-        self._column_scale = np.tile([1.0, 1.0, 1.0 / self.lc], self.n // 3)
+        self.column_scale = np.tile([1.0, 1.0, 1.0 / self.lc], self.n // 3)
         p, _ = self.positions(self.q_ref[None])
         self._s_ref = np.concatenate([np.hypot(*(p[0, self.cyl_att[1]] - p[0, self.cyl_att[0]]).T),
                                       self.angle_reference])
@@ -91,7 +91,7 @@ class Kinematics:
                              np.concatenate([c for _, c in self._loops] or [np.zeros(0, dtype=int)]).astype(np.int64),
                              np.cumsum([0] + [len(r) for r in rows]).astype(np.int64))
         self._ref_branch = self.branch(jac_ref)[0]   # the assembly branch (one sign per loop) every pose keeps
-        ref_cond = np.array([kernels.condition(jac_ref[0], self._column_scale)])
+        ref_cond = np.array([kernels.condition(jac_ref[0], self.column_scale)])
         self._reference = KinematicState(s=self._s_ref[None], q=self.q_ref[None], phi=phi_ref, jac=jac_ref,
                                          status=np.zeros(1, dtype=int), messages=[""], condition=ref_cond)
 
@@ -221,9 +221,7 @@ class Kinematics:
         s = s.copy()   # angles as the nearest equivalent (modulo 2π) of the reference pose's: a sensor
         s[:, nc:] = self.angle_reference + wrap_angle(s[:, nc:] - self.angle_reference)  # in [−π, π) or [0, 2π)
         start = self._reference if previous is None else previous
-        q, phi, jac, cond, on_branch = kernels.solve_poses(start.q[-1:], start.jac[-1:], start.s[-1:], s, 25,
-                                                           *self.geometry, self._column_scale, *self._loop_arrays,
-                                                           self._ref_branch)
+        q, phi, jac, cond, on_branch = self.continue_from(start, s)
         limit = 1e-9 * self.lc if self.m == self.n else consistency_tol
         retry = np.flatnonzero(~on_branch | ~(np.abs(phi).max(axis=1) <= limit))
         still = np.zeros(0, dtype=int)
@@ -234,7 +232,7 @@ class Kinematics:
                 qr, _, _ = self.newton(qr, s_ref + t * (s[retry] - s_ref), max_iter=12)
             qr, phir, jacr = self.newton(qr, s[retry])
             q[retry], phi[retry], jac[retry] = qr, phir, jacr
-            cond[retry] = [kernels.condition(j, self._column_scale) for j in jacr]
+            cond[retry] = [kernels.condition(j, self.column_scale) for j in jacr]
             still = retry[~(np.abs(phir).max(axis=1) <= limit)]
             off = retry[~self.on_branch(jacr) & (np.abs(phir).max(axis=1) <= limit)]
         status = np.zeros(n_pose, dtype=int)
@@ -257,6 +255,17 @@ class Kinematics:
             messages[i] = (f"kinematic dead centre at {self.describe_inputs(s[i])}: constraint Jacobian "
                            f"condition number {cond[i]:.3g} > {dead_centre_cond:.3g}")
         return KinematicState(s=s, q=q, phi=phi, jac=jac, status=status, messages=messages, condition=cond)
+
+    def continue_from(self, start: KinematicState, s: np.ndarray) -> tuple[np.ndarray, ...]:
+        """``kernels.solve_poses`` from the last pose of ``start`` for inputs s (N, n_inputs): q, Φ,
+        ∂Φ/∂q, condition number and whether each pose is on the reference assembly branch."""
+        return kernels.solve_poses(start.q[-1:], start.jac[-1:], start.s[-1:], np.ascontiguousarray(s, dtype=float),
+                                   25, *self.geometry, self.column_scale, *self._loop_arrays, self._ref_branch)
+
+    @property
+    def reference(self) -> KinematicState:
+        """The reference pose, solved (where a cold solve starts)."""
+        return self._reference
 
     def describe_inputs(self, s: np.ndarray) -> str:
         """``lift_cylinder = 0.6100 m, ...`` for messages."""

@@ -177,15 +177,11 @@ class MachineModel:
         ok = (batch.status < Status.INPUT) & np.isfinite(q).all(axis=1)
         q = np.ascontiguousarray(np.where(ok[:, None], q, kin.q_ref))   # failed poses: solved anywhere, masked below
         hinge_att, cylinder_att, lift, force, gravity, weight_att, weight_mass, spring_att, point_att = self._capacity_args
-        layout = self._layout
-        if layout.n_springs:
-            length = layout.member_axes(kin.positions(q)[0])[1][:, :layout.n_springs]
-            spring_force = layout.spring_stiffness * (layout.spring_free_length - length) + layout.spring_preload
-        else:
-            spring_force = np.zeros((len(q), 0))
+        spring_force = self._layout.spring_forces(kin.positions(q)[0]) if self._layout.n_springs else \
+            np.zeros((len(q), 0))
         att_body, att_ref = kin.geometry[:2]
         g = kernels.lift_capacity(q, att_body, att_ref, hinge_att, cylinder_att, lift, force, gravity, weight_att,
-                                  weight_mass, spring_att, spring_force, point_att, kin._column_scale,
+                                  weight_mass, spring_att, spring_force, point_att, kin.column_scale,
                                   self.solver.dead_centre_cond)
         return {name: np.where(ok, g[:, k], np.nan) for k, name in enumerate(self.capacity_points)}
 

@@ -164,6 +164,14 @@ class StaticsLayout:
         length = np.sqrt(np.sum(d * d, axis=-1))
         return d / length[..., None], length
 
+    def spring_forces(self, p: np.ndarray) -> np.ndarray:
+        """Spring forces (N, n_springs) N, + = pushing: k·(free length − length) + preload, at attachment
+        positions p (N, K, 2)."""
+        if not self.n_springs:
+            return np.zeros((p.shape[0], 0))
+        length = self.member_axes(p)[1][:, :self.n_springs]
+        return self.spring_stiffness * (self.spring_free_length - length) + self.spring_preload
+
     @property
     def program(self) -> tuple:
         """The layout as ``kernels.solve_statics`` takes it (see there)."""
@@ -182,12 +190,8 @@ class StaticsLayout:
         """Unknown reactions for N poses; ``cylinder_force`` (N, n_cyl) N is used where measured.
         ``accel``: accelerations (N, K, 2) m/s² of every attachment and angular accelerations (N, n_bodies)
         rad/s² of the bodies, for the inertia loads (kinetostatics, seed 004)."""
-        n_pose, ns = p.shape[0], self.n_springs
-        if ns:
-            spring_length = self.member_axes(p)[1][:, :ns]
-            spring_force = self.spring_stiffness * (self.spring_free_length - spring_length) + self.spring_preload
-        else:
-            spring_force = np.zeros((n_pose, 0))
+        ns = self.n_springs
+        spring_force = self.spring_forces(p)
         member_force = np.ascontiguousarray(np.concatenate([spring_force, cylinder_force], axis=1), dtype=float)
         member_force[:, self.unmeasured] = 0.0   # their force is an unknown (NaN on input)
         if accel is None:
