@@ -239,8 +239,8 @@ class Solver:
         measured_force = np.full((n_pose, len(mech.cylinders)), np.nan)
         for k, c in enumerate(mech.cylinders):
             if c.name in force_known:
-                measured_force[:, k] = c.count * (np.nan_to_num(cap[c.name]) * c.cap_area
-                                                  - np.nan_to_num(rod[c.name]) * c.rod_area)
+                measured_force[:, k] = c.count * (_unmeasured_as_zero(cap[c.name]) * c.cap_area
+                                                  - _unmeasured_as_zero(rod[c.name]) * c.rod_area)
         layout = self.statics_layout(force_known)
         sol = layout.solve(p, measured_force, accel)
         for i in np.flatnonzero((status == Status.OK) & ~(sol.condition <= self.dead_centre_cond)):
@@ -308,3 +308,8 @@ class Solver:
             frame_load_forces=np.stack(fl_forces, axis=1) if fl_forces else np.zeros(shape),
             residual=np.where(failed, np.nan, sol.residual), consistency_residual=np.zeros(n_pose),
             condition=np.zeros(n_pose), status=np.zeros(n_pose, dtype=int), messages=[""] * n_pose)
+
+
+def _unmeasured_as_zero(pressure: np.ndarray) -> np.ndarray:
+    """Gauge pressures (Pa) with the unmeasured chambers (NaN) at 0 (faster than np.nan_to_num on one pose)."""
+    return np.where(np.isnan(pressure), 0.0, pressure)

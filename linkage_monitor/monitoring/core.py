@@ -13,7 +13,8 @@ Units SI (m, rad, N, Pa, kg); frame x forward, z up, origin at the rear wheels' 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import cached_property
 from typing import Iterable, Mapping, Sequence, Union
 
 import numpy as np
@@ -59,9 +60,32 @@ class Step:
     stamp_ns: int
     trigger: str
     findings: tuple[Finding, ...] = ()
-    values: Mapping[str, str] = field(default_factory=dict)
     pose: Pose | None = None
     inputs: Inputs | None = None   # what was solved (None when no solve was due)
+
+    @cached_property
+    def values(self) -> dict[str, str]:
+        """The key-values of the step's diagnostic, as text (SI units in the keys): the input topic,
+        the inputs of a due solve, the main results of a solved pose. Formatted when first asked
+        for (most steps are never reported)."""
+        values = {"input": self.trigger}
+        if self.inputs is not None:
+            values.update({f"input {k} [m]": fmt(v) for k, v in self.inputs.cylinders.items()})
+            values.update({f"input {k} [rad]": fmt(v) for k, v in self.inputs.angles.items()})
+            values.update({f"input {k} [Pa gauge]": fmt(v) for k, v in self.inputs.pressures.items()})
+        if self.pose is not None:
+            result, steer, capacity = self.pose.result, self.pose.machine.steerability, self.pose.machine.lift_capacity
+            values.update({
+                "implement load [N]": fmt(result.implement_load),
+                "steerability ratio [-]": f"{steer.get('ratio', math.nan):.4f}",
+                "steerability margin [-]": f"{steer.get('margin', math.nan):.4f}",
+                "front axle load [N]": fmt(steer.get("front_axle_load", math.nan)),
+                "lift reserve [-]": f"{capacity.get('reserve', math.nan):.4f}",
+                "largest hinge reaction [N]": fmt(max((h.magnitude for h in result.hinges.values()), default=math.nan)),
+                "equilibrium residual [N]": f"{result.residual:.3g}",
+                "kinematic residual [m]": f"{result.consistency_residual:.3g}",
+            })
+        return values
 
     @property
     def level(self) -> Level:
@@ -138,7 +162,6 @@ class _Due:
     stamp_ns: int
     trigger: str
     inputs: Inputs
-    values: dict[str, str]
 
 
 class Monitor:
@@ -251,27 +274,23 @@ class Monitor:
             else:
                 tracker.accept_pressure(event.topic, event.fluid_pressure, event.stamp_ns, event.receive_ns)
         except Refused as refused:
-            return Step(event.stamp_ns, event.topic, (refused.finding,), {"input": event.topic})
+            return Step(event.stamp_ns, event.topic, (refused.finding,))
         inputs = tracker.inputs_at(event.stamp_ns)
         if isinstance(inputs, Finding):
-            return Step(event.stamp_ns, event.topic, (inputs,), {"input": event.topic})
-        values = {"input": event.topic}
-        values.update({f"input {k} [m]": fmt(v) for k, v in inputs.cylinders.items()})
-        values.update({f"input {k} [rad]": fmt(v) for k, v in inputs.angles.items()})
-        values.update({f"input {k} [Pa gauge]": fmt(v) for k, v in inputs.pressures.items()})
-        return _Due(event.stamp_ns, event.topic, inputs, values)
+            return Step(event.stamp_ns, event.topic, (inputs,))
+        return _Due(event.stamp_ns, event.topic, inputs)
 
     @staticmethod
     def _failed(due: _Due, status: Status, message: str) -> Step:
         code = FAILURE_CODE[status]
-        return Step(due.stamp_ns, due.trigger, (Finding(code, f"{FAILURE_TEXT[code]}: {message}"),), due.values,
+        return Step(due.stamp_ns, due.trigger, (Finding(code, f"{FAILURE_TEXT[code]}: {message}"),),
                     inputs=due.inputs)
 
     def _internal_error(self, event: JointStateEvent | PressureEvent, exc: Exception) -> Step:
         self.warm = None
         text = (f"internal error while processing {event.topic} (stamp {event.stamp_ns} ns): "
                 f"{type(exc).__name__}: {exc}; the input was recorded, the monitor goes on")
-        return Step(event.stamp_ns, event.topic, (Finding(Code.INTERNAL_ERROR, text),), {"input": event.topic})
+        return Step(event.stamp_ns, event.topic, (Finding(Code.INTERNAL_ERROR, text),))
 
     def _finish(self, due: _Due, result: Result, machine: MachineResult) -> Step:
         """Findings and key-values of one solved pose with its machine-level results."""
@@ -300,15 +319,4 @@ class Monitor:
             findings.append(Finding(Code.LIFT_RESERVE_LOW, f"lift reserve {reserve:.2f} < 1: implement load "
                                     f"{fmt(result.implement_load / 1e3)} kN exceeds the lift capacity "
                                     f"{fmt(capacity['implement_cg'] / 1e3)} kN at its centre of gravity"))
-        values = dict(due.values)
-        values.update({
-            "implement load [N]": fmt(result.implement_load),
-            "steerability ratio [-]": f"{steer.get('ratio', math.nan):.4f}",
-            "steerability margin [-]": f"{margin:.4f}",
-            "front axle load [N]": fmt(steer.get("front_axle_load", math.nan)),
-            "lift reserve [-]": f"{reserve:.4f}",
-            "largest hinge reaction [N]": fmt(max((h.magnitude for h in result.hinges.values()), default=math.nan)),
-            "equilibrium residual [N]": f"{result.residual:.3g}",
-            "kinematic residual [m]": f"{result.consistency_residual:.3g}",
-        })
-        return Step(due.stamp_ns, due.trigger, tuple(findings), values, Pose(result, machine), due.inputs)
+        return Step(due.stamp_ns, due.trigger, tuple(findings), Pose(result, machine), due.inputs)

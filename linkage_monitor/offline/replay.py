@@ -188,7 +188,7 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
     """Inputs, outputs and diagnostics in recording order, as the node records them."""
     from linkage_monitor.ros.diagnostics import DiagnosticGate, diagnostic_array
     from linkage_monitor.ros.markers import DEFAULT_RATE_HZ, DisplayGate, LinkageMarkers
-    from linkage_monitor.ros.messages import outputs
+    from linkage_monitor.ros.messages import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputEncoder
 
     writer = BagWriter(out_dir)
     try:
@@ -196,7 +196,7 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
         writer.record_mechanism(yaml.safe_dump(dict(description.raw), sort_keys=False, allow_unicode=True), first)
         from std_msgs.msg import String
         writer.write(CONFIG_TOPIC, String(data=config.to_yaml()), first, log_time_ns=first)
-        gate, name = DiagnosticGate(), f"linkage_monitor: {description.name}"
+        gate, name, encoder = DiagnosticGate(), f"linkage_monitor: {description.name}", OutputEncoder()
         markers, marker_gate = LinkageMarkers(monitor.mechanism), DisplayGate(DEFAULT_RATE_HZ)
         pace_start = time.perf_counter()
         topics = config.topics
@@ -207,12 +207,12 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
                 if delay > 0:
                     time.sleep(delay)
             writer.write(topic, msg, stamp, log_time_ns=receive)
-            out = outputs(monitor, step)
+            out = encoder.outputs(monitor, step)
             if out is not None:
-                for out_topic, out_msg in ((topics.hinge_reactions, out.hinge_reactions),
-                                           (topics.hitch_state, out.hitch_state),
-                                           (topics.steerability, out.steerability)):
-                    writer.write(out_topic, out_msg, step.stamp_ns, log_time_ns=receive)
+                for out_topic, data, type_name in ((topics.hinge_reactions, out.hinge_reactions, HINGE_REACTIONS),
+                                                   (topics.hitch_state, out.hitch_state, HITCH_STATE),
+                                                   (topics.steerability, out.steerability, STEERABILITY)):
+                    writer.write(out_topic, data, step.stamp_ns, type_name=type_name, log_time_ns=receive)
             if step.pose is not None and marker_gate.due(step.stamp_ns):
                 writer.write(topics.markers, markers.markers(step.stamp_ns, step.pose.result), step.stamp_ns,
                              log_time_ns=receive)

@@ -1,5 +1,11 @@
 """Monitoring steps -> the package's output messages (used by the live node and the replay).
 
+The three outputs of a solved pose (HingeReactions, HitchState, Steerability) are written
+straight to their CDR bytes (``ros.cdr``): published as serialized messages and recorded as
+they are, with no rclpy message object in between. Their layout is fixed for a mechanism
+(hinge, cylinder and body names), so ``OutputEncoder`` lays it out once and fills the numbers
+of each pose in; only the status texts are appended per message.
+
 Units SI (m, N, Pa, kg); frame x forward, z up, origin at the rear wheels' ground contact.
 Every output carries the header stamp of the triggering input, never wall-clock time.
 """
@@ -8,7 +14,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Mapping
 
 from builtin_interfaces.msg import Time
 from std_msgs.msg import Header
@@ -16,18 +21,27 @@ from std_msgs.msg import Header
 from linkage_monitor.mechanics import Mechanism, Result
 from linkage_monitor.monitoring.core import Monitor, Step
 from linkage_monitor.monitoring.findings import Code, Level
-from linkage_monitor.msg import CylinderState, HingeReaction, HingeReactions, HitchState, Steerability
+from linkage_monitor.msg import HingeReactions, HitchState, Steerability
+
+from .cdr import Template, Writer
 
 FRAME_ID = "base_footprint"  # REP 105 frame at the ground below the tractor: x forward, z up
+HINGE_REACTIONS, HITCH_STATE, STEERABILITY = ("linkage_monitor/msg/HingeReactions", "linkage_monitor/msg/HitchState",
+                                              "linkage_monitor/msg/Steerability")
+# Steerability's float64 fields after `reference`, in message order (msg/Steerability.msg)
+STEERABILITY_RATIOS = ("ratio", "ratio_unit", "ratio_tractor", "ratio_min", "margin", "front_ballast_needed",
+                       "max_implement_mass")
+STEERABILITY_LOADS = ("front_axle_load", "rear_axle_load", "total_weight", "wheelbase")
+CAPACITY_FIELDS = ("hitch_axis", "behind_610mm", "implement_cg", "reserve")   # MachineResult.lift_capacity keys
 
 
 @dataclass(frozen=True)
 class Outputs:
-    """The three output messages of one solve."""
+    """The three output messages of one solve, serialized (CDR, as published and recorded)."""
 
-    hinge_reactions: HingeReactions
-    hitch_state: HitchState
-    steerability: Steerability
+    hinge_reactions: bytes
+    hitch_state: bytes
+    steerability: bytes
 
 
 def header(stamp_ns: int) -> Header:
@@ -41,65 +55,110 @@ def stamp_ns(msg_header: Header) -> int:
     return int(msg_header.stamp.sec) * 1_000_000_000 + int(msg_header.stamp.nanosec)
 
 
-def outputs(monitor: Monitor, step: Step) -> Outputs | None:
-    """The three output messages of a step with a solved pose (None without one)."""
-    if step.pose is None:
-        return None
-    mech, result, machine = monitor.mechanism, step.pose.result, step.pose.machine
-    reference = mech.tractor.steerability_reference if mech.tractor else "unit"
-    return Outputs(hinge_reactions=hinge_reactions(mech, step, result, monitor.overdetermined),
-                   hitch_state=hitch_state(mech, step, result, machine.lift_capacity, monitor.estimates_load),
-                   steerability=steerability(step.stamp_ns, machine.steerability, reference))
-
-
-def hinge_reactions(mech: Mechanism, step: Step, result: Result, overdetermined: bool) -> HingeReactions:
-    """HingeReactions for one solved pose: force on bodies[1] from bodies[0] at every hinge, N.
-
-    overdetermined: more measurements than degrees of freedom (solved by least squares).
-    """
-    hinges = []
-    for hinge in mech.hinges:
-        r = result.hinges[hinge.name]
-        x, z = result.points[hinge.point]
-        hinges.append(HingeReaction(name=hinge.name, on_body=r.on_body, from_body=r.from_body,
-                                    fx=r.fx, fz=r.fz, magnitude=r.magnitude, x=float(x), z=float(z)))
-    status, text = HingeReactions.STATUS_OK, result.message or "ok"
+def hinge_status(step: Step, result: Result, overdetermined: bool) -> tuple[int, str]:
+    """HingeReactions.status and status_text: HIGH_RESIDUAL when the measured pressures disagree,
+    OVERDETERMINED when more measurements than degrees of freedom were solved by least squares."""
     disagree = [f.text for f in step.findings if f.code is Code.PRESSURES_DISAGREE]
     if disagree:
-        status, text = HingeReactions.STATUS_HIGH_RESIDUAL, disagree[0]
-    elif overdetermined:
-        status = HingeReactions.STATUS_OVERDETERMINED
-    return HingeReactions(header=header(step.stamp_ns), mechanism=mech.name, hinges=hinges, status=status,
-                          status_text=text, equilibrium_residual=float(result.residual),
-                          kinematic_residual=float(result.consistency_residual))
+        return HingeReactions.STATUS_HIGH_RESIDUAL, disagree[0]
+    status = HingeReactions.STATUS_OVERDETERMINED if overdetermined else HingeReactions.STATUS_OK
+    return status, result.message or "ok"
 
 
-def hitch_state(mech: Mechanism, step: Step, result: Result, lift_capacity: Mapping[str, float],
-                estimated: bool) -> HitchState:
-    """HitchState: cylinder states, implement load (N, + down), lift capacities (N), reserve (-)."""
-    cylinders = [CylinderState(name=name, length=c.length, force=c.force,
-                               cap_pressure_measured=c.cap_pressure_measured,
-                               rod_pressure_measured=c.rod_pressure_measured,
-                               cap_pressure_predicted=c.cap_pressure_predicted)
-                 for name, c in result.cylinders.items()]
-    hitch_point = mech.implement.hitch_point if mech.implement else None
-    height = float(result.points[hitch_point][1]) if hitch_point else math.nan
-    status = HitchState.STATUS_WARN if step.level == Level.WARN else HitchState.STATUS_OK
-    return HitchState(header=header(step.stamp_ns), cylinders=cylinders, implement_load=float(result.implement_load),
-                      implement_load_estimated=estimated,
-                      implement_cg_x=float(result.implement_cg[0]), implement_cg_z=float(result.implement_cg[1]),
-                      hitch_axis_height=height,
-                      lift_capacity_hitch_axis=float(lift_capacity.get("hitch_axis", math.nan)),
-                      lift_capacity_610mm=float(lift_capacity.get("behind_610mm", math.nan)),
-                      lift_capacity_implement_cg=float(lift_capacity.get("implement_cg", math.nan)),
-                      lift_reserve=float(lift_capacity.get("reserve", math.nan)), status=status,
-                      status_text=step.message)
+def hitch_status(step: Step) -> int:
+    """HitchState.status of a solved step (WARN with any warning finding)."""
+    return HitchState.STATUS_WARN if step.level == Level.WARN else HitchState.STATUS_OK
 
 
-def steerability(stamp: int, values: Mapping[str, float], reference: str) -> Steerability:
-    """Steerability message from the machine-level values (N, m, -, kg); reference 'unit'|'tractor'."""
-    ref = Steerability.REFERENCE_TRACTOR if reference == "tractor" else Steerability.REFERENCE_UNIT
-    fields = ("front_axle_load", "rear_axle_load", "total_weight", "wheelbase", "ratio", "ratio_unit",
-              "ratio_tractor", "ratio_min", "margin", "front_ballast_needed", "max_implement_mass")
-    return Steerability(header=header(stamp), reference=ref,
-                        **{name: float(values.get(name, math.nan)) for name in fields})
+def steerability_reference(mech: Mechanism) -> int:
+    """Steerability.reference: which weight the mechanism's ``ratio`` is taken of."""
+    reference = mech.tractor.steerability_reference if mech.tractor else "unit"
+    return Steerability.REFERENCE_TRACTOR if reference == "tractor" else Steerability.REFERENCE_UNIT
+
+
+class OutputEncoder:
+    """Writes the three output messages of solved steps as CDR bytes.
+
+    The layout follows the monitor's effective mechanism and is laid out again when the monitor
+    is reconfigured. ``outputs`` returns None for a step without a solved pose.
+    """
+
+    def __init__(self) -> None:
+        self._mechanism: Mechanism | None = None
+
+    def outputs(self, monitor: Monitor, step: Step) -> Outputs | None:
+        """The serialized outputs of ``step`` (a step of ``monitor``), or None without a solved pose."""
+        if step.pose is None:
+            return None
+        if monitor.mechanism is not self._mechanism:
+            self._lay_out(monitor)
+        result, machine = step.pose.result, step.pose.machine
+        return Outputs(self._hinge_reactions(step, result), self._hitch_state(step, result, machine.lift_capacity),
+                       bytes(self._steerability.fill(step.stamp_ns, [machine.steerability.get(k, math.nan)
+                                                                     for k in self._steerability_keys])))
+
+    # ---- layouts -----------------------------------------------------------------------------
+    def _lay_out(self, monitor: Monitor) -> None:
+        mech = monitor.mechanism
+        self._mechanism, self._overdetermined = mech, monitor.overdetermined
+        self._hinge_points = [(h.name, h.point) for h in mech.hinges]
+        bodies = {h.name: h.bodies for h in mech.hinges}
+        w, slots = Writer(), []
+        w.header(FRAME_ID)                              # msg/HingeReactions.msg, field by field
+        w.string(mech.name)
+        w.uint32(len(mech.hinges))
+        for name, _ in self._hinge_points:               # msg/HingeReaction.msg
+            w.string(name)
+            w.string(bodies[name][1])                    # on_body: the hinge's second body
+            w.string(bodies[name][0])                    # from_body
+            slots += [w.float64() for _ in range(5)]     # fx, fz, magnitude, x, z
+        self._hinges = Template.of(w, slots)
+
+        self._cylinders = [c.name for c in mech.cylinders]
+        w, slots = Writer(), []
+        w.header(FRAME_ID)                              # msg/HitchState.msg
+        w.uint32(len(self._cylinders))
+        for name in self._cylinders:                     # msg/CylinderState.msg
+            w.string(name)
+            slots += [w.float64() for _ in range(5)]     # length, force, cap / rod measured, cap predicted
+        slots.append(w.float64())                        # implement_load
+        w.uint8(int(monitor.estimates_load))            # implement_load_estimated
+        slots += [w.float64() for _ in range(7)]         # cg x, z, hitch axis height, 3 capacities, reserve
+        status = w.uint8(HitchState.STATUS_OK)
+        self._hitch = Template.of(w, slots, (status,))
+        self._hitch_point = mech.implement.hitch_point if mech.implement else None
+
+        w, slots = Writer(), []
+        w.header(FRAME_ID)                              # msg/Steerability.msg
+        slots += [w.float64() for _ in STEERABILITY_LOADS]
+        w.uint8(steerability_reference(mech))
+        slots += [w.float64() for _ in STEERABILITY_RATIOS]
+        self._steerability = Template.of(w, slots)
+        self._steerability_keys = STEERABILITY_LOADS + STEERABILITY_RATIOS
+
+    # ---- per step ----------------------------------------------------------------------------
+    def _hinge_reactions(self, step: Step, result: Result) -> bytes:
+        values: list[float] = []
+        for name, point in self._hinge_points:
+            h, xz = result.hinges[name], result.points[point]
+            values += (h.fx, h.fz, h.magnitude, xz[0], xz[1])
+        status, text = hinge_status(step, result, self._overdetermined)
+        w = Writer(self._hinges.fill(step.stamp_ns, values))
+        w.uint8(status)
+        w.string(text)
+        w.float64(result.residual)
+        w.float64(result.consistency_residual)
+        return bytes(w.data)
+
+    def _hitch_state(self, step: Step, result: Result, capacity: dict[str, float]) -> bytes:
+        values: list[float] = []
+        for name in self._cylinders:
+            c = result.cylinders[name]
+            values += (c.length, c.force, c.cap_pressure_measured, c.rod_pressure_measured, c.cap_pressure_predicted)
+        point = self._hitch_point
+        values += (result.implement_load, result.implement_cg[0], result.implement_cg[1],
+                   result.points[point][1] if point else math.nan)
+        values += [capacity.get(k, math.nan) for k in CAPACITY_FIELDS]
+        w = Writer(self._hitch.fill(step.stamp_ns, values, (hitch_status(step),)))
+        w.string(step.message)
+        return bytes(w.data)

@@ -24,11 +24,12 @@ import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, ParameterType, SetParametersResult
-from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
@@ -46,7 +47,7 @@ from linkage_monitor.msg import HingeReactions, HitchState, Steerability
 from linkage_monitor.ros.diagnostics import DiagnosticGate, diagnostic_array
 from linkage_monitor.ros.markers import DEFAULT_RATE_HZ as DEFAULT_MARKER_RATE_HZ
 from linkage_monitor.ros.markers import DisplayGate, LinkageMarkers
-from linkage_monitor.ros.messages import outputs, stamp_ns
+from linkage_monitor.ros.messages import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputEncoder, stamp_ns
 
 NODE_NAME = "linkage_monitor"
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -94,6 +95,7 @@ PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
                     "visualization_msgs/MarkerArray on linkage_markers (frame 'linkage'); 0: not at all", True,
                     (0.0, 1000.0)),
 }
+INPUT_TYPES = {JointState: "sensor_msgs/msg/JointState", FluidPressure: "sensor_msgs/msg/FluidPressure"}
 SENSOR_QOS = {"sensor_data": qos_profile_sensor_data, "reliable": RELIABLE_INPUT_QOS}
 RERUN_MODES = ("off", "save", "connect")
 
@@ -152,6 +154,7 @@ class LinkageMonitorNode(Node):
         description = load_description(p["mechanism"])
         config = monitor_config(p, description, self.resolve_topic_name)
         self.monitor = Monitor(description, config)
+        self.encoder = OutputEncoder()
         bag_dir = Path(p["record_dir"]) / (p["record_name"] or time.strftime(f"{description.name}_%Y%m%d_%H%M%S"))
         self.recorder = BagWriter(bag_dir) if p["record"] else None   # BagError: one line at start
 
@@ -162,11 +165,11 @@ class LinkageMonitorNode(Node):
         self._last_heartbeat = 0.0
         self._recording_reported = False
         self._pending_params: dict[str, Any] = {}
-        self.pub_hinges = self.create_publisher(HingeReactions, config.topics.hinge_reactions, OUTPUT_QOS)
-        self.pub_hitch = self.create_publisher(HitchState, config.topics.hitch_state, OUTPUT_QOS)
-        self.pub_steer = self.create_publisher(Steerability, config.topics.steerability, OUTPUT_QOS)
-        self.pub_diag = self.create_publisher(DiagnosticArray, config.topics.diagnostics, OUTPUT_QOS)
-        self.pub_mech = self.create_publisher(String, "mechanism_description", LATCHED)
+        self.pub_hinges = self._publisher(HingeReactions, config.topics.hinge_reactions, OUTPUT_QOS)
+        self.pub_hitch = self._publisher(HitchState, config.topics.hitch_state, OUTPUT_QOS)
+        self.pub_steer = self._publisher(Steerability, config.topics.steerability, OUTPUT_QOS)
+        self.pub_diag = self._publisher(DiagnosticArray, config.topics.diagnostics, OUTPUT_QOS)
+        self.pub_mech = self._publisher(String, "mechanism_description", LATCHED)
         mechanism_yaml = yaml.safe_dump(dict(description.raw), sort_keys=False, allow_unicode=True)
         self.pub_mech.publish(String(data=mechanism_yaml))
         now = self._now()
@@ -177,7 +180,7 @@ class LinkageMonitorNode(Node):
 
         self.markers = LinkageMarkers(description)
         self.marker_gate = DisplayGate(float(p["marker_rate"]))
-        self.pub_markers = self.create_publisher(MarkerArray, config.topics.markers, OUTPUT_QOS)
+        self.pub_markers = self._publisher(MarkerArray, config.topics.markers, OUTPUT_QOS)
         self.rerun = None
         self.rerun_gate = DisplayGate(float(p["rerun_rate"]))
         if p["rerun"] != "off":
@@ -195,43 +198,62 @@ class LinkageMonitorNode(Node):
         self.get_logger().info(f"monitoring '{description.name}': {config.topics.joint_states} + "
                                f"{', '.join(config.pressure_topics) or 'no pressures'}")
 
-    def _pressure_callback(self, topic: str) -> Callable[[FluidPressure, dict], None]:
-        def callback(msg: FluidPressure, info: dict) -> None:
-            self.on_pressure(topic, msg, info)
+    def _pressure_callback(self, topic: str) -> Callable[[bytes, dict], None]:
+        def callback(data: bytes, info: dict) -> None:
+            self.on_pressure(topic, data, info)
         return callback
 
-    def _subscribe(self, msg_type: type, topic: str, callback: Callable[[Any, Any], None]) -> None:
+    def _publisher(self, msg_type: type, topic: str, qos: QoSProfile) -> Any:
+        """A publisher without rclpy's default event handlers (QoS / type mismatch warnings: the
+        subscriber's side reports those), so that each spin of the executor waits on fewer entities."""
+        return self.create_publisher(msg_type, topic, qos,
+                                     event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
+
+    def _subscribe(self, msg_type: type, topic: str, callback: Callable[[bytes, Any], None]) -> None:
+        """Inputs are taken serialized (raw): the bag records the bytes that arrived, and the
+        message is deserialized once, here."""
         def lost(info: Any) -> None:
             self.loss.on_lost_event(topic, info.total_count_change)
         events = SubscriptionEventCallbacks(message_lost=lost)
-        self.create_subscription(msg_type, topic, callback, self.input_qos, event_callbacks=events)
+        self.create_subscription(msg_type, topic, callback, self.input_qos, event_callbacks=events, raw=True)
 
     def _now(self) -> int:
         return self.get_clock().now().nanoseconds
 
     # ---- callbacks: record first, then the core; never raise -------------------------------------
-    def on_joint_state(self, msg: JointState, info: dict) -> None:
-        """Record the JointState, solve, publish."""
+    def on_joint_state(self, data: bytes, info: dict) -> None:
+        """Record the serialized JointState, solve, publish."""
         topic = self.monitor.config.topics.joint_states
-        self._guarded(topic, msg, info, lambda stamp, now: self.monitor.on_joint_state(
+        self._guarded(topic, data, JointState, info, lambda msg, stamp, now: self.monitor.on_joint_state(
             msg.name, msg.position, msg.velocity, stamp, now, topic))
 
-    def on_pressure(self, topic: str, msg: FluidPressure, info: dict) -> None:
-        """Record the FluidPressure, solve, publish."""
-        self._guarded(topic, msg, info, lambda stamp, now: self.monitor.on_pressure(topic, msg.fluid_pressure,
-                                                                                    stamp, now))
+    def on_pressure(self, topic: str, data: bytes, info: dict) -> None:
+        """Record the serialized FluidPressure, solve, publish."""
+        self._guarded(topic, data, FluidPressure, info,
+                      lambda msg, stamp, now: self.monitor.on_pressure(topic, msg.fluid_pressure, stamp, now))
 
-    def _guarded(self, topic: str, msg: Any, info: dict, solve: Callable[[int, int], Step]) -> None:
+    def _guarded(self, topic: str, data: bytes, msg_type: type, info: dict,
+                 solve: Callable[[Any, int, int], Step]) -> None:
         now = self._now()
-        stamp = stamp_ns(msg.header)
         self.loss.on_message(topic, _publisher_id(info), info.get("publication_sequence_number"))
+        msg: Any = None
+        stamp, unreadable = now, ""
         try:
-            self._record(topic, msg, stamp, now, self.input_qos)
+            msg = deserialize_message(data, msg_type)
+            stamp = stamp_ns(msg.header)
+        except Exception as exc:  # noqa: BLE001 - bytes the middleware took but its type support cannot read
+            unreadable = f"{type(exc).__name__}: {exc}"
+        try:
+            self._record(topic, data, stamp, now, self.input_qos, INPUT_TYPES[msg_type])
         except Exception as exc:  # noqa: BLE001 - a recording fault must not stop the monitoring
             self._publish_status("recording", Level.ERROR, f"recording failed for {topic}: {type(exc).__name__}: "
                                  f"{exc}; solving and publishing go on", now)
+        if msg is None:
+            self._publish_status("internal", Level.ERROR, f"input on {topic} ({len(data)} bytes) cannot be "
+                                 f"deserialized as {INPUT_TYPES[msg_type]} ({unreadable}); recorded, not solved", now)
+            return
         try:
-            self._publish(solve(stamp, now), now)
+            self._publish(solve(msg, stamp, now), now)
         except Exception as exc:  # noqa: BLE001 - the adapter boundary: report and go on
             self.get_logger().error(f"internal error on {topic}: {type(exc).__name__}: {exc}",
                                     throttle_duration_sec=1.0)
@@ -299,14 +321,15 @@ class LinkageMonitorNode(Node):
 
     # ---- outputs ----------------------------------------------------------------------------------
     def _publish(self, step: Step, now: int) -> None:
-        out = outputs(self.monitor, step)
+        out = self.encoder.outputs(self.monitor, step)
         topics = self.monitor.config.topics
-        if out is not None:
-            for topic, pub, msg in ((topics.hinge_reactions, self.pub_hinges, out.hinge_reactions),
-                                    (topics.hitch_state, self.pub_hitch, out.hitch_state),
-                                    (topics.steerability, self.pub_steer, out.steerability)):
-                pub.publish(msg)
-                self._record(topic, msg, step.stamp_ns, now, OUTPUT_QOS)
+        if out is not None:   # serialized: published and recorded as they are
+            for topic, pub, data, type_name in (
+                    (topics.hinge_reactions, self.pub_hinges, out.hinge_reactions, HINGE_REACTIONS),
+                    (topics.hitch_state, self.pub_hitch, out.hitch_state, HITCH_STATE),
+                    (topics.steerability, self.pub_steer, out.steerability, STEERABILITY)):
+                pub.publish(data)
+                self._record(topic, data, step.stamp_ns, now, OUTPUT_QOS, type_name)
         if step.pose is not None and self.marker_gate.due(step.stamp_ns):
             markers = self.markers.markers(step.stamp_ns, step.pose.result)
             self.pub_markers.publish(markers)
@@ -350,9 +373,11 @@ class LinkageMonitorNode(Node):
         if part != "recording":
             self._record(self.monitor.config.topics.diagnostics, msg, now, now, OUTPUT_QOS)
 
-    def _record(self, topic: str, msg: Any, stamp: int, now: int, qos: QoSProfile) -> None:
+    def _record(self, topic: str, msg: Any, stamp: int, now: int, qos: QoSProfile, type_name: str | None = None
+                ) -> None:
+        """Record a message object, or its CDR bytes with ``type_name``."""
         if self.recorder is not None:
-            self.recorder.write(topic, msg, stamp, qos=qos, log_time_ns=now)
+            self.recorder.write(topic, msg, stamp, type_name=type_name, qos=qos, log_time_ns=now)
 
     def _record_config(self, config: MonitorConfig, now: int) -> None:
         assert self.recorder is not None

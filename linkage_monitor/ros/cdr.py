@@ -1,0 +1,103 @@
+"""Writing CDR: the serialized form in which ROS 2 messages travel and are recorded.
+
+Plain little-endian CDR (XCDR1, encapsulation 0x0001), as rmw_fastrtps publishes and rosbag2
+records: every primitive is aligned to its own size, counted from the first byte after the
+4-byte encapsulation header; a string is a uint32 length (bytes + 1) followed by its UTF-8
+bytes and a NUL; a sequence is a uint32 count followed by its elements.
+
+``Template`` serves messages whose layout is fixed for a mechanism (names and counts do not
+change between poses): the bytes are laid out once, and each message is a copy with its
+stamp and float64 slots filled in (an array assignment), instead of building an rclpy
+message field by field and serializing it. What may vary in length (a status text) is
+appended after the fixed part with ``Writer``.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+
+import numpy as np
+
+ENCAPSULATION = b"\x00\x01\x00\x00"   # CDR little endian, no options
+_U32, _F64, _STAMP = struct.Struct("<I"), struct.Struct("<d"), struct.Struct("<iI")
+_NS = 1_000_000_000
+
+
+class Writer:
+    """Appends CDR primitives to ``data`` (a payload that starts with the encapsulation header)."""
+
+    def __init__(self, data: bytearray | None = None) -> None:
+        self.data = data if data is not None else bytearray(ENCAPSULATION)
+
+    def align(self, size: int) -> None:
+        """Pad with zeros to a multiple of ``size`` bytes from the payload start."""
+        self.data += bytes(-(len(self.data) - len(ENCAPSULATION)) % size)
+
+    def uint8(self, value: int) -> int:
+        """A uint8 / bool / byte; returns its offset in ``data``."""
+        self.data.append(value)
+        return len(self.data) - 1
+
+    def uint32(self, value: int) -> None:
+        """A uint32 (a string length or sequence count)."""
+        self.align(4)
+        self.data += _U32.pack(value)
+
+    def string(self, text: str) -> None:
+        """A string: length with the NUL, UTF-8 bytes, NUL (cut at an embedded NUL, as rclpy does)."""
+        raw = text.split("\x00", 1)[0].encode("utf-8")
+        self.uint32(len(raw) + 1)
+        self.data += raw
+        self.data.append(0)
+
+    def float64(self, value: float = 0.0) -> int:
+        """A float64; returns its offset in ``data``."""
+        self.align(8)
+        self.data += _F64.pack(value)
+        return len(self.data) - 8
+
+    def header(self, frame_id: str) -> None:
+        """A std_msgs/Header at the payload start with stamp 0 (``Template.fill`` writes it)."""
+        if len(self.data) != len(ENCAPSULATION):
+            raise ValueError("the header must be the first field of a templated message")
+        self.data += _STAMP.pack(0, 0)
+        self.string(frame_id)
+
+
+def stamp_fields(stamp_ns: int) -> tuple[int, int]:
+    """builtin_interfaces/Time (sec, nanosec) of a stamp in ns since the epoch (sec rounds down)."""
+    return stamp_ns // _NS, stamp_ns % _NS
+
+
+@dataclass(frozen=True)
+class Template:
+    """The fixed part of a message: its bytes with the stamp and float64 slots to fill.
+
+    ``slots``: the float64 slots in fill order, as indices of 8-byte words from the payload
+    start (every float64 is 8-aligned there); ``flags``: byte offsets of uint8 slots.
+    """
+
+    data: bytes
+    slots: np.ndarray
+    flags: tuple[int, ...] = ()
+
+    @staticmethod
+    def of(writer: Writer, slot_offsets: list[int], flag_offsets: tuple[int, ...] = ()) -> "Template":
+        """Freeze ``writer``'s bytes; ``slot_offsets`` are the offsets its ``float64`` calls returned."""
+        base = len(ENCAPSULATION)
+        return Template(bytes(writer.data), np.array([(o - base) // 8 for o in slot_offsets], dtype=np.intp),
+                        flag_offsets)
+
+    def fill(self, stamp_ns: int, values: "np.ndarray | list[float]", flags: tuple[int, ...] = ()) -> bytearray:
+        """A copy with the header stamp (ns since the epoch; struct.error beyond int32 seconds),
+        the float64 ``values`` in slot order and the uint8 ``flags`` written in."""
+        data = bytearray(self.data)
+        _STAMP.pack_into(data, len(ENCAPSULATION), *stamp_fields(stamp_ns))
+        words = np.frombuffer(data, dtype="<f8", offset=len(ENCAPSULATION),
+                              count=(len(data) - len(ENCAPSULATION)) // 8)
+        words[self.slots] = values
+        del words   # release the buffer: the caller may append a tail
+        for offset, value in zip(self.flags, flags):
+            data[offset] = value
+        return data

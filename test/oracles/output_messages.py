@@ -1,0 +1,84 @@
+"""Oracle for the output messages: the three outputs of a step built field by field with rclpy's
+generated message classes (how the package built them before it wrote their CDR bytes directly,
+``linkage_monitor.ros.messages.OutputEncoder``). Serialized by rclpy, they are what the encoder's
+bytes must decode to (test/test_output_cdr.py).
+
+Units SI (m, N, Pa, kg); frame x forward, z up, origin at the rear wheels' ground contact.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping
+
+from linkage_monitor.mechanics import Mechanism, Result
+from linkage_monitor.monitoring.core import Monitor, Step
+from linkage_monitor.msg import CylinderState, HingeReaction, HingeReactions, HitchState, Steerability
+from linkage_monitor.ros.messages import header, hinge_status, hitch_status, steerability_reference
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """The three output messages of one solve."""
+
+    hinge_reactions: HingeReactions
+    hitch_state: HitchState
+    steerability: Steerability
+
+
+def outputs(monitor: Monitor, step: Step) -> Outputs | None:
+    """The three output messages of a step with a solved pose (None without one)."""
+    if step.pose is None:
+        return None
+    mech, result, machine = monitor.mechanism, step.pose.result, step.pose.machine
+    return Outputs(hinge_reactions=hinge_reactions(mech, step, result, monitor.overdetermined),
+                   hitch_state=hitch_state(mech, step, result, machine.lift_capacity, monitor.estimates_load),
+                   steerability=steerability(step.stamp_ns, machine.steerability, steerability_reference(mech)))
+
+
+def hinge_reactions(mech: Mechanism, step: Step, result: Result, overdetermined: bool) -> HingeReactions:
+    """HingeReactions for one solved pose: force on bodies[1] from bodies[0] at every hinge, N.
+
+    overdetermined: more measurements than degrees of freedom (solved by least squares).
+    """
+    hinges = []
+    for hinge in mech.hinges:
+        r = result.hinges[hinge.name]
+        x, z = result.points[hinge.point]
+        hinges.append(HingeReaction(name=hinge.name, on_body=r.on_body, from_body=r.from_body,
+                                    fx=r.fx, fz=r.fz, magnitude=r.magnitude, x=float(x), z=float(z)))
+    status, text = hinge_status(step, result, overdetermined)
+    return HingeReactions(header=header(step.stamp_ns), mechanism=mech.name, hinges=hinges, status=status,
+                          status_text=text, equilibrium_residual=float(result.residual),
+                          kinematic_residual=float(result.consistency_residual))
+
+
+def hitch_state(mech: Mechanism, step: Step, result: Result, lift_capacity: Mapping[str, float],
+                estimated: bool) -> HitchState:
+    """HitchState: cylinder states, implement load (N, + down), lift capacities (N), reserve (-)."""
+    cylinders = [CylinderState(name=name, length=c.length, force=c.force,
+                               cap_pressure_measured=c.cap_pressure_measured,
+                               rod_pressure_measured=c.rod_pressure_measured,
+                               cap_pressure_predicted=c.cap_pressure_predicted)
+                 for name, c in result.cylinders.items()]
+    hitch_point = mech.implement.hitch_point if mech.implement else None
+    height = float(result.points[hitch_point][1]) if hitch_point else math.nan
+    status = hitch_status(step)
+    return HitchState(header=header(step.stamp_ns), cylinders=cylinders, implement_load=float(result.implement_load),
+                      implement_load_estimated=estimated,
+                      implement_cg_x=float(result.implement_cg[0]), implement_cg_z=float(result.implement_cg[1]),
+                      hitch_axis_height=height,
+                      lift_capacity_hitch_axis=float(lift_capacity.get("hitch_axis", math.nan)),
+                      lift_capacity_610mm=float(lift_capacity.get("behind_610mm", math.nan)),
+                      lift_capacity_implement_cg=float(lift_capacity.get("implement_cg", math.nan)),
+                      lift_reserve=float(lift_capacity.get("reserve", math.nan)), status=status,
+                      status_text=step.message)
+
+
+def steerability(stamp: int, values: Mapping[str, float], ref: int) -> Steerability:
+    """Steerability message from the machine-level values (N, m, -, kg); ref: Steerability.REFERENCE_*."""
+    fields = ("front_axle_load", "rear_axle_load", "total_weight", "wheelbase", "ratio", "ratio_unit",
+              "ratio_tractor", "ratio_min", "margin", "front_ballast_needed", "max_implement_mass")
+    return Steerability(header=header(stamp), reference=ref,
+                        **{name: float(values.get(name, math.nan)) for name in fields})
