@@ -73,3 +73,58 @@ def test_warm_start_and_cold_start_give_the_same_pose() -> None:
         for name, pt in res.points.items():
             np.testing.assert_allclose(pt, cold.points[name], atol=1e-12)
 
+
+
+def _same_result(a, b, where: str) -> None:
+    """Two Results field by field: names equal, numbers to 1e-9 relative (1e-9 N / m absolute)."""
+    assert (a.status, a.message) == (b.status, b.message), where
+    for field in ("points", "body_poses"):
+        assert getattr(a, field).keys() == getattr(b, field).keys()
+        for k in getattr(a, field):
+            np.testing.assert_allclose(getattr(a, field)[k], getattr(b, field)[k], rtol=1e-9, atol=1e-9,
+                                       err_msg=f"{where} {field} {k}")
+    for field in ("hinges", "cylinders", "contacts"):
+        assert list(getattr(a, field)) == list(getattr(b, field)), where
+        for k, x in getattr(a, field).items():
+            y = getattr(b, field)[k]
+            for name, value in vars(x).items():
+                if isinstance(value, str):
+                    assert value == getattr(y, name), (where, field, k, name)
+                else:
+                    np.testing.assert_allclose(value, getattr(y, name), rtol=1e-9, atol=1e-6,
+                                               err_msg=f"{where} {field} {k} {name}")
+    assert len(a.frame_loads) == len(b.frame_loads)
+    for (pa, fa), (pb, fb) in zip(a.frame_loads, b.frame_loads):
+        np.testing.assert_allclose(pa, pb, rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(fa, fb, rtol=1e-9, atol=1e-6)
+    for field in ("implement_load", "implement_cg", "residual", "consistency_residual"):
+        np.testing.assert_allclose(getattr(a, field), getattr(b, field), rtol=1e-9, atol=1e-6, err_msg=f"{where} {field}")
+
+
+@pytest.mark.parametrize("name", ["belarus_1221", "damping_hitch", "drill_coulter", "ksu1_mower_adapter",
+                                  "ttz1080_base_change"])
+def test_one_pose_path_gives_what_the_batch_path_gives(name: str) -> None:
+    """Solver.solve takes a usual pose straight through the kernels (Solver._solve_plain); the
+    same inputs through the general batched path (solve_batch, from the reference pose) give the
+    same Result. Poses: a live sequence around the reference inputs (warm starts), pressures from
+    0.3 to 3 times a reference value, angle readings wrapped by ±2π."""
+    from linkage_monitor.mechanics import load_preset
+
+    mech = load_preset(name)
+    solver = Solver(mech)
+    kin = solver.kin
+    s_ref, nc = kin.reference_inputs(), kin.cyl_att.shape[1]
+    rng = np.random.default_rng(11)
+    previous, checked = None, 0
+    for k in range(40):
+        s = s_ref * (1.0 + 0.002 * np.sin(k / 5.0)) if kin.m == kin.n else s_ref.copy()
+        s[nc:] += 2.0 * np.pi * rng.integers(-1, 2, s.size - nc)
+        inputs = Inputs(cylinders={n: float(v) for n, v in zip(kin.input_names[:nc], s[:nc])},
+                        angles={n: float(v) for n, v in zip(kin.input_names[nc:], s[nc:])},
+                        pressures={p.name: 5e6 * rng.uniform(0.3, 3.0) for p in mech.measurements.pressures})
+        assert solver._solve_plain(inputs, previous.state if previous else None) is not None, k
+        one = solver.solve(inputs, previous=previous)
+        batch = solver.solve_batch(cylinders=inputs.cylinders, angles=inputs.angles, pressures=inputs.pressures)
+        _same_result(one, batch.result(0), f"{name} pose {k}")
+        previous, checked = one, checked + 1
+    assert checked == 40

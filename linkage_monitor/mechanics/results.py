@@ -145,7 +145,7 @@ class BatchResult:
         return Result(
             points={k: v[i].copy() for k, v in self.points.items()},
             body_poses={k: v[i].copy() for k, v in self.body_poses.items()},
-            hinges={k: _hinge(float(v[i, 0]), float(v[i, 1]), *self.hinge_bodies[k]) for k, v in self.hinge_force.items()},
+            hinges={k: hinge_result(float(v[i, 0]), float(v[i, 1]), *self.hinge_bodies[k]) for k, v in self.hinge_force.items()},
             cylinders={k: CylinderResult(length=float(self.cylinder_length[k][i]), force=float(self.cylinder_force[k][i]),
                                          cap_pressure_predicted=float(self.cap_pressure_predicted[k][i]),
                                          cap_pressure_measured=float(self.cap_pressure_measured[k][i]),
@@ -160,7 +160,7 @@ class BatchResult:
             condition=float(self.condition[i]), status=Status(int(self.status[i])).label, message=self.messages[i])
 
 
-def _hinge(fx: float, fz: float, from_body: str, on_body: str) -> HingeResult:
+def hinge_result(fx: float, fz: float, from_body: str, on_body: str) -> HingeResult:
     """HingeResult of the force (fx, fz) N on ``on_body`` from ``from_body`` (Python floats: cheap per pose)."""
     return HingeResult(fx=fx, fz=fz, magnitude=math.hypot(fx, fz), on_body=on_body, from_body=from_body)
 

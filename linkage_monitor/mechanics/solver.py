@@ -5,15 +5,16 @@ SI units (m, rad, N, Pa); frame x forward, z up, origin at the rear wheels' grou
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from typing import Mapping
 
 import numpy as np
 
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
-from .kinematics import Kinematics, KinematicState
+from .kinematics import Kinematics, KinematicState, wrap_angle
 from .model import Mechanism
-from .results import BatchResult, Result, Status
+from .results import BatchResult, ContactResult, CylinderResult, Result, Status, hinge_result
 from .statics import StaticsLayout
 
 ATMOSPHERE = 101325.0  # Pa; a gauge pressure below −1 atm is a negative absolute pressure
@@ -85,10 +86,14 @@ class Solver:
         little between messages: 2 iterations); without it, from the reference pose. Either way
         the answer is the same pose on the reference assembly branch (the solver keeps no state).
         """
+        start = previous.state if previous is not None else None
+        start = start if isinstance(start, KinematicState) else None
+        plain = self._solve_plain(inputs, start)
+        if plain is not None:
+            return plain
         arrays = {kind: {k: np.array([v], dtype=float) for k, v in getattr(inputs, kind).items()}
                   for kind in ("cylinders", "angles", "pressures", "rates", "accelerations")}
-        start = previous.state if previous is not None else None
-        batch, ks = self._solve(start if isinstance(start, KinematicState) else None, **arrays)
+        batch, ks = self._solve(start, **arrays)
         res = batch.result(0)
         code = int(batch.status[0])
         if code in (Status.OK, Status.LIFT_OFF):
@@ -204,6 +209,79 @@ class Solver:
                                               f"absolute pressure: check the sensor and its zero offset")
         return problems
 
+    def _solve_plain(self, inputs: Inputs, start: KinematicState | None) -> Result | None:
+        """The usual live pose, straight through the kernels: every input given, finite and in range,
+        no rates, assembled on the reference branch from ``start`` (or the reference pose), no dead
+        centre, no contact lifting off. None for anything else: ``_solve`` then solves the pose and
+        words what is wrong. Gives what ``_solve`` would (test_mechanics_fast_paths.py)."""
+        kin, mech = self.kin, self.mech
+        if inputs.rates or inputs.accelerations or len(inputs.cylinders) + len(inputs.angles) != kin.n_inputs:
+            return None
+        nc = kin.cyl_att.shape[1]
+        sensors = self._sensors
+        try:
+            s = np.array([inputs.cylinders[n] if j < nc else inputs.angles[n] for j, n in enumerate(kin.input_names)],
+                         dtype=float)
+            pressures = {sensors[n]: float(v) for n, v in inputs.pressures.items()}
+        except (KeyError, TypeError, ValueError):
+            return None
+        if not (np.isfinite(s).all() and (s[:nc] > 0.0).all()
+                and all(math.isfinite(v) and v >= -ATMOSPHERE for v in pressures.values())):
+            return None
+        s[nc:] = kin.angle_reference + wrap_angle(s[nc:] - kin.angle_reference)   # as Kinematics.solve
+        q, phi, jac, cond, on_branch = kin.continue_from(start if start is not None else kin.reference, s[None])
+        limit = 1e-9 * kin.lc if kin.m == kin.n else self.consistency_tol
+        if not (on_branch[0] and np.abs(phi[0]).max() <= limit and cond[0] <= self.dead_centre_cond):
+            return None
+        force_known = frozenset(ps.cylinder for ps in pressures)
+        cap = {c.name: math.nan for c in mech.cylinders}
+        rod = dict(cap)
+        for ps, value in pressures.items():
+            (cap if ps.chamber == "cap" else rod)[ps.cylinder] = value
+        measured = np.array([[c.count * (_zero_if_nan(cap[c.name]) * c.cap_area - _zero_if_nan(rod[c.name]) * c.rod_area)
+                              if c.name in force_known else math.nan for c in mech.cylinders]])
+        layout = self.statics_layout(force_known)
+        p, _ = kin.positions(q)
+        sol = layout.solve(p, measured, None)
+        u = sol.unknowns[0]
+        if not sol.condition[0] <= self.dead_centre_cond or any(u[col] < 0.0 for col in layout.contact_col.values()):
+            return None
+        state = KinematicState(s=s[None], q=q, phi=phi, jac=jac, status=np.zeros(1, dtype=int), messages=[""],
+                               condition=cond)
+        return self._result(q[0], p[0], u, sol, layout, measured[0], cap, rod, state)
+
+    def _result(self, q: np.ndarray, p: np.ndarray, u: np.ndarray, sol, layout: StaticsLayout, measured: np.ndarray,
+                cap: dict[str, float], rod: dict[str, float], state: KinematicState) -> Result:
+        """The Result of one solved pose (OK) from its coordinates q, attachment positions p and unknowns u
+        (the one-pose counterpart of ``_assemble`` + ``BatchResult.result``)."""
+        mech = self.mech
+        cylinders, forces = {}, []
+        for k, c in enumerate(mech.cylinders):
+            f = float(measured[k]) if c.name in layout.force_known else float(u[layout.cyl_col[c.name]])
+            forces.append(f)
+            cylinders[c.name] = CylinderResult(length=float(sol.cylinder_length[0, k]), force=f,
+                                               cap_pressure_predicted=f / (c.count * c.cap_area),
+                                               cap_pressure_measured=cap[c.name], rod_pressure_measured=rod[c.name])
+        hinges = {h.name: hinge_result(float(u[layout.hinge_cols[i][0]]), float(u[layout.hinge_cols[i][1]]), *h.bodies)
+                  for i, h in enumerate(mech.hinges)}
+        contacts = {c.name: ContactResult(normal=float(u[layout.contact_col[c.name]]),
+                                          tangential=c.friction * float(u[layout.contact_col[c.name]]))
+                    for c in mech.contacts}
+        imp = mech.implement
+        implement_load = (float(u[layout.implement_col]) if layout.implement_col is not None
+                          else imp.mass * mech.gravity if imp is not None else math.nan)
+        member_force = np.concatenate([sol.spring_force[0], forces])
+        axes = np.concatenate([sol.spring_axis[0], sol.cylinder_axis[0]])
+        frame_loads = [(p[att].copy(), sign * u[layout.hinge_cols[i]]) for i, att, sign in self._frame_hinges]
+        frame_loads += [(p[att].copy(), sign * member_force[m] * axes[m]) for m, att, sign in self._frame_members]
+        return Result(points={n: p[a].copy() for n, a in self._point_att.items()},
+                      body_poses={b.name: q[3 * i:3 * i + 3].copy() for i, b in enumerate(mech.moving_bodies)},
+                      hinges=hinges, cylinders=cylinders, contacts=contacts, implement_load=implement_load,
+                      implement_cg=p[self._cg_att].copy() if self._cg_att is not None else np.full(2, np.nan),
+                      frame_loads=frame_loads, residual=float(sol.residual[0]),
+                      consistency_residual=float(np.linalg.norm(state.phi[0])),
+                      condition=float(max(sol.condition[0], state.condition[0])), status=Status.OK.label, state=state)
+
     def _solve(self, previous: KinematicState | None, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap,
                rates: ArrayMap, accelerations: ArrayMap) -> tuple[BatchResult, KinematicState]:
         mech, kin = self.mech, self.kin
@@ -313,3 +391,8 @@ class Solver:
 def _unmeasured_as_zero(pressure: np.ndarray) -> np.ndarray:
     """Gauge pressures (Pa) with the unmeasured chambers (NaN) at 0 (faster than np.nan_to_num on one pose)."""
     return np.where(np.isnan(pressure), 0.0, pressure)
+
+
+def _zero_if_nan(pressure: float) -> float:
+    """One gauge pressure (Pa), 0 when the chamber is not measured (NaN)."""
+    return 0.0 if math.isnan(pressure) else pressure
