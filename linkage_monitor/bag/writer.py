@@ -40,6 +40,7 @@ _MCAP_MAGIC = b"\x89MCAP0\r\n"
 # summary_offset_start 0, summary_crc 0) + magic: the smallest valid MCAP ending.
 _TAIL = (struct.pack("<BQI", 0x0F, 4, 0) + struct.pack("<BQQQI", 0x02, 20, 0, 0, 0)
          + _MCAP_MAGIC)
+_YAML_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)   # libyaml: 4x faster, the same text (every flush)
 
 
 def message_type_name(msg: Any) -> str:
@@ -374,8 +375,8 @@ class BagWriter:
         }
 
     def _write_metadata_yaml(self) -> None:
-        text = yaml.safe_dump({"rosbag2_bagfile_information": self._bag_information()},
-                              sort_keys=False)
+        text = yaml.dump({"rosbag2_bagfile_information": self._bag_information()}, Dumper=_YAML_DUMPER,
+                         sort_keys=False)
         tmp = self.directory / "metadata.yaml.tmp"
         tmp.write_text(text, encoding="utf-8")
         os.replace(tmp, self.directory / "metadata.yaml")
