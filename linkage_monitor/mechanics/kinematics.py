@@ -217,9 +217,7 @@ class Kinematics:
         poses that fail or land on another branch are redone by continuation from the reference pose.
         """
         n_pose = s.shape[0]
-        nc = self.cyl_att.shape[1]
-        s = s.copy()   # angles as the nearest equivalent (modulo 2π) of the reference pose's: a sensor
-        s[:, nc:] = self.angle_reference + wrap_angle(s[:, nc:] - self.angle_reference)  # in [−π, π) or [0, 2π)
+        s = self.wrap_angles(s)
         start = self._reference if previous is None else previous
         q, phi, jac, cond, on_branch = self.continue_from(start, s)
         limit = 1e-9 * self.lc if self.m == self.n else consistency_tol
@@ -255,6 +253,14 @@ class Kinematics:
             messages[i] = (f"kinematic dead centre at {self.describe_inputs(s[i])}: constraint Jacobian "
                            f"condition number {cond[i]:.3g} > {dead_centre_cond:.3g}")
         return KinematicState(s=s, q=q, phi=phi, jac=jac, status=status, messages=messages, condition=cond)
+
+    def wrap_angles(self, s: np.ndarray) -> np.ndarray:
+        """Inputs s (..., n_inputs) with each angle (rad) as the nearest equivalent (modulo 2π) of the
+        reference pose's reading: a sensor in [−π, π) or [0, 2π) gives the same pose."""
+        nc = self.cyl_att.shape[1]
+        s = np.array(s, dtype=float)
+        s[..., nc:] = self.angle_reference + wrap_angle(s[..., nc:] - self.angle_reference)
+        return s
 
     def continue_from(self, start: KinematicState, s: np.ndarray) -> tuple[np.ndarray, ...]:
         """``kernels.solve_poses`` from the last pose of ``start`` for inputs s (N, n_inputs): q, Φ,

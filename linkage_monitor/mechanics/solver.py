@@ -12,8 +12,8 @@ from typing import Mapping
 import numpy as np
 
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
-from .kinematics import Kinematics, KinematicState, wrap_angle
-from .model import Mechanism
+from .kinematics import Kinematics, KinematicState
+from .model import Cylinder, Mechanism
 from .results import BatchResult, ContactResult, CylinderResult, Result, Status, hinge_result
 from .statics import StaticsLayout
 
@@ -228,7 +228,7 @@ class Solver:
         if not (np.isfinite(s).all() and (s[:nc] > 0.0).all()
                 and all(math.isfinite(v) and v >= -ATMOSPHERE for v in pressures.values())):
             return None
-        s[nc:] = kin.angle_reference + wrap_angle(s[nc:] - kin.angle_reference)   # as Kinematics.solve
+        s = kin.wrap_angles(s)
         q, phi, jac, cond, on_branch = kin.continue_from(start if start is not None else kin.reference, s[None])
         limit = 1e-9 * kin.lc if kin.m == kin.n else self.consistency_tol
         if not (on_branch[0] and np.abs(phi[0]).max() <= limit and cond[0] <= self.dead_centre_cond):
@@ -238,8 +238,8 @@ class Solver:
         rod = dict(cap)
         for ps, value in pressures.items():
             (cap if ps.chamber == "cap" else rod)[ps.cylinder] = value
-        measured = np.array([[c.count * (_zero_if_nan(cap[c.name]) * c.cap_area - _zero_if_nan(rod[c.name]) * c.rod_area)
-                              if c.name in force_known else math.nan for c in mech.cylinders]])
+        measured = np.array([[_measured_force(c, cap[c.name], rod[c.name]) if c.name in force_known else math.nan
+                              for c in mech.cylinders]])
         layout = self.statics_layout(force_known)
         p, _ = kin.positions(q)
         sol = layout.solve(p, measured, None)
@@ -305,7 +305,7 @@ class Solver:
             linear, _ = kin.point_rates(q_ddot, rel)
             _, centripetal = kin.point_rates(q_dot, rel)
             accel = (linear + centripetal, q_ddot[:, 2::3])
-        # measured cylinder forces: F = count·(p_cap·A_cap − p_rod·A_rod) (schema, cylinders[])
+        # measured cylinder forces (_measured_force)
         sensors = self._sensors
         nan = np.full(n_pose, np.nan)
         cap = {c.name: nan for c in mech.cylinders}
@@ -317,8 +317,7 @@ class Solver:
         measured_force = np.full((n_pose, len(mech.cylinders)), np.nan)
         for k, c in enumerate(mech.cylinders):
             if c.name in force_known:
-                measured_force[:, k] = c.count * (_unmeasured_as_zero(cap[c.name]) * c.cap_area
-                                                  - _unmeasured_as_zero(rod[c.name]) * c.rod_area)
+                measured_force[:, k] = _measured_force(c, cap[c.name], rod[c.name])
         layout = self.statics_layout(force_known)
         sol = layout.solve(p, measured_force, accel)
         for i in np.flatnonzero((status == Status.OK) & ~(sol.condition <= self.dead_centre_cond)):
@@ -388,11 +387,7 @@ class Solver:
             condition=np.zeros(n_pose), status=np.zeros(n_pose, dtype=int), messages=[""] * n_pose)
 
 
-def _unmeasured_as_zero(pressure: np.ndarray) -> np.ndarray:
-    """Gauge pressures (Pa) with the unmeasured chambers (NaN) at 0 (faster than np.nan_to_num on one pose)."""
-    return np.where(np.isnan(pressure), 0.0, pressure)
-
-
-def _zero_if_nan(pressure: float) -> float:
-    """One gauge pressure (Pa), 0 when the chamber is not measured (NaN)."""
-    return 0.0 if math.isnan(pressure) else pressure
+def _measured_force(c: Cylinder, cap: "float | np.ndarray", rod: "float | np.ndarray") -> "float | np.ndarray":
+    """Axial force (N, + pushing) of cylinder group ``c`` from its gauge pressures (Pa; NaN = that
+    chamber not measured, taken as 0): F = count·(p_cap·A_cap − p_rod·A_rod) (schema, cylinders[])."""
+    return c.count * (np.where(np.isnan(cap), 0.0, cap) * c.cap_area - np.where(np.isnan(rod), 0.0, rod) * c.rod_area)

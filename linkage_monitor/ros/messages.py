@@ -32,6 +32,7 @@ HINGE_REACTIONS, HITCH_STATE, STEERABILITY = ("linkage_monitor/msg/HingeReaction
 STEERABILITY_RATIOS = ("ratio", "ratio_unit", "ratio_tractor", "ratio_min", "margin", "front_ballast_needed",
                        "max_implement_mass")
 STEERABILITY_LOADS = ("front_axle_load", "rear_axle_load", "total_weight", "wheelbase")
+STEERABILITY_FIELDS = STEERABILITY_LOADS + STEERABILITY_RATIOS   # the float64 slots in order
 CAPACITY_FIELDS = ("hitch_axis", "behind_610mm", "implement_cg", "reserve")   # MachineResult.lift_capacity keys
 
 
@@ -95,7 +96,7 @@ class OutputEncoder:
         result, machine = step.pose.result, step.pose.machine
         return Outputs(self._hinge_reactions(step, result), self._hitch_state(step, result, machine.lift_capacity),
                        bytes(self._steerability.fill(step.stamp_ns, [machine.steerability.get(k, math.nan)
-                                                                     for k in self._steerability_keys])))
+                                                                     for k in STEERABILITY_FIELDS])))
 
     # ---- layouts -----------------------------------------------------------------------------
     def _lay_out(self, monitor: Monitor) -> None:
@@ -134,7 +135,6 @@ class OutputEncoder:
         w.uint8(steerability_reference(mech))
         slots += [w.float64() for _ in STEERABILITY_RATIOS]
         self._steerability = Template.of(w, slots)
-        self._steerability_keys = STEERABILITY_LOADS + STEERABILITY_RATIOS
 
     # ---- per step ----------------------------------------------------------------------------
     def _hinge_reactions(self, step: Step, result: Result) -> bytes:

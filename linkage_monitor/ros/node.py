@@ -34,6 +34,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
+from linkage_monitor.bag.reader import FLUID_PRESSURE, JOINT_STATE
 from linkage_monitor.bag.writer import BagError, BagWriter
 from linkage_monitor.mechanics import LinkageError, Mechanism, load_description
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
@@ -95,7 +96,7 @@ PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
                     "visualization_msgs/MarkerArray on linkage_markers (frame 'linkage'); 0: not at all", True,
                     (0.0, 1000.0)),
 }
-INPUT_TYPES = {JointState: "sensor_msgs/msg/JointState", FluidPressure: "sensor_msgs/msg/FluidPressure"}
+INPUT_TYPES = {JointState: JOINT_STATE, FluidPressure: FLUID_PRESSURE}
 SENSOR_QOS = {"sensor_data": qos_profile_sensor_data, "reliable": RELIABLE_INPUT_QOS}
 RERUN_MODES = ("off", "save", "connect")
 
