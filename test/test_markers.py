@@ -1,6 +1,7 @@
 """The linkage as visualization_msgs/MarkerArray: published by the live node at its display
 rate, recorded in its bag, decoded by rosbags and by mcap-ros2-support (readers we did not
-write), and checked against a fresh solver's points and forces (a replay of the same bag)."""
+write), and checked against a fresh solver's points and forces (a replay of the same bag); the
+bytes the package writes by hand against rclpy's own message and serialization."""
 
 from __future__ import annotations
 
@@ -11,13 +12,19 @@ import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from linkage_monitor.mechanics import load_preset
+from rclpy.serialization import deserialize_message, serialize_message
+from visualization_msgs.msg import MarkerArray
+
+from linkage_monitor.bag.definitions import exact_cdr
+from linkage_monitor.mechanics import Inputs, Solver, load_preset, preset_names
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
 from linkage_monitor.offline.replay import replay
-from linkage_monitor.ros.markers import FRAME
+from linkage_monitor.ros.markers import FRAME, MARKER_ARRAY, LinkageMarkers
 from linkage_monitor.ros.messages import stamp_ns
 from linkage_monitor.viz.drawing import ARROW_LENGTH, body_outline
+from oracles import markers as oracle_markers
 from support.ros_harness import node_bag, read_bag_rosbags, settle, stop
+from test_output_cdr import _same
 
 T0 = (time.time_ns() // 10**9) * 10**9
 JOINTS = ["lift_cylinder", "lift_arm_angle"]
@@ -79,3 +86,27 @@ def test_node_publishes_and_records_the_linkage_as_markers(node):
         arrow = ns["cylinder_forces"][0]
         drawn = np.linalg.norm(np.subtract(xz(arrow.points[1]), xz(arrow.points[0]))) / scale
         assert drawn == pytest.approx(abs(result.cylinders[cylinder.name].force), rel=1e-9)
+
+
+@pytest.mark.parametrize("name", preset_names())
+def test_marker_bytes_are_what_rclpy_builds(name):
+    """The MarkerArray bytes the package writes (ros.markers, CDR by hand) decode with rclpy to the
+    message the former builder made field by field (oracle: test/oracles/markers.py), floats bit
+    for bit, and have its exact CDR length (rclpy's buffer cut by rosbags' decoder); on every
+    preset, over a simulated lift (several poses: the force scale fixed by the first)."""
+    mech = load_preset(name)
+    solver = Solver(mech)
+    ref = solver.kin.reference_inputs()
+    nc = len(mech.measurements.cylinders)
+    ours, theirs = LinkageMarkers(mech), oracle_markers.LinkageMarkers(mech)
+    stamp = 1_700_000_000_123_456_789
+    for k, factor in enumerate((1.0, 1.0005, 0.9995)):
+        s = ref * np.where(np.arange(ref.size) < nc, factor, 1.0)
+        result = solver.solve(Inputs(cylinders=dict(zip(solver.kin.input_names[:nc], s[:nc])),
+                                     angles=dict(zip(solver.kin.input_names[nc:], s[nc:])),
+                                     pressures=dict(mech.reference_inputs.get("pressures", {}))))
+        data, msg = ours.markers(stamp + k, result), theirs.markers(stamp + k, result)
+        assert isinstance(data, bytes)
+        wire = serialize_message(msg)   # what a subscriber of the oracle gets (float32 colours rounded)
+        _same(deserialize_message(data, MarkerArray), deserialize_message(wire, MarkerArray), "markers")
+        assert len(data) == len(exact_cdr(MARKER_ARRAY, wire))

@@ -95,6 +95,13 @@ def read_bag(path: str | os.PathLike[str], topics: Collection[str] | None = None
     topics: only these topics; types: only these `pkg/msg/Type`s (default: all; others are
     skipped before they are decoded).
     """
+    for topic, type_name, stamp, log_time, msg, _ in _messages(path, topics=topics, types=types):
+        yield topic, type_name, stamp, log_time, msg
+
+
+def read_bag_data(path: str | os.PathLike[str], topics: Collection[str] | None = None,
+                  types: Collection[str] | None = None) -> Iterator[tuple[str, str, int, int, Any, bytes]]:
+    """``read_bag``'s rows with each message's CDR bytes as recorded appended (to copy it on unchanged)."""
     yield from _messages(path, topics=topics, types=types)
 
 
@@ -105,7 +112,7 @@ def read_inputs(path: str | os.PathLike[str]) -> dict[str, JointStateColumns | P
     """
     rows: dict[str, list[tuple[int, int, Any]]] = {}
     kinds: dict[str, str] = {}
-    for topic, type_name, stamp, log_time, msg in _messages(
+    for topic, type_name, stamp, log_time, msg, _ in _messages(
             path, topics=None, types=(JOINT_STATE, FLUID_PRESSURE)):
         rows.setdefault(topic, []).append((stamp, log_time, msg))
         kinds[topic] = type_name
@@ -145,7 +152,7 @@ def _files_from_metadata(directory: Path) -> list[Path]:
 
 
 def _messages(path: str | os.PathLike[str], topics: Collection[str] | None,
-              types: Collection[str] | None) -> Iterator[tuple[str, str, int, int, Any]]:
+              types: Collection[str] | None) -> Iterator[tuple[str, str, int, int, Any, bytes]]:
     for file in mcap_files(path):
         for schema, channel, message in _raw_messages(file, topics):
             type_name = schema.name if schema is not None else ""
@@ -158,7 +165,7 @@ def _messages(path: str | os.PathLike[str], topics: Collection[str] | None,
             header = getattr(msg, "header", None)
             stamp = (header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
                      if header is not None else message.publish_time)
-            yield channel.topic, type_name, stamp, message.log_time, msg
+            yield channel.topic, type_name, stamp, message.log_time, msg, message.data
 
 
 def _raw_messages(file: Path, topics: Collection[str] | None) -> Iterator[tuple[Any, Any, Any]]:

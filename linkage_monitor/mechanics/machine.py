@@ -14,14 +14,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import kernels
+from . import kernels, machine_kernels
 from .capacity import capacity_force, capacity_points, lift_cylinder, reference_length
 from .model import Mechanism, Tractor
 from .results import BatchResult, Status, Result
 from .solver import Solver
 
-STEERABILITY_KEYS = ("front_axle_load", "rear_axle_load", "total_weight", "wheelbase", "ratio", "ratio_min",
-                     "margin", "front_ballast_needed", "ratio_unit", "ratio_tractor", "max_implement_mass")
+STEERABILITY_KEYS = machine_kernels.COLUMNS   # front_axle_load, rear_axle_load, total_weight, wheelbase, ratio,
+# ratio_min, margin, front_ballast_needed, ratio_unit, ratio_tractor, max_implement_mass
 CAPACITY_KEYS = ("hitch_axis", "behind_610mm", "implement_cg")
 
 
@@ -62,59 +62,27 @@ def _summary(capacity: dict, steer: dict) -> dict:
     return {"lift_capacity": pick(capacity, CAPACITY_KEYS), "steerability": pick(steer, STEERABILITY_KEYS)}
 
 
-def axle_loads(tractor: Tractor, gravity: float, frame_load_points: np.ndarray,
-               frame_load_forces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Front and rear axle loads (N, + = ground pushes up), shape (N,), from the tractor's free body.
-
-    frame_load_points / _forces (N, K, 2): m / N, forces the linkage puts ON the frame. Moment
-    balance about B: L·R_A − m_tr·g·x_tr − m_cw·g·x_cw + Σ(x·Fz − z·Fx) = 0 (seed 003's balance,
-    applied to the tractor alone); vertical balance gives R_B.
-    """
-    g, L = gravity, tractor.wheelbase
-    ballast_mass, ballast_x = _ballast(tractor)
-    moment = np.sum(frame_load_points[..., 0] * frame_load_forces[..., 1]
-                    - frame_load_points[..., 1] * frame_load_forces[..., 0], axis=-1)
-    front = (tractor.mass * g * tractor.cg[0] + ballast_mass * g * ballast_x - moment) / L
-    rear = (tractor.mass + ballast_mass) * g - np.sum(frame_load_forces[..., 1], axis=-1) - front
-    return front, rear
-
-
-def _ballast(tractor: Tractor) -> tuple[float, float]:
-    """Front ballast mass (kg) and x (m); with none configured, 0 kg at the front axle (x = wheelbase)."""
+def machine_parameters(tractor: Tractor, gravity: float) -> np.ndarray:
+    """The tractor's constants as ``machine_kernels.steerability_rows`` takes them (PARAMETERS order);
+    with no front ballast configured, 0 kg at the front axle (x = wheelbase)."""
     fb = tractor.front_ballast
-    return (fb.mass, fb.x) if fb is not None else (0.0, tractor.wheelbase)
+    ballast_mass, ballast_x = (fb.mass, fb.x) if fb is not None else (0.0, tractor.wheelbase)
+    return np.array([gravity, tractor.wheelbase, tractor.ratio_min, tractor.mass, tractor.cg[0], ballast_mass,
+                     ballast_x, 1.0 if tractor.steerability_reference == "unit" else 0.0])
 
 
-def steerability(tractor: Tractor, gravity: float, front: np.ndarray, rear: np.ndarray,
+def steerability(tractor: Tractor, gravity: float, frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
                  implement_load: np.ndarray, implement_x: np.ndarray) -> dict[str, np.ndarray]:
-    """Steerability quantities (``STEERABILITY_KEYS``) from the axle loads (N) and the implement load (N) at x (m).
-
-    seed 003: k = R_A / W ≥ ratio_min with W the unit's weight on the wheels (R_A + R_B; in
-    transport = P_tr + P_cw + P_6) or the empty tractor's weight (``steerability_reference``).
-    By global equilibrium R_A grows by g·x/L per kg at x, so (with c = 1 for the unit, 0 for the
-    tractor reference, as W then does not change): front ballast for k = ratio_min
-    m_cw = m_cw0 + (r·W − R_A)/(g·(x_cw/L − r·c)); largest implement mass
-    m_6 = P_6/g + (R_A − r·W)/(g·(r·c − x_S6/L)) (inf if the denominator is ≤ 0).
-    """
-    g, L, r = gravity, tractor.wheelbase, tractor.ratio_min
-    total = front + rear
-    tractor_weight = tractor.mass * g
-    ratio_unit, ratio_tractor = front / total, front / tractor_weight
-    unit = tractor.steerability_reference == "unit"
-    ref_weight, c = (total, 1.0) if unit else (np.full_like(front, tractor_weight), 0.0)
-    ratio = ratio_unit if unit else ratio_tractor
-    ballast_mass, ballast_x = _ballast(tractor)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ballast_slope = g * (ballast_x / L - r * c)
-        ballast = np.where(ballast_slope > 0.0, np.maximum(0.0, ballast_mass + (r * ref_weight - front) / ballast_slope),
-                           np.inf)
-        implement_slope = g * (r * c - implement_x / L)
-        max_mass = np.where(implement_slope > 0.0,
-                            np.maximum(0.0, implement_load / g + (front - r * ref_weight) / implement_slope), np.inf)
-    return {"front_axle_load": front, "rear_axle_load": rear, "total_weight": total,
-            "wheelbase": np.full_like(front, L), "ratio": ratio, "ratio_min": np.full_like(front, r),
-            "margin": ratio - r, "front_ballast_needed": ballast, "ratio_unit": ratio_unit,
-            "ratio_tractor": ratio_tractor, "max_implement_mass": max_mass}
+    """Axle loads and steerability (``STEERABILITY_KEYS``, arrays (N,)) of N poses from the forces the
+    linkage puts ON the frame (points / forces (N, K, 2), m / N) and the implement load (N,) N at x
+    (N,) m: the tractor's free body (seed 003's moment balance about B, done on the tractor alone so
+    that soil forces on the implement count correctly; wheel traction acts at z = 0) and seed 003's
+    steerability k = R_A / W ≥ ratio_min (formulas: ``machine_kernels.steerability_rows``)."""
+    rows = machine_kernels.steerability_rows(
+        np.ascontiguousarray(frame_load_points, dtype=float), np.ascontiguousarray(frame_load_forces, dtype=float),
+        np.ascontiguousarray(implement_load, dtype=float), np.ascontiguousarray(implement_x, dtype=float),
+        machine_parameters(tractor, gravity))
+    return {k: rows[:, j] for j, k in enumerate(machine_kernels.COLUMNS)}
 
 
 class MachineModel:
@@ -163,18 +131,23 @@ class MachineModel:
     # ---- batched (replay, capacity curve) and one pose (the node) ------------------------------
     def evaluate_batch(self, batch: BatchResult) -> MachineBatch:
         """Axle loads, steerability and lift capacity for every pose of ``batch`` (from ``self.solver``)."""
-        return self._combine(batch, self._capacity(batch) if self.has_capacity else {})
+        q = np.concatenate([batch.body_poses[b.name] for b in self.mech.moving_bodies], axis=1)
+        ok = (batch.status < Status.INPUT) & np.isfinite(q).all(axis=1)
+        return self._combine(q, ok, batch.frame_load_points, batch.frame_load_forces, batch.implement_load,
+                             batch.implement_cg[:, 0])
 
     def evaluate(self, result: Result) -> MachineResult:
         """Machine-level results of one solved pose (a ``Result`` of ``self.solver``)."""
-        return self.evaluate_batch(_as_batch(result, self.solver.frame_load_names)).result(0)
+        q = np.concatenate([result.body_poses[b.name] for b in self.mech.moving_bodies])[None]
+        points = np.array([p for p, _ in result.frame_loads], dtype=float).reshape(1, -1, 2)
+        forces = np.array([f for _, f in result.frame_loads], dtype=float).reshape(1, -1, 2)
+        return self._combine(q, np.isfinite(q).all(axis=1), points, forces, np.array([result.implement_load]),
+                             result.implement_cg[:1].astype(float)).result(0)
 
-    def _capacity(self, batch: BatchResult) -> dict[str, np.ndarray]:
-        """Lift capacity (N) at each capacity point for the solved poses of ``batch`` (virtual work,
-        ``kernels.lift_capacity``); NaN where the pose failed or the motion is at a dead centre."""
+    def _capacity(self, q: np.ndarray, ok: np.ndarray) -> dict[str, np.ndarray]:
+        """Lift capacity (N) at each capacity point for the solved poses q (N, n) (virtual work,
+        ``kernels.lift_capacity``); NaN where not ``ok`` (failed) or the motion is at a dead centre."""
         kin = self.solver.kin
-        q = np.concatenate([batch.body_poses[b.name] for b in self.mech.moving_bodies], axis=1)
-        ok = (batch.status < Status.INPUT) & np.isfinite(q).all(axis=1)
         q = np.ascontiguousarray(np.where(ok[:, None], q, kin.q_ref))   # failed poses: solved anywhere, masked below
         hinge_att, cylinder_att, lift, force, gravity, weight_att, weight_mass, spring_att, point_att = self._capacity_args
         spring_force = self._layout.spring_forces(kin.positions(q)[0]) if self._layout.n_springs else \
@@ -185,20 +158,22 @@ class MachineModel:
                                   self.solver.dead_centre_cond)
         return {name: np.where(ok, g[:, k], np.nan) for k, name in enumerate(self.capacity_points)}
 
-    def _combine(self, batch: BatchResult, capacity: dict[str, np.ndarray]) -> MachineBatch:
-        """Steerability from the frame loads and the lift reserve from the capacity."""
+    def _combine(self, q: np.ndarray, ok: np.ndarray, frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
+                 implement_load: np.ndarray, implement_x: np.ndarray) -> MachineBatch:
+        """Steerability from the frame loads, lift capacity at the poses q (N, n) where ``ok``, and
+        the lift reserve (capacity at the implement cg / implement load)."""
         mech = self.mech
         steer: dict[str, np.ndarray] = {}
         if self.has_steerability and mech.tractor is not None:
-            front, rear = axle_loads(mech.tractor, mech.gravity, batch.frame_load_points, batch.frame_load_forces)
-            steer = steerability(mech.tractor, mech.gravity, front, rear, batch.implement_load, batch.implement_cg[:, 0])
-        if capacity:
+            steer = steerability(mech.tractor, mech.gravity, frame_load_points, frame_load_forces, implement_load,
+                                 implement_x)
+        capacity: dict[str, np.ndarray] = {}
+        if self.has_capacity:
             # A point that the cylinder pushing at p_max lowers instead of lifting (e.g. the front
             # axle of seed 001's base-change parallelogram) has no lift capacity: NaN, not a negative load.
-            capacity = {k: np.where(v > 0.0, v, np.nan) for k, v in capacity.items()}
+            capacity = {k: np.where(v > 0.0, v, np.nan) for k, v in self._capacity(q, ok).items()}
             with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-                capacity["reserve"] = np.where(batch.implement_load > 0.0,
-                                               capacity["implement_cg"] / batch.implement_load, np.inf)
+                capacity["reserve"] = np.where(implement_load > 0.0, capacity["implement_cg"] / implement_load, np.inf)
         return MachineBatch(steer, capacity)
 
     def stroke_poses(self, cylinder: str, lengths: np.ndarray) -> BatchResult:
@@ -215,21 +190,6 @@ class MachineModel:
         """Transport poses over a stroke (``stroke_poses``) and their machine-level results (batched)."""
         batch = self.stroke_poses(cylinder, lengths)
         return batch, self.evaluate_batch(batch)
-
-
-def _as_batch(result: Result, frame_load_names: list[str]) -> BatchResult:
-    """A one-pose BatchResult view of ``result`` with the fields machine-level results read."""
-    points = np.array([p for p, _ in result.frame_loads]).reshape(1, -1, 2)
-    forces = np.array([f for _, f in result.frame_loads]).reshape(1, -1, 2)
-    one = lambda v: np.array([v])  # noqa: E731
-    return BatchResult(
-        points={}, body_poses={k: v[None] for k, v in result.body_poses.items()}, hinge_force={}, hinge_bodies={},
-        cylinder_length={k: one(c.length) for k, c in result.cylinders.items()}, cylinder_force={},
-        cap_pressure_predicted={}, cap_pressure_measured={}, rod_pressure_measured={}, contact_normal={},
-        contact_tangential={}, implement_load=one(result.implement_load), implement_cg=result.implement_cg[None],
-        frame_load_names=list(frame_load_names), frame_load_points=points, frame_load_forces=forces,
-        residual=one(result.residual), consistency_residual=one(result.consistency_residual),
-        condition=one(result.condition), status=np.zeros(1, dtype=int), messages=[""])
 
 
 def machine_summary(solver: Solver, result: Result, model: MachineModel | None = None) -> dict:

@@ -24,7 +24,7 @@ from typing import Iterator, TextIO
 import yaml
 from tqdm import tqdm
 
-from linkage_monitor.bag.reader import FLUID_PRESSURE, JOINT_STATE, read_bag
+from linkage_monitor.bag.reader import FLUID_PRESSURE, JOINT_STATE, read_bag, read_bag_data
 from linkage_monitor.bag.writer import MECHANISM_TOPIC, BagError, BagWriter
 from linkage_monitor.mechanics import Mechanism, mechanism_from_text
 from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
@@ -32,6 +32,7 @@ from linkage_monitor.monitoring.core import ConfigEvent, Event, JointStateEvent,
 from linkage_monitor.monitoring.findings import Level
 
 STRING = "std_msgs/msg/String"
+RawInput = tuple[str, str, int, int, bytes]   # topic, type name, header stamp (ns), receive time (ns), CDR bytes
 
 
 @dataclass
@@ -119,12 +120,12 @@ def _default_config(bag: Path, description: Mechanism) -> MonitorConfig:
     return replace(config, pressure_topics={t: s for t, s in config.pressure_topics.items() if t in held})
 
 
-def _events(path: Path, config: MonitorConfig, raw: list[tuple[str, int, int, object]]) -> Iterator[Event]:
+def _events(path: Path, config: MonitorConfig, raw: list[RawInput]) -> Iterator[Event]:
     """The bag's input and configuration events in recording order; inputs also appended to ``raw``
-    as (topic, header stamp, receive time, message)."""
+    as (topic, type name, header stamp, receive time, CDR bytes as recorded)."""
     wanted = [config.topics.joint_states, *config.pressure_topics, CONFIG_TOPIC]
     first_config = True
-    for topic, type_name, stamp, log_time, msg in read_bag(path, topics=wanted):
+    for topic, type_name, stamp, log_time, msg, data in read_bag_data(path, topics=wanted):
         if topic == CONFIG_TOPIC:
             if not first_config:
                 recorded = MonitorConfig.from_yaml(msg.data, source=f"{path} ({CONFIG_TOPIC})")
@@ -133,10 +134,10 @@ def _events(path: Path, config: MonitorConfig, raw: list[tuple[str, int, int, ob
                                           stamp_tolerance_s=recorded.stamp_tolerance_s))
             first_config = False
         elif type_name == JOINT_STATE and topic == config.topics.joint_states:
-            raw.append((topic, stamp, log_time, msg))
+            raw.append((topic, type_name, stamp, log_time, data))
             yield JointStateEvent(topic, list(msg.name), list(msg.position), list(msg.velocity), stamp, log_time)
         elif type_name == FLUID_PRESSURE and topic in config.pressure_topics:
-            raw.append((topic, stamp, log_time, msg))
+            raw.append((topic, type_name, stamp, log_time, data))
             yield PressureEvent(topic, msg.fluid_pressure, stamp, log_time)
 
 
@@ -167,12 +168,12 @@ def replay(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None
     else:
         summary.notes.append("note: configuration given instead of the recorded one")
     monitor = Monitor(description, config)
-    raw: list[tuple[str, int, int, object]] = []
+    raw: list[RawInput] = []
     run = monitor.run(_events(bag, config, raw))
     if not raw:
         raise BagError(f"bag {bag} holds no {JOINT_STATE} on {config.topics.joint_states} or {FLUID_PRESSURE} on "
                        f"{', '.join(config.pressure_topics) or '(none configured)'}: nothing to replay")
-    summary.inputs, summary.start_ns = len(raw), raw[0][1]
+    summary.inputs, summary.start_ns = len(raw), raw[0][2]
     for step in run.steps:
         _account(summary, step)
     if out_dir is not None:
@@ -184,15 +185,16 @@ def replay(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None
 
 
 def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: MonitorConfig,
-               raw: list[tuple[str, int, int, object]], run: Run, rate: float | None, progress: TextIO | None) -> None:
-    """Inputs, outputs and diagnostics in recording order, as the node records them."""
+               raw: list[RawInput], run: Run, rate: float | None, progress: TextIO | None) -> None:
+    """Inputs (their recorded bytes, unchanged), outputs and diagnostics in recording order, as the
+    node records them."""
     from linkage_monitor.ros.diagnostics import DiagnosticGate, diagnostic_array
-    from linkage_monitor.ros.markers import DEFAULT_RATE_HZ, DisplayGate, LinkageMarkers
+    from linkage_monitor.ros.markers import DEFAULT_RATE_HZ, MARKER_ARRAY, DisplayGate, LinkageMarkers
     from linkage_monitor.ros.messages import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputEncoder
 
     writer = BagWriter(out_dir)
     try:
-        first = raw[0][2]
+        first = raw[0][3]
         writer.record_mechanism(yaml.safe_dump(dict(description.raw), sort_keys=False, allow_unicode=True), first)
         from std_msgs.msg import String
         writer.write(CONFIG_TOPIC, String(data=config.to_yaml()), first, log_time_ns=first)
@@ -200,22 +202,22 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
         markers, marker_gate = LinkageMarkers(monitor.mechanism), DisplayGate(DEFAULT_RATE_HZ)
         pace_start = time.perf_counter()
         topics = config.topics
-        for (topic, stamp, receive, msg), step in tqdm(list(zip(raw, run.steps)), desc="replay", unit="msg",
+        for (topic, type_name, stamp, receive, data), step in tqdm(list(zip(raw, run.steps)), desc="replay", unit="msg",
                                                        file=progress, disable=progress is None, mininterval=0.5):
             if rate:
                 delay = (receive - first) * 1e-9 / rate - (time.perf_counter() - pace_start)
                 if delay > 0:
                     time.sleep(delay)
-            writer.write(topic, msg, stamp, log_time_ns=receive)
+            writer.write(topic, data, stamp, type_name=type_name, log_time_ns=receive)
             out = encoder.outputs(monitor, step)
             if out is not None:
-                for out_topic, data, type_name in ((topics.hinge_reactions, out.hinge_reactions, HINGE_REACTIONS),
-                                                   (topics.hitch_state, out.hitch_state, HITCH_STATE),
-                                                   (topics.steerability, out.steerability, STEERABILITY)):
-                    writer.write(out_topic, data, step.stamp_ns, type_name=type_name, log_time_ns=receive)
+                for out_topic, out_data, out_type in ((topics.hinge_reactions, out.hinge_reactions, HINGE_REACTIONS),
+                                                      (topics.hitch_state, out.hitch_state, HITCH_STATE),
+                                                      (topics.steerability, out.steerability, STEERABILITY)):
+                    writer.write(out_topic, out_data, step.stamp_ns, type_name=out_type, log_time_ns=receive)
             if step.pose is not None and marker_gate.due(step.stamp_ns):
                 writer.write(topics.markers, markers.markers(step.stamp_ns, step.pose.result), step.stamp_ns,
-                             log_time_ns=receive)
+                             type_name=MARKER_ARRAY, log_time_ns=receive)
             if gate.due(step):
                 writer.write(topics.diagnostics, diagnostic_array(step, name, description.name, receive),
                              step.stamp_ns, log_time_ns=receive)

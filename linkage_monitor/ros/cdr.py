@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 ENCAPSULATION = b"\x00\x01\x00\x00"   # CDR little endian, no options
-_U32, _F64, _STAMP = struct.Struct("<I"), struct.Struct("<d"), struct.Struct("<iI")
+_U32, _I32, _F64, _STAMP = struct.Struct("<I"), struct.Struct("<i"), struct.Struct("<d"), struct.Struct("<iI")
 _NS = 1_000_000_000
 
 
@@ -43,6 +43,26 @@ class Writer:
         """A uint32 (a string length or sequence count)."""
         self.align(4)
         self.data += _U32.pack(value)
+
+    def int32(self, value: int) -> None:
+        """An int32."""
+        self.align(4)
+        self.data += _I32.pack(value)
+
+    def float32s(self, *values: float) -> None:
+        """float32 values in a row (e.g. a std_msgs/ColorRGBA)."""
+        self.align(4)
+        self.data += struct.pack(f"<{len(values)}f", *values)
+
+    def float64s(self, *values: float) -> None:
+        """float64 values in a row (e.g. a geometry_msgs/Point or Pose)."""
+        self.align(8)
+        self.data += struct.pack(f"<{len(values)}d", *values)
+
+    def time(self, stamp_ns: int) -> None:
+        """A builtin_interfaces/Time (or Duration) of ``stamp_ns`` ns: int32 sec, uint32 nanosec."""
+        self.align(4)
+        self.data += _STAMP.pack(*stamp_fields(stamp_ns))
 
     def string(self, text: str) -> None:
         """A string: length with the NUL, UTF-8 bytes, NUL (cut at an embedded NUL, as rclpy does)."""

@@ -12,6 +12,8 @@ the rear wheels' ground contact; REP 103 axes), units m. Per solved pose, namesp
 - ``labels``: one TEXT_VIEW_FACING per hinge, ``<hinge> <force> kN``.
 
 Published at a display rate (DisplayGate), not at every message; the bag records what is published.
+The MarkerArray is written straight to its CDR bytes (``ros.cdr.Writer``), not built from rclpy's
+message classes and serialized (oracle of that: test/oracles/markers.py).
 """
 
 from __future__ import annotations
@@ -19,17 +21,15 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
-from builtin_interfaces.msg import Duration
-from geometry_msgs.msg import Point, Vector3
-from std_msgs.msg import ColorRGBA
-from visualization_msgs.msg import Marker, MarkerArray
+from visualization_msgs.msg import Marker
 
 from linkage_monitor.mechanics import Mechanism, Result
 from linkage_monitor.viz.drawing import (BODY_COLORS, CYLINDER_COLOR, GROUND_COLOR, HINGE_FORCE_COLOR, body_outline,
                                          force_scale)
 
-from .messages import header
+from .cdr import Writer
 
+MARKER_ARRAY = "visualization_msgs/msg/MarkerArray"
 FRAME = "linkage"
 DEFAULT_RATE_HZ = 10.0
 LINE_WIDTH = 0.02      # m
@@ -67,27 +67,48 @@ class LinkageMarkers:
         self._hinges = [(h.name, h.point) for h in mechanism.hinges]
         self._cylinders = [(c.name, c.base.point, c.rod_end.point) for c in mechanism.cylinders]
 
-    def markers(self, stamp_ns: int, result: Result) -> MarkerArray:
-        """The drawing of one solved pose, stamped ``stamp_ns`` (the input's header stamp)."""
+    def markers(self, stamp_ns: int, result: Result) -> bytes:
+        """The drawing of one solved pose, stamped ``stamp_ns`` (the input's header stamp), as the
+        CDR bytes of a visualization_msgs/MarkerArray (published and recorded as they are)."""
         points = {name: (float(x), float(z)) for name, (x, z) in result.points.items()}
         hinge_f = np.array([[result.hinges[h].fx, result.hinges[h].fz] for h, _ in self._hinges]).reshape(-1, 2)
         cyl_f = np.array([result.cylinders[c].force for c, _, _ in self._cylinders])
         if self.force_scale is None:
             self.force_scale = force_scale(hinge_f, cyl_f)
         scale = self.force_scale
-        head = header(stamp_ns)
-        head.frame_id = FRAME
-        out: list[Marker] = []
+        w = Writer()
+        w.uint32(len(self._bodies) + 2 * len(self._cylinders) + 1 + 2 * len(self._hinges))
 
         def marker(ns: str, ident: int, kind: int, color: tuple[int, int, int], size: tuple[float, float, float],
-                   where: Sequence[tuple[float, float]] = (), text: str = "") -> Marker:
-            m = Marker(header=head, ns=ns, id=ident, type=kind, action=Marker.ADD, text=text,
-                       scale=Vector3(x=size[0], y=size[1], z=size[2]), lifetime=Duration(sec=LIFETIME_S),
-                       color=ColorRGBA(r=color[0] / 255, g=color[1] / 255, b=color[2] / 255, a=1.0),
-                       points=[Point(x=x, y=0.0, z=z) for x, z in where])
-            m.pose.orientation.w = 1.0
-            out.append(m)
-            return m
+                   where: Sequence[tuple[float, float]] = (), text: str = "",
+                   position: tuple[float, float] = (0.0, 0.0)) -> None:
+            """One visualization_msgs/Marker, field by field in message order (Marker.msg, Kilted)."""
+            w.time(stamp_ns)                                   # header
+            w.string(FRAME)
+            w.string(ns)
+            w.int32(ident)
+            w.int32(kind)
+            w.int32(Marker.ADD)
+            w.float64s(position[0], 0.0, position[1], 0.0, 0.0, 0.0, 1.0)   # pose: position, orientation
+            w.float64s(*size)                                  # scale
+            w.float32s(color[0] / 255, color[1] / 255, color[2] / 255, 1.0)
+            w.time(LIFETIME_S * 1_000_000_000)                 # lifetime
+            w.uint8(0)                                         # frame_locked
+            w.uint32(len(where))                               # points (geometry_msgs/Point: x, y, z)
+            for x, z in where:
+                w.float64s(x, 0.0, z)
+            w.uint32(0)                                        # colors
+            w.string("")                                       # texture_resource
+            w.time(0)                                          # texture (sensor_msgs/CompressedImage): header,
+            w.string("")
+            w.string("")                                       # format,
+            w.uint32(0)                                        # data
+            w.uint32(0)                                        # uv_coordinates
+            w.string(text)
+            w.string("")                                       # mesh_resource
+            w.string("")                                       # mesh_file: filename,
+            w.uint32(0)                                        # data
+            w.uint8(0)                                         # mesh_use_embedded_materials
 
         for k, (_, outline, color) in enumerate(self._bodies):
             marker("links", k, Marker.LINE_STRIP, color, (LINE_WIDTH, 0.0, 0.0), [points[p] for p in outline])
@@ -100,13 +121,12 @@ class LinkageMarkers:
             x, z = points[p]
             marker("reactions", k, Marker.ARROW, HINGE_FORCE_COLOR, (0.015, 0.03, 0.05),
                    [(x, z), (x + fx * scale, z + fz * scale)])
-            label = marker("labels", k, Marker.TEXT_VIEW_FACING, (255, 255, 255), (0.0, 0.0, TEXT_HEIGHT),
-                           text=f"{name} {np.hypot(fx, fz) / 1e3:.1f} kN")
-            label.pose.position = Point(x=x, y=0.0, z=z + 1.5 * TEXT_HEIGHT)
+            marker("labels", k, Marker.TEXT_VIEW_FACING, (255, 255, 255), (0.0, 0.0, TEXT_HEIGHT),
+                   text=f"{name} {np.hypot(fx, fz) / 1e3:.1f} kN", position=(x, z + 1.5 * TEXT_HEIGHT))
         for k, ((_, base, rod_end), force) in enumerate(zip(self._cylinders, cyl_f)):
             (bx, bz), (rx, rz) = points[base], points[rod_end]
             length = max(float(np.hypot(rx - bx, rz - bz)), 1e-12)
             ux, uz = (rx - bx) / length, (rz - bz) / length   # + pushing: away from the base
             marker("cylinder_forces", k, Marker.ARROW, CYLINDER_COLOR, (0.015, 0.03, 0.05),
                    [(rx, rz), (rx + ux * force * scale, rz + uz * force * scale)])
-        return MarkerArray(markers=out)
+        return bytes(w.data)

@@ -47,13 +47,13 @@ from linkage_monitor.monitoring.name_value import name_value
 from linkage_monitor.msg import HingeReactions, HitchState, Steerability
 from linkage_monitor.ros.diagnostics import DiagnosticGate, diagnostic_array
 from linkage_monitor.ros.markers import DEFAULT_RATE_HZ as DEFAULT_MARKER_RATE_HZ
-from linkage_monitor.ros.markers import DisplayGate, LinkageMarkers
+from linkage_monitor.ros.markers import MARKER_ARRAY, DisplayGate, LinkageMarkers
 from linkage_monitor.ros.messages import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputEncoder, stamp_ns
 
 NODE_NAME = "linkage_monitor"
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 OUTPUT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-RELIABLE_INPUT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+RELIABLE_INPUT_QOS = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
 HEARTBEAT_S = 1.0  # s, /diagnostics is repeated at least this often
 
 # name: (default, description, read_only, (min, max) for doubles)
@@ -71,7 +71,7 @@ PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
                           True, None),
     "atmospheric_pressure": (ATMOSPHERIC_PRESSURE, "Pa, subtracted from absolute pressures", True,
                              (50_000.0, 110_000.0)),
-    "sensor_qos": ("sensor_data", "QoS of the inputs: 'sensor_data' (best effort) or 'reliable'", True, None),
+    "sensor_qos": ("sensor_data", "QoS of the inputs: 'sensor_data' (best effort, keep last 5) or 'reliable' (keep last 10000: a burst, e.g. a bag played faster than real time, is queued, not dropped)", True, None),
     "staleness_limit": (0.5, "s, no solve if the stamps of the inputs differ by more than this", False,
                         (0.0, 3600.0)),
     "stamp_tolerance": (10.0, "s, an input whose header stamp is farther than this from the node's clock is "
@@ -334,7 +334,7 @@ class LinkageMonitorNode(Node):
         if step.pose is not None and self.marker_gate.due(step.stamp_ns):
             markers = self.markers.markers(step.stamp_ns, step.pose.result)
             self.pub_markers.publish(markers)
-            self._record(topics.markers, markers, step.stamp_ns, now, OUTPUT_QOS)
+            self._record(topics.markers, markers, step.stamp_ns, now, OUTPUT_QOS, MARKER_ARRAY)
         if self.rerun is not None:
             self._log_rerun(step)
         if self.diagnostic_gate.due(step):

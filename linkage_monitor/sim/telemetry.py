@@ -60,7 +60,7 @@ import numpy as np
 
 from linkage_monitor.mechanics import LinkageError, Mechanism, Solver, UnobservableError, mechanism_from_dict
 from linkage_monitor.mechanics.capacity import interval_around, reference_length, stroke_mechanism
-from linkage_monitor.mechanics.machine import axle_loads, steerability
+from linkage_monitor.mechanics.machine import steerability
 from linkage_monitor.mechanics.model import PressureSensor
 from linkage_monitor.mechanics.results import Status, angle_readings
 
@@ -206,8 +206,8 @@ class _Poses:
     def steerability_margin(self, mech: Mechanism, load: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(k − ratio_min, largest steerable implement load N) per sample (seed 003, via mechanics.machine)."""
         assert mech.tractor is not None   # the callers check: only mechanisms with a tractor block
-        front, rear = axle_loads(mech.tractor, mech.gravity, self.frame_load_points, self.frame_load_forces)
-        steer = steerability(mech.tractor, mech.gravity, front, rear, load, self.implement_cg[:, 0])
+        steer = steerability(mech.tractor, mech.gravity, self.frame_load_points, self.frame_load_forces,
+                             np.broadcast_to(load, self.implement_cg[:, 0].shape), self.implement_cg[:, 0])
         return steer["margin"], steer["max_implement_mass"] * mech.gravity
 
 
