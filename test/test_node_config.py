@@ -52,7 +52,8 @@ def test_launch_file_starts_node_with_params_and_descriptors(preset, tmp_path):
 
 
 @pytest.mark.parametrize("param, expect", [("mechanism:=/no/such/tractor.yaml", "cannot read the file"),
-                                           ("sensor_qos:=fast", "expected one of sensor_data, reliable")])
+                                           ("sensor_qos:=fast", "expected one of sensor_data, reliable"),
+                                           ("reliable_queue_depth:=0", "reliable_queue_depth out of range")])
 def test_bad_parameter_exits_2_with_one_line_on_stderr(param, expect):
     proc = subprocess.run([sys.executable, "-m", "linkage_monitor.ros.node", "--ros-args", "-p", "record:=false",
                            "-p", param], capture_output=True, text=True, timeout=60)

@@ -181,7 +181,7 @@ def test_inputs_the_node_could_not_take_are_counted_and_reported(ros, tmp_path):
     """A burst far above the node's solve rate into a small reliable queue: what the node did
     not record it reports lost on /diagnostics — published = recorded + reported lost."""
     proc = start_node({"mechanism": "belarus_1221", "record_dir": str(tmp_path / "bags"), "sensor_qos": "reliable",
-                       "pressure_topics": ["none"]}, tmp_path / "node.log")
+                       "reliable_queue_depth": 100, "pressure_topics": ["none"]}, tmp_path / "node.log")
     client = MonitorClient(pressure_topics=())
     try:
         client.wait_for_node()

@@ -76,6 +76,7 @@ class Solver:
                     self._frame_members.append((m, kin.attach(ground, end.point), sign))
                     self.frame_load_names.append(f"{name} {end.point}")
         self._sensors = {ps.name: ps for ps in mech.measurements.pressures}
+        self._point_rows = np.array(list(self._point_att.values()), dtype=np.intp)   # attachments of mech.points
 
     # ---- public API -------------------------------------------------------------------------
     def solve(self, inputs: Inputs, previous: Result | None = None) -> Result:
@@ -274,8 +275,9 @@ class Solver:
         axes = np.concatenate([sol.spring_axis[0], sol.cylinder_axis[0]])
         frame_loads = [(p[att].copy(), sign * u[layout.hinge_cols[i]]) for i, att, sign in self._frame_hinges]
         frame_loads += [(p[att].copy(), sign * member_force[m] * axes[m]) for m, att, sign in self._frame_members]
-        return Result(points={n: p[a].copy() for n, a in self._point_att.items()},
-                      body_poses={b.name: q[3 * i:3 * i + 3].copy() for i, b in enumerate(mech.moving_bodies)},
+        points, poses = p[self._point_rows], q.reshape(-1, 3).copy()   # fresh arrays: their rows need no copies
+        return Result(points=dict(zip(self._point_att, points)),
+                      body_poses={b.name: poses[i] for i, b in enumerate(mech.moving_bodies)},
                       hinges=hinges, cylinders=cylinders, contacts=contacts, implement_load=implement_load,
                       implement_cg=p[self._cg_att].copy() if self._cg_att is not None else np.full(2, np.nan),
                       frame_loads=frame_loads, residual=float(sol.residual[0]),

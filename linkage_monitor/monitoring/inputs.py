@@ -92,9 +92,11 @@ class InputTracker:
         offset = (stamp_ns - now_ns) / NS
         if abs(offset) > tolerance:
             side = "ahead of" if offset > 0 else "behind"
+            cause = ("check the sensor's clock synchronisation" if offset > 0 else
+                     "check the sensor's clock synchronisation, or the monitor is behind its inputs (more "
+                     "messages per second than it solves: they wait in its queue)")
             raise Refused(Finding(Code.BAD_STAMP, f"{what}: header stamp is {fmt(abs(offset))} s {side} the "
-                                  f"monitor's clock (stamp_tolerance {fmt(tolerance)} s): check the sensor's "
-                                  "clock synchronisation"))
+                                  f"monitor's clock (stamp_tolerance {fmt(tolerance)} s): {cause}"))
 
     def accept_joint_state(self, names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
                            stamp_ns: int, now_ns: int) -> list[str]:

@@ -23,8 +23,9 @@ from typing import Any, Callable
 import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, ParameterType, SetParametersResult
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.exceptions import InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -53,7 +54,6 @@ from linkage_monitor.ros.messages import HINGE_REACTIONS, HITCH_STATE, STEERABIL
 NODE_NAME = "linkage_monitor"
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 OUTPUT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-RELIABLE_INPUT_QOS = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
 HEARTBEAT_S = 1.0  # s, /diagnostics is repeated at least this often
 
 # name: (default, description, read_only, (min, max) for doubles)
@@ -71,7 +71,11 @@ PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
                           True, None),
     "atmospheric_pressure": (ATMOSPHERIC_PRESSURE, "Pa, subtracted from absolute pressures", True,
                              (50_000.0, 110_000.0)),
-    "sensor_qos": ("sensor_data", "QoS of the inputs: 'sensor_data' (best effort, keep last 5) or 'reliable' (keep last 10000: a burst, e.g. a bag played faster than real time, is queued, not dropped)", True, None),
+    "sensor_qos": ("sensor_data", "QoS of the inputs: 'sensor_data' (best effort, keep last 5) or 'reliable' "
+                   "(keep last reliable_queue_depth)", True, None),
+    "reliable_queue_depth": (10_000, "messages queued per input topic with sensor_qos 'reliable': a burst (e.g. a "
+                             "bag played faster than real time) waits there instead of being dropped; what does "
+                             "not fit is reported lost", True, (1, 1_000_000)),
     "staleness_limit": (0.5, "s, no solve if the stamps of the inputs differ by more than this", False,
                         (0.0, 3600.0)),
     "stamp_tolerance": (10.0, "s, an input whose header stamp is farther than this from the node's clock is "
@@ -97,14 +101,16 @@ PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
                     (0.0, 1000.0)),
 }
 INPUT_TYPES = {JointState: JOINT_STATE, FluidPressure: FLUID_PRESSURE}
-SENSOR_QOS = {"sensor_data": qos_profile_sensor_data, "reliable": RELIABLE_INPUT_QOS}
+SENSOR_QOS = ("sensor_data", "reliable")
 RERUN_MODES = ("off", "save", "connect")
 
 
 def _descriptor(name: str) -> ParameterDescriptor:
     default, text, read_only, bounds = PARAMETERS[name]
     desc = ParameterDescriptor(name=name, description=text, read_only=read_only)
-    if bounds is not None:
+    if bounds is not None and isinstance(default, int):
+        desc.integer_range = [IntegerRange(from_value=int(bounds[0]), to_value=int(bounds[1]), step=1)]
+    elif bounds is not None:
         desc.floating_point_range = [FloatingPointRange(from_value=bounds[0], to_value=bounds[1], step=0.0)]
     if isinstance(default, list):
         desc.type = ParameterType.PARAMETER_STRING_ARRAY
@@ -189,7 +195,8 @@ class LinkageMonitorNode(Node):
             self.rerun = (RerunView.to_file(description, p["rerun_path"]) if p["rerun"] == "save"
                           else RerunView.to_viewer(description))
 
-        self.input_qos = SENSOR_QOS[p["sensor_qos"]]
+        self.input_qos = (qos_profile_sensor_data if p["sensor_qos"] == "sensor_data" else
+                          QoSProfile(depth=int(p["reliable_queue_depth"]), reliability=ReliabilityPolicy.RELIABLE))
         self._subscribe(JointState, config.topics.joint_states, self.on_joint_state)
         for topic in config.pressure_topics:
             self._subscribe(FluidPressure, topic, self._pressure_callback(topic))
@@ -407,7 +414,7 @@ def main(argv: list[str] | None = None) -> int:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except (LinkageError, ValueError, BagError) as exc:
+    except (LinkageError, ValueError, BagError, InvalidParameterValueException) as exc:
         print(f"linkage_monitor_node: {str(exc).splitlines()[0]}", file=sys.stderr)
         return 2
     finally:
