@@ -87,7 +87,7 @@ def _same_result(a, b, where: str) -> None:
         assert list(getattr(a, field)) == list(getattr(b, field)), where
         for k, x in getattr(a, field).items():
             y = getattr(b, field)[k]
-            for name, value in vars(x).items():
+            for name, value in x._asdict().items():
                 if isinstance(value, str):
                     assert value == getattr(y, name), (where, field, k, name)
                 else:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from enum import IntEnum
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -41,9 +41,10 @@ class Status(IntEnum):
         return self.name.lower()
 
 
-@dataclass(frozen=True)
-class HingeResult:
-    """Reaction at a hinge: force (N, global frame) on ``on_body`` from ``from_body``."""
+class HingeResult(NamedTuple):
+    """Reaction at a hinge: force (N, global frame) on ``on_body`` from ``from_body``.
+    (The small per-pose results are NamedTuples: immutable, and built in a fraction of a frozen
+    dataclass's time; a pose has one per hinge.)"""
 
     fx: float
     fz: float
@@ -52,8 +53,7 @@ class HingeResult:
     from_body: str
 
 
-@dataclass(frozen=True)
-class CylinderResult:
+class CylinderResult(NamedTuple):
     """Cylinder length (m), axial force (N, + = pushing, all ``count``), pressures (Pa gauge).
 
     ``cap_pressure_predicted`` = force / (count·A_cap) (rod chamber at 0 gauge); measured
@@ -67,8 +67,7 @@ class CylinderResult:
     rod_pressure_measured: float
 
 
-@dataclass(frozen=True)
-class ContactResult:
+class ContactResult(NamedTuple):
     """Ground contact: normal force N (N, ≥ 0 unless lifting off) and friction force magnitude f·N (N)."""
 
     normal: float

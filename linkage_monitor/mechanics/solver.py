@@ -14,7 +14,7 @@ import numpy as np
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
 from .kinematics import Kinematics, KinematicState
 from .model import Cylinder, Mechanism
-from .results import BatchResult, ContactResult, CylinderResult, Result, Status, hinge_result
+from .results import BatchResult, ContactResult, CylinderResult, HingeResult, Result, Status
 from .statics import StaticsLayout
 
 ATMOSPHERE = 101325.0  # Pa; a gauge pressure below −1 atm is a negative absolute pressure
@@ -77,6 +77,14 @@ class Solver:
                     self.frame_load_names.append(f"{name} {end.point}")
         self._sensors = {ps.name: ps for ps in mech.measurements.pressures}
         self._point_rows = np.array(list(self._point_att.values()), dtype=np.intp)   # attachments of mech.points
+        # the frame loads of one pose as index arrays (``_result``): hinges, then member ends
+        self._frame_att = np.array([a for _, a, _ in self._frame_hinges] + [a for _, a, _ in self._frame_members],
+                                   dtype=np.intp)
+        self._frame_hinge_index = np.array([i for i, _, _ in self._frame_hinges], dtype=np.intp)
+        self._frame_hinge_sign = np.array([[sg] for _, _, sg in self._frame_hinges]).reshape(-1, 1)
+        self._frame_member_index = np.array([m for m, _, _ in self._frame_members], dtype=np.intp)
+        self._frame_member_sign = np.array([[sg] for _, _, sg in self._frame_members]).reshape(-1, 1)
+        self._hinge_bodies = [(h.name, h.bodies[1], h.bodies[0]) for h in mech.hinges]   # name, on, from
 
     # ---- public API -------------------------------------------------------------------------
     def solve(self, inputs: Inputs, previous: Result | None = None) -> Result:
@@ -257,31 +265,32 @@ class Solver:
         (the one-pose counterpart of ``_assemble`` + ``BatchResult.result``)."""
         mech = self.mech
         cylinders, forces = {}, []
+        lengths = sol.cylinder_length[0].tolist()
         for k, c in enumerate(mech.cylinders):
             f = float(measured[k]) if c.name in layout.force_known else float(u[layout.cyl_col[c.name]])
             forces.append(f)
-            cylinders[c.name] = CylinderResult(length=float(sol.cylinder_length[0, k]), force=f,
-                                               cap_pressure_predicted=f / (c.count * c.cap_area),
-                                               cap_pressure_measured=cap[c.name], rod_pressure_measured=rod[c.name])
-        hinges = {h.name: hinge_result(float(u[layout.hinge_cols[i][0]]), float(u[layout.hinge_cols[i][1]]), *h.bodies)
-                  for i, h in enumerate(mech.hinges)}
-        contacts = {c.name: ContactResult(normal=float(u[layout.contact_col[c.name]]),
-                                          tangential=c.friction * float(u[layout.contact_col[c.name]]))
+            cylinders[c.name] = CylinderResult(lengths[k], f, f / (c.count * c.cap_area), cap[c.name], rod[c.name])
+        hinge_force = u[layout.hinge_cols]   # (n_hinges, 2) N on bodies[1] from bodies[0]
+        hinges = {name: HingeResult(fx, fz, math.hypot(fx, fz), on, off)
+                  for (name, on, off), (fx, fz) in zip(self._hinge_bodies, hinge_force.tolist())}
+        contacts = {c.name: ContactResult(float(u[layout.contact_col[c.name]]),
+                                          c.friction * float(u[layout.contact_col[c.name]]))
                     for c in mech.contacts}
         imp = mech.implement
         implement_load = (float(u[layout.implement_col]) if layout.implement_col is not None
                           else imp.mass * mech.gravity if imp is not None else math.nan)
         member_force = np.concatenate([sol.spring_force[0], forces])
         axes = np.concatenate([sol.spring_axis[0], sol.cylinder_axis[0]])
-        frame_loads = [(p[att].copy(), sign * u[layout.hinge_cols[i]]) for i, att, sign in self._frame_hinges]
-        frame_loads += [(p[att].copy(), sign * member_force[m] * axes[m]) for m, att, sign in self._frame_members]
+        m = self._frame_member_index
+        frame_forces = np.concatenate([self._frame_hinge_sign * hinge_force[self._frame_hinge_index],
+                                       self._frame_member_sign * member_force[m, None] * axes[m]])
         points, poses = p[self._point_rows], q.reshape(-1, 3).copy()   # fresh arrays: their rows need no copies
         return Result(points=dict(zip(self._point_att, points)),
                       body_poses={b.name: poses[i] for i, b in enumerate(mech.moving_bodies)},
                       hinges=hinges, cylinders=cylinders, contacts=contacts, implement_load=implement_load,
                       implement_cg=p[self._cg_att].copy() if self._cg_att is not None else np.full(2, np.nan),
-                      frame_loads=frame_loads, residual=float(sol.residual[0]),
-                      consistency_residual=float(np.linalg.norm(state.phi[0])),
+                      frame_loads=list(zip(p[self._frame_att], frame_forces)), residual=float(sol.residual[0]),
+                      consistency_residual=math.sqrt(float(state.phi[0] @ state.phi[0])),
                       condition=float(max(sol.condition[0], state.condition[0])), status=Status.OK.label, state=state)
 
     def _solve(self, previous: KinematicState | None, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap,
