@@ -205,6 +205,37 @@ def test_inputs_the_node_could_not_take_are_counted_and_reported(ros, tmp_path):
     assert recorded + lost == sent, (recorded, lost, sent)
 
 
+def test_a_burst_over_two_topics_is_worked_off_in_arrival_order(ros, tmp_path):
+    """A burst of pressures and joint states, interleaved and published as fast as the client can,
+    far above the node's solve rate, into its deep reliable queues: the node takes the queued
+    messages of both topics together (ros.node._drain) and works them off in the order they arrived,
+    so the bag holds every input in publish order, every event is solved (no joint state waits for
+    a pressure that was queued behind it: no stale_input) and none is lost."""
+    proc = start_node({"mechanism": "belarus_1221", "record_dir": str(tmp_path / "bags"), "sensor_qos": "reliable",
+                       "stamp_tolerance": 3600.0}, tmp_path / "node.log")
+    client = MonitorClient()
+    try:
+        client.wait_for_node()
+        stream = simulate(BELARUS, "lift", rate_hz=40.0, noise=Noise(0.0, 0.0, 0.0), seed=2,   # < 1000 per topic: the
+                          start_ns=time.time_ns())                                   # client keeps them all
+        names, sent = list(stream.joint_names), []
+        for i, stamp in enumerate(stream.stamps_ns.tolist()):   # pressure at stamp, joints at stamp + 1 µs
+            client.publish_pressure(PRESSURE_TOPIC, stamp, float(stream.pressure_values[i, 0]) + ATMOSPHERIC_PRESSURE)
+            client.publish_joint_state(stamp + 1000, names, stream.joint_positions[i].tolist())
+            sent += [("/" + PRESSURE_TOPIC, stamp), ("/joint_states", stamp + 1000)]
+        solves = len(sent) - 1   # every event solves (the pressure and the joint state), but the first: no joints yet
+        assert client.spin_until(lambda: len(client.received["hinge_reactions"]) >= solves, 60)
+        settle(client, "diagnostics", quiet=0.5)
+        stale = [s for m in client.received["diagnostics"] for s in m.status if "stale input" in s.message]
+    finally:
+        client.close()
+        assert stop(proc) == 0
+    recorded = [(topic, stamp) for topic, _, stamp, _, _ in read_bag(node_bag(tmp_path / "bags"),
+                                                                     topics=["/joint_states", "/" + PRESSURE_TOPIC])]
+    assert recorded == sent
+    assert len(client.received["hinge_reactions"]) == solves and not stale
+
+
 def test_an_internal_failure_is_reported_and_the_node_goes_on(ros, tmp_path, monkeypatch):
     """A bug inside the monitor (injected: the solver raises) gives an ERROR diagnostic naming
     the input; the callback returns, the next input is solved."""
