@@ -26,7 +26,7 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.exceptions import InvalidParameterValueException
+from rclpy.exceptions import InvalidHandle, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -248,16 +248,23 @@ class LinkageMonitorNode(Node):
         waiting = [handed]
         while taken < DRAIN_LIMIT:
             for sub, callback in self._inputs:
-                with sub.handle:   # as rclpy's executor takes a message (Executor._take_subscription)
-                    for _ in range(DRAIN_ROUND):
-                        message = sub.handle.take_message(sub.msg_type, sub.raw)
-                        if message is None:
-                            break
-                        waiting.append((message[1]["received_timestamp"], len(waiting), callback, message))
+                try:
+                    with sub.handle:   # as rclpy's executor takes a message (Executor._take_subscription)
+                        for _ in range(DRAIN_ROUND):
+                            message = sub.handle.take_message(sub.msg_type, sub.raw)
+                            if message is None:
+                                break
+                            waiting.append((message[1]["received_timestamp"], len(waiting), callback, message))
+                except InvalidHandle:   # destroyed while shutting down: nothing more to take from it
+                    continue
             if not waiting:
                 return
             for _, _, callback, (data, info) in sorted(waiting, key=lambda w: w[:2]):
-                callback(data, info)
+                try:
+                    callback(data, info)
+                except Exception as exc:  # noqa: BLE001 - callbacks guard themselves; the round goes on
+                    self._publish_status("internal", Level.ERROR, f"internal error while taking an input "
+                                         f"({len(data)} bytes): {type(exc).__name__}: {exc}", self._now())
             taken += len(waiting)
             waiting = []
 
