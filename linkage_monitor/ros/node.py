@@ -15,7 +15,9 @@ carry the header stamp of the triggering input; receive times come from the node
 from __future__ import annotations
 
 import gc
+import signal
 import sys
+import threading
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -27,11 +29,12 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidHandle, InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.serialization import deserialize_message
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
@@ -54,10 +57,10 @@ from linkage_monitor.ros.messages import HINGE_REACTIONS, HITCH_STATE, STEERABIL
 
 NODE_NAME = "linkage_monitor"
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-OUTPUT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+OUTPUT_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)   # a drained burst publishes in a row
 HEARTBEAT_S = 1.0  # s, /diagnostics is repeated at least this often
+STOP_POLL_S = 0.1  # s, the spin loop looks this often whether a signal asked it to stop
 DRAIN_LIMIT = 200  # input messages worked off per executor callback (then timers and services run)
-DRAIN_ROUND = 1000  # at most this many messages taken from one queue per round of _drain
 
 # name: (default, description, read_only, (min, max) for doubles)
 PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
@@ -231,42 +234,39 @@ class LinkageMonitorNode(Node):
         events = SubscriptionEventCallbacks(message_lost=lost)
 
         def take(data: bytes, info: dict) -> None:
-            self._drain((info["received_timestamp"], -1, callback, (data, info)))
+            self._drain((info["received_timestamp"], callback, (data, info)))
         sub: Any = self.create_subscription(msg_type, topic, take,   # type: ignore[arg-type]  # raw: bytes
                                             self.input_qos, event_callbacks=events, raw=True)
         self._inputs.append((sub, callback))
 
-    def _drain(self, handed: tuple[int, int, Callable[[bytes, dict], None], tuple[bytes, dict]]) -> None:
-        """Work off the message the executor ``handed`` over together with the input messages already
-        waiting in the subscriptions' queues, in the order they arrived (received_timestamp: the
-        executor hands over the first ready subscription's message, not the oldest), before
-        returning to the executor: a burst is worked off without one pass of the executor's wait
-        set per message (rclpy's own cost per message, as large as the monitoring step). Each round
-        empties every queue (up to DRAIN_ROUND per queue), so no topic runs ahead of another;
-        rounds stop after DRAIN_LIMIT messages, so timers (heartbeat) and parameter services run."""
+    def _drain(self, handed: tuple[int, Callable[[bytes, dict], None], tuple[bytes, dict]]) -> None:
+        """Work off the message the executor ``handed`` over, then what is already waiting in the input
+        queues, before returning to the executor: a burst is worked off without one pass of the
+        executor's wait set per message (rclpy's own cost per message, as large as the monitoring
+        step). Like the executor, one message per queue per cycle (each cycle's few in arrival
+        order, received_timestamp), so the topics advance together as they would through the
+        executor; at most DRAIN_LIMIT messages, so timers (heartbeat) and parameter services run."""
+        cycle = [handed]
         taken = 0
-        waiting = [handed]
-        while taken < DRAIN_LIMIT:
+        while cycle:
+            for _, callback, (data, info) in sorted(cycle, key=lambda c: c[0]):
+                try:
+                    callback(data, info)
+                except Exception as exc:  # noqa: BLE001 - callbacks guard themselves; the others go on
+                    self._publish_status("internal", Level.ERROR, f"internal error while taking an input "
+                                         f"({len(data)} bytes): {type(exc).__name__}: {exc}", self._now())
+            taken += len(cycle)
+            cycle = []
+            if taken >= DRAIN_LIMIT:
+                return   # what was taken is worked off; the rest waits for the executor's next pass
             for sub, callback in self._inputs:
                 try:
                     with sub.handle:   # as rclpy's executor takes a message (Executor._take_subscription)
-                        for _ in range(DRAIN_ROUND):
-                            message = sub.handle.take_message(sub.msg_type, sub.raw)
-                            if message is None:
-                                break
-                            waiting.append((message[1]["received_timestamp"], len(waiting), callback, message))
+                        message = sub.handle.take_message(sub.msg_type, sub.raw)
                 except InvalidHandle:   # destroyed while shutting down: nothing more to take from it
                     continue
-            if not waiting:
-                return
-            for _, _, callback, (data, info) in sorted(waiting, key=lambda w: w[:2]):
-                try:
-                    callback(data, info)
-                except Exception as exc:  # noqa: BLE001 - callbacks guard themselves; the round goes on
-                    self._publish_status("internal", Level.ERROR, f"internal error while taking an input "
-                                         f"({len(data)} bytes): {type(exc).__name__}: {exc}", self._now())
-            taken += len(waiting)
-            waiting = []
+                if message is not None:
+                    cycle.append((message[1]["received_timestamp"], callback, message))
 
     def _now(self) -> int:
         return self.get_clock().now().nanoseconds
@@ -449,12 +449,23 @@ def _publisher_id(info: dict) -> object:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Console script `linkage_monitor_node`: run until Ctrl-C / shutdown."""
-    rclpy.init(args=argv if argv is not None else sys.argv)
+    """Console script `linkage_monitor_node`: run until Ctrl-C / SIGTERM / shutdown.
+
+    A signal only asks the spin loop to stop (rclpy's own handlers are off): it never lands as an
+    exception in the middle of a callback, e.g. half-way through writing a message into the bag's
+    chunk, so the bag is always finished whole.
+    """
+    rclpy.init(args=argv if argv is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
+    stopping = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stopping.set())
     node = None
     try:
         node = LinkageMonitorNode()
-        rclpy.spin(node)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while not stopping.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=STOP_POLL_S)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (LinkageError, ValueError, BagError, InvalidParameterValueException) as exc:
