@@ -161,7 +161,7 @@ class BatchResult:
 
 def hinge_result(fx: float, fz: float, from_body: str, on_body: str) -> HingeResult:
     """HingeResult of the force (fx, fz) N on ``on_body`` from ``from_body`` (Python floats: cheap per pose)."""
-    return HingeResult(fx=fx, fz=fz, magnitude=math.hypot(fx, fz), on_body=on_body, from_body=from_body)
+    return HingeResult(fx, fz, math.hypot(fx, fz), on_body, from_body)
 
 
 def angle_readings(mech: "Mechanism", batch: BatchResult) -> dict[str, np.ndarray]:

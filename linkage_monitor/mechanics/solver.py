@@ -14,7 +14,7 @@ import numpy as np
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
 from .kinematics import Kinematics, KinematicState
 from .model import Cylinder, Mechanism
-from .results import BatchResult, ContactResult, CylinderResult, HingeResult, Result, Status
+from .results import BatchResult, ContactResult, CylinderResult, Result, Status, hinge_result
 from .statics import StaticsLayout
 
 ATMOSPHERE = 101325.0  # Pa; a gauge pressure below −1 atm is a negative absolute pressure
@@ -271,7 +271,7 @@ class Solver:
             forces.append(f)
             cylinders[c.name] = CylinderResult(lengths[k], f, f / (c.count * c.cap_area), cap[c.name], rod[c.name])
         hinge_force = u[layout.hinge_cols]   # (n_hinges, 2) N on bodies[1] from bodies[0]
-        hinges = {name: HingeResult(fx, fz, math.hypot(fx, fz), on, off)
+        hinges = {name: hinge_result(fx, fz, off, on)
                   for (name, on, off), (fx, fz) in zip(self._hinge_bodies, hinge_force.tolist())}
         contacts = {c.name: ContactResult(float(u[layout.contact_col[c.name]]),
                                           c.friction * float(u[layout.contact_col[c.name]]))

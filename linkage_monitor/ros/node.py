@@ -466,7 +466,7 @@ def main(argv: list[str] | None = None) -> int:
         executor.add_node(node)
         while not stopping.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=STOP_POLL_S)
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except ExternalShutdownException:   # rclpy shut down from elsewhere
         pass
     except (LinkageError, ValueError, BagError, InvalidParameterValueException) as exc:
         print(f"linkage_monitor_node: {str(exc).splitlines()[0]}", file=sys.stderr)
