@@ -102,19 +102,45 @@ def norm_1(a: np.ndarray) -> float:
 
 
 @njit(cache=True)
-def inverse_and_condition(a: np.ndarray) -> tuple[np.ndarray, float]:
-    """Inverse of a square matrix and its 1-norm condition number (NaN inverse, inf when singular)."""
-    k = a.shape[0]
-    lu, piv, _, singular = lu_factor(a)
-    inv = np.full((k, k), np.nan)
-    if singular:
-        return inv, np.inf
-    e = np.zeros(k)
+def inverse_norm_1(lu: np.ndarray, piv: np.ndarray) -> float:
+    """1-norm of a⁻¹ from ``lu_factor(a)``: L·U·X = P solved for all columns together, row operations
+    over whole rows (independent columns: vectorized, no dependency chain along a column)."""
+    k = lu.shape[0]
+    x = np.zeros((k, k))
+    for i in range(k):
+        x[i, piv[i]] = 1.0
+    for i in range(k):
+        for j in range(i):
+            f = lu[i, j]
+            if f != 0.0:
+                for c in range(k):
+                    x[i, c] -= f * x[j, c]
+    column_sum = np.zeros(k)
+    for i in range(k - 1, -1, -1):
+        for j in range(i + 1, k):
+            f = lu[i, j]
+            if f != 0.0:
+                for c in range(k):
+                    x[i, c] -= f * x[j, c]
+        inv = 1.0 / lu[i, i]
+        for c in range(k):
+            x[i, c] *= inv
+            column_sum[c] += abs(x[i, c])
+    best = 0.0
     for c in range(k):
-        e[:] = 0.0
-        e[c] = 1.0
-        inv[:, c] = lu_solve(lu, piv, e)
-    return inv, norm_1(a) * norm_1(inv)
+        if not column_sum[c] <= best:
+            best = column_sum[c]
+    return best
+
+
+@njit(cache=True)
+def factor_and_condition(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """LU of a square matrix (``lu_factor``) and its exact 1-norm condition number ‖a‖₁·‖a⁻¹‖₁ (inf when
+    singular)."""
+    lu, piv, _, singular = lu_factor(a)
+    if singular:
+        return lu, piv, np.inf
+    return lu, piv, norm_1(a) * inverse_norm_1(lu, piv)
 
 
 @njit(cache=True)
@@ -288,8 +314,8 @@ def condition(jac: np.ndarray, column_scale: np.ndarray) -> float:
     than columns the square root of that of JᵀJ."""
     js = jac * column_scale
     if js.shape[0] != js.shape[1]:
-        return math.sqrt(inverse_and_condition(js.T @ js)[1])
-    return inverse_and_condition(js)[1]
+        return math.sqrt(factor_and_condition(js.T @ js)[2])
+    return factor_and_condition(js)[2]
 
 
 @njit(cache=True)
@@ -501,11 +527,11 @@ def _statics_pose(i, u_out, residual, cond, axes, lengths, p, member_force, acce
                              -mass[k] * accel[i, k, 1], lc)
             b[3 * mass_body[k] + 2] -= inertia[k] * alpha[i, k] / lc
     if n_unknowns == n_eq:
-        inv, c = inverse_and_condition(a_mat)
-        u = -(inv @ b)
+        lu, piv, c = factor_and_condition(a_mat)
+        u = -lu_solve(lu, piv, b) if math.isfinite(c) else np.full(n_unknowns, np.nan)
     else:
-        inv, c = inverse_and_condition(a_mat.T @ a_mat)
-        u = -(inv @ (a_mat.T @ b))
+        lu, piv, c = factor_and_condition(a_mat.T @ a_mat)
+        u = -lu_solve(lu, piv, a_mat.T @ b) if math.isfinite(c) else np.full(n_unknowns, np.nan)
         c = math.sqrt(c)
     res = a_mat @ u + b
     acc = 0.0
