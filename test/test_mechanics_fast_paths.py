@@ -93,10 +93,9 @@ def _same_result(a, b, where: str) -> None:
                 else:
                     np.testing.assert_allclose(value, getattr(y, name), rtol=1e-9, atol=1e-6,
                                                err_msg=f"{where} {field} {k} {name}")
-    assert len(a.frame_loads) == len(b.frame_loads)
-    for (pa, fa), (pb, fb) in zip(a.frame_loads, b.frame_loads):
-        np.testing.assert_allclose(pa, pb, rtol=1e-9, atol=1e-9)
-        np.testing.assert_allclose(fa, fb, rtol=1e-9, atol=1e-6)
+    assert a.frame_load_points.shape == b.frame_load_points.shape == b.frame_load_forces.shape
+    np.testing.assert_allclose(a.frame_load_points, b.frame_load_points, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(a.frame_load_forces, b.frame_load_forces, rtol=1e-9, atol=1e-6)
     for field in ("implement_load", "implement_cg", "residual", "consistency_residual"):
         np.testing.assert_allclose(getattr(a, field), getattr(b, field), rtol=1e-9, atol=1e-6, err_msg=f"{where} {field}")
 

@@ -2,7 +2,7 @@
 
 Axle loads come from the free body of the tractor (seed 003's moment balance about B, done on
 the tractor alone so that soil forces on the implement count correctly): tractor weight at its
-cg, the front ballast, and every force the linkage puts on the frame (``Result.frame_loads``);
+cg, the front ballast, and every force the linkage puts on the frame (``Result.frame_load_forces``);
 the wheel traction forces act at ground level (z = 0) and have no moment about B.
 SI units (m, N, kg, Pa); frame x forward, z up, origin at the rear wheels' ground contact B;
 moments M = x·Fz − z·Fx (positive turns +x towards +z).
@@ -17,6 +17,7 @@ import numpy as np
 from . import kernels, machine_kernels
 from .capacity import capacity_force, capacity_points, lift_cylinder, reference_length
 from .model import Mechanism, Tractor
+from .kinematics import KinematicState
 from .results import BatchResult, Status, Result
 from .solver import Solver
 
@@ -78,11 +79,16 @@ def steerability(tractor: Tractor, gravity: float, frame_load_points: np.ndarray
     (N,) m: the tractor's free body (seed 003's moment balance about B, done on the tractor alone so
     that soil forces on the implement count correctly; wheel traction acts at z = 0) and seed 003's
     steerability k = R_A / W ≥ ratio_min (formulas: ``machine_kernels.steerability_rows``)."""
-    rows = machine_kernels.steerability_rows(
-        np.ascontiguousarray(frame_load_points, dtype=float), np.ascontiguousarray(frame_load_forces, dtype=float),
-        np.ascontiguousarray(implement_load, dtype=float), np.ascontiguousarray(implement_x, dtype=float),
-        machine_parameters(tractor, gravity))
+    rows = _steerability_rows(machine_parameters(tractor, gravity), frame_load_points, frame_load_forces,
+                              implement_load, implement_x)
     return {k: rows[:, j] for j, k in enumerate(machine_kernels.COLUMNS)}
+
+
+def _steerability_rows(parameters: np.ndarray, frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
+                       implement_load: np.ndarray, implement_x: np.ndarray) -> np.ndarray:
+    return machine_kernels.steerability_rows(
+        np.ascontiguousarray(frame_load_points, dtype=float), np.ascontiguousarray(frame_load_forces, dtype=float),
+        np.ascontiguousarray(implement_load, dtype=float), np.ascontiguousarray(implement_x, dtype=float), parameters)
 
 
 class MachineModel:
@@ -101,6 +107,7 @@ class MachineModel:
     def __init__(self, mech: Mechanism, solver: Solver, lift_cylinder_name: str | None = None) -> None:
         self.mech, self.solver = mech, solver
         self.has_steerability = mech.tractor is not None
+        self._tractor = machine_parameters(mech.tractor, mech.gravity) if mech.tractor is not None else None
         self.capacity_points: dict[str, np.ndarray] = {}
         self.capacity_force = float("nan")
         self.capacity_error = ""
@@ -119,6 +126,8 @@ class MachineModel:
         point_att = np.array([kin.attach(imp.body, f"capacity point {k}", pt) for k, pt in self.capacity_points.items()],
                              dtype=np.int64)
         self._layout = layout
+        self._capacity_keys = (*self.capacity_points, "reserve")
+        self._cg_column = list(self.capacity_points).index("implement_cg")
         self._capacity_args = (kin.hinge_att, all_cylinders, [c.name for c in mech.cylinders].index(cyl.name),
                                self.capacity_force, mech.gravity, layout.mass_att[others], layout.mass[others],
                                layout.member_att[:, :layout.n_springs].copy(), point_att)
@@ -138,17 +147,32 @@ class MachineModel:
 
     def evaluate(self, result: Result) -> MachineResult:
         """Machine-level results of one solved pose (a ``Result`` of ``self.solver``)."""
-        q = np.concatenate([result.body_poses[b.name] for b in self.mech.moving_bodies])[None]
-        points = np.array([p for p, _ in result.frame_loads], dtype=float).reshape(1, -1, 2)
-        forces = np.array([f for _, f in result.frame_loads], dtype=float).reshape(1, -1, 2)
-        return self._combine(q, np.isfinite(q).all(axis=1), points, forces, np.array([result.implement_load]),
-                             result.implement_cg[:1].astype(float)).result(0)
+        state = result.state
+        q = (state.q[-1:] if isinstance(state, KinematicState)   # the live solve's pose, as solved
+             else np.concatenate([result.body_poses[b.name] for b in self.mech.moving_bodies])[None])
+        ok = np.isfinite(q).all(axis=1)
+        steer: dict[str, float] = {}
+        if self._tractor is not None:
+            row = _steerability_rows(self._tractor, result.frame_load_points[None], result.frame_load_forces[None],
+                                     np.array([result.implement_load]), result.implement_cg[:1])[0]
+            steer = dict(zip(machine_kernels.COLUMNS, row.tolist()))
+        capacity: dict[str, float] = {}
+        if self.has_capacity:
+            loads = self._capacity(q, ok, np.array([result.implement_load]))[0].tolist()
+            capacity = dict(zip(self._capacity_keys, loads))
+        return MachineResult(steer, capacity)
 
-    def _capacity(self, q: np.ndarray, ok: np.ndarray) -> dict[str, np.ndarray]:
+    def _capacity(self, q: np.ndarray, ok: np.ndarray, implement_load: np.ndarray) -> np.ndarray:
         """Lift capacity (N) at each capacity point for the solved poses q (N, n) (virtual work,
-        ``kernels.lift_capacity``); NaN where not ``ok`` (failed) or the motion is at a dead centre."""
+        ``kernels.lift_capacity``), then the lift reserve (capacity at the implement cg / implement
+        load (N,) N): (N, len(capacity points) + 1) in ``_capacity_keys`` order. NaN where not ``ok``
+        (failed), where the motion is at a dead centre, or at a point that the cylinder pushing at
+        p_max lowers instead of lifting (e.g. the front axle of seed 001's base-change
+        parallelogram: no lift capacity, not a negative load)."""
         kin = self.solver.kin
-        q = np.ascontiguousarray(np.where(ok[:, None], q, kin.q_ref))   # failed poses: solved anywhere, masked below
+        if not ok.all():
+            q = np.where(ok[:, None], q, kin.q_ref)   # failed poses: solved anywhere, masked below
+        q = np.ascontiguousarray(q)
         hinge_att, cylinder_att, lift, force, gravity, weight_att, weight_mass, spring_att, point_att = self._capacity_args
         spring_force = self._layout.spring_forces(kin.positions(q)[0]) if self._layout.n_springs else \
             np.zeros((len(q), 0))
@@ -156,24 +180,24 @@ class MachineModel:
         g = kernels.lift_capacity(q, att_body, att_ref, hinge_att, cylinder_att, lift, force, gravity, weight_att,
                                   weight_mass, spring_att, spring_force, point_att, kin.column_scale,
                                   self.solver.dead_centre_cond)
-        return {name: np.where(ok, g[:, k], np.nan) for k, name in enumerate(self.capacity_points)}
+        out = np.empty((len(q), g.shape[1] + 1))
+        out[:, :-1] = np.where(ok[:, None] & (g > 0.0), g, np.nan)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            out[:, -1] = np.where(implement_load > 0.0, out[:, self._cg_column] / implement_load, np.inf)
+        return out
 
     def _combine(self, q: np.ndarray, ok: np.ndarray, frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
                  implement_load: np.ndarray, implement_x: np.ndarray) -> MachineBatch:
         """Steerability from the frame loads, lift capacity at the poses q (N, n) where ``ok``, and
         the lift reserve (capacity at the implement cg / implement load)."""
-        mech = self.mech
         steer: dict[str, np.ndarray] = {}
-        if self.has_steerability and mech.tractor is not None:
-            steer = steerability(mech.tractor, mech.gravity, frame_load_points, frame_load_forces, implement_load,
-                                 implement_x)
+        if self._tractor is not None:
+            rows = _steerability_rows(self._tractor, frame_load_points, frame_load_forces, implement_load, implement_x)
+            steer = {k: rows[:, j] for j, k in enumerate(machine_kernels.COLUMNS)}
         capacity: dict[str, np.ndarray] = {}
         if self.has_capacity:
-            # A point that the cylinder pushing at p_max lowers instead of lifting (e.g. the front
-            # axle of seed 001's base-change parallelogram) has no lift capacity: NaN, not a negative load.
-            capacity = {k: np.where(v > 0.0, v, np.nan) for k, v in self._capacity(q, ok).items()}
-            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-                capacity["reserve"] = np.where(implement_load > 0.0, capacity["implement_cg"] / implement_load, np.inf)
+            loads = self._capacity(q, ok, implement_load)
+            capacity = {k: loads[:, j] for j, k in enumerate(self._capacity_keys)}
         return MachineBatch(steer, capacity)
 
     def stroke_poses(self, cylinder: str, lengths: np.ndarray) -> BatchResult:

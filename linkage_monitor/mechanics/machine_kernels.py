@@ -33,7 +33,7 @@ def steerability_rows(points: np.ndarray, forces: np.ndarray, implement_load: np
                       parameters: np.ndarray) -> np.ndarray:
     """Axle loads and steerability of N poses: (N, len(COLUMNS)) in COLUMNS order.
 
-    points / forces (N, K, 2): m / N, the forces the linkage puts ON the frame (``frame_loads``);
+    points / forces (N, K, 2): m / N, the forces the linkage puts ON the frame (``frame_load_forces``);
     implement_load (N,) N and implement_x (N,) m: the implement's weight and its cg's x;
     parameters: PARAMETERS (``unit_reference`` 1.0: ratio of the unit's weight, 0.0: of the empty
     tractor's).

@@ -79,9 +79,9 @@ class Result:
     """Everything solved for one pose.
 
     ``body_poses[name]`` = [x, z, θ]: position (m) of the body's origin (centroid of its points
-    in the reference pose) and rotation from the reference pose (rad). ``frame_loads`` = list
-    of (point [x, z] m, force [fx, fz] N) that the linkage puts ON the ground body (one per
-    frame-side hinge and cylinder/spring mount; names in ``Solver.frame_load_names``).
+    in the reference pose) and rotation from the reference pose (rad). ``frame_load_points`` /
+    ``frame_load_forces`` (K, 2): where (m) and what force (N) the linkage puts ON the ground body,
+    one row per frame-side hinge and cylinder/spring mount (names in ``Solver.frame_load_names``).
     ``implement_load`` = vertical load (N, + = down) at ``implement_cg``: estimated when a
     cylinder force is measured, else the configured weight. ``residual`` = norm of the
     equilibrium residual (N; moments divided by the length scale), ``consistency_residual`` =
@@ -96,7 +96,8 @@ class Result:
     contacts: dict[str, ContactResult]
     implement_load: float
     implement_cg: np.ndarray
-    frame_loads: list[tuple[np.ndarray, np.ndarray]]
+    frame_load_points: np.ndarray
+    frame_load_forces: np.ndarray
     residual: float
     consistency_residual: float
     condition: float
@@ -153,8 +154,7 @@ class BatchResult:
             contacts={k: ContactResult(normal=float(v[i]), tangential=float(self.contact_tangential[k][i]))
                       for k, v in self.contact_normal.items()},
             implement_load=float(self.implement_load[i]), implement_cg=self.implement_cg[i].copy(),
-            frame_loads=[(self.frame_load_points[i, k].copy(), self.frame_load_forces[i, k].copy())
-                         for k in range(len(self.frame_load_names))],
+            frame_load_points=self.frame_load_points[i].copy(), frame_load_forces=self.frame_load_forces[i].copy(),
             residual=float(self.residual[i]), consistency_residual=float(self.consistency_residual[i]),
             condition=float(self.condition[i]), status=Status(int(self.status[i])).label, message=self.messages[i])
 

@@ -289,7 +289,7 @@ class Solver:
                       body_poses={b.name: poses[i] for i, b in enumerate(mech.moving_bodies)},
                       hinges=hinges, cylinders=cylinders, contacts=contacts, implement_load=implement_load,
                       implement_cg=p[self._cg_att].copy() if self._cg_att is not None else np.full(2, np.nan),
-                      frame_loads=list(zip(p[self._frame_att], frame_forces)), residual=float(sol.residual[0]),
+                      frame_load_points=p[self._frame_att], frame_load_forces=frame_forces, residual=float(sol.residual[0]),
                       consistency_residual=math.sqrt(float(state.phi[0] @ state.phi[0])),
                       condition=float(max(sol.condition[0], state.condition[0])), status=Status.OK.label, state=state)
 
@@ -401,4 +401,11 @@ class Solver:
 def _measured_force(c: Cylinder, cap: "float | np.ndarray", rod: "float | np.ndarray") -> "float | np.ndarray":
     """Axial force (N, + pushing) of cylinder group ``c`` from its gauge pressures (Pa; NaN = that
     chamber not measured, taken as 0): F = count·(p_cap·A_cap − p_rod·A_rod) (schema, cylinders[])."""
-    return c.count * (np.where(np.isnan(cap), 0.0, cap) * c.cap_area - np.where(np.isnan(rod), 0.0, rod) * c.rod_area)
+    return c.count * (_unmeasured_zero(cap) * c.cap_area - _unmeasured_zero(rod) * c.rod_area)
+
+
+def _unmeasured_zero(pressure: "float | np.ndarray") -> "float | np.ndarray":
+    """A gauge pressure (Pa) with NaN (not measured) as 0; floats stay floats (one pose: no numpy call)."""
+    if isinstance(pressure, np.ndarray):
+        return np.where(np.isnan(pressure), 0.0, pressure)
+    return 0.0 if math.isnan(pressure) else pressure
