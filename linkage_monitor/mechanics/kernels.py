@@ -157,6 +157,26 @@ def det_sign(a: np.ndarray) -> float:
 
 
 @njit(cache=True)
+def gram(a: np.ndarray) -> np.ndarray:
+    """aᵀ·a, a row at a time over its nonzero entries only (a constraint Jacobian's row has at most six)."""
+    m, n = a.shape
+    out = np.zeros((n, n))
+    cols = np.empty(n, dtype=np.int64)
+    for r in range(m):
+        k = 0
+        for c in range(n):
+            if a[r, c] != 0.0:
+                cols[k] = c
+                k += 1
+        for i in range(k):
+            ci = cols[i]
+            v = a[r, ci]
+            for j in range(k):
+                out[ci, cols[j]] += v * a[r, cols[j]]
+    return out
+
+
+@njit(cache=True)
 def solve_linear(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     """x with jac·x = rhs; least squares by the normal equations when jac has more rows than columns.
     NaN where the system is singular."""
@@ -164,7 +184,7 @@ def solve_linear(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     if m == n:
         a, b = jac, rhs
     else:
-        a, b = jac.T @ jac, jac.T @ rhs
+        a, b = gram(jac), jac.T @ rhs
     lu, piv, _, singular = lu_factor(a)
     if singular:
         return np.full(n, np.nan)
@@ -314,7 +334,7 @@ def condition(jac: np.ndarray, column_scale: np.ndarray) -> float:
     than columns the square root of that of JᵀJ."""
     js = jac * column_scale
     if js.shape[0] != js.shape[1]:
-        return math.sqrt(factor_and_condition(js.T @ js)[2])
+        return math.sqrt(factor_and_condition(gram(js))[2])
     return factor_and_condition(js)[2]
 
 
@@ -530,7 +550,7 @@ def _statics_pose(i, u_out, residual, cond, axes, lengths, p, member_force, acce
         lu, piv, c = factor_and_condition(a_mat)
         u = -lu_solve(lu, piv, b) if math.isfinite(c) else np.full(n_unknowns, np.nan)
     else:
-        lu, piv, c = factor_and_condition(a_mat.T @ a_mat)
+        lu, piv, c = factor_and_condition(gram(a_mat))
         u = -lu_solve(lu, piv, a_mat.T @ b) if math.isfinite(c) else np.full(n_unknowns, np.nan)
         c = math.sqrt(c)
     res = a_mat @ u + b
