@@ -1,0 +1,77 @@
+"""Where one in-process monitoring step's time goes, stage by stage (the step of ``bench_step.py``).
+
+Each stage is wrapped with a wall-clock timer (``time.perf_counter``; a wrapper adds ~0.3 µs):
+``Monitor.step`` (the whole step), its acceptance (``_accept``), the solve (``Solver.solve``; inside
+it the kinematics kernel call, the statics call and building the ``Result``), the machine level
+(``MachineModel.evaluate``; inside it lift capacity), the findings (``_finish``) and the three
+output messages (``OutputEncoder.outputs``). Printed: µs per event, averaged over three passes of
+belarus_1221's simulated lift at 100 Hz (2 events per sample). Not a benchmark with a baseline:
+a profile, for docs/performance.md.
+
+Run: ``.venv/bin/python bench/profile_step.py``
+"""
+
+from __future__ import annotations
+
+import collections
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from linkage_monitor.mechanics import kinematics, machine, solver, statics  # noqa: E402
+from linkage_monitor.mechanics import load_preset  # noqa: E402
+from linkage_monitor.monitoring import core  # noqa: E402
+from linkage_monitor.monitoring.config import MonitorConfig  # noqa: E402
+from linkage_monitor.ros.messages import OutputEncoder  # noqa: E402
+from linkage_monitor.sim.telemetry import simulate  # noqa: E402
+
+PRESSURE_TOPIC = "/pressure/lift_cap_pressure"
+STAGES = [(core.Monitor, "step", "step (whole)"), (core.Monitor, "_accept", "  acceptance"),
+          (solver.Solver, "solve", "  solve"), (kinematics.Kinematics, "continue_from", "    kinematics kernel call"),
+          (statics.StaticsLayout, "solve", "    statics call"), (solver.Solver, "_result", "    Result built"),
+          (machine.MachineModel, "evaluate", "  machine level"), (machine.MachineModel, "_capacity", "    lift capacity"),
+          (core.Monitor, "_finish", "  findings"), (OutputEncoder, "outputs", "three CDR messages (after the step)")]
+
+
+def timed(spent: dict[str, float], label: str, function: Callable[..., Any]) -> Callable[..., Any]:
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        t0 = time.perf_counter()
+        try:
+            return function(*args, **kwargs)
+        finally:
+            spent[label] += time.perf_counter() - t0
+    return wrapper
+
+
+def main() -> None:
+    spent: dict[str, float] = collections.defaultdict(float)
+    for owner, name, label in STAGES:
+        setattr(owner, name, timed(spent, label, getattr(owner, name)))
+    mech = load_preset("belarus_1221")
+    stream = simulate(mech, "lift", rate_hz=100.0, start_ns=1_700_000_000_000_000_000)
+    config = MonitorConfig(mechanism=mech.name, pressure_topics={PRESSURE_TOPIC: "lift_cap_pressure"},
+                           pressure_absolute=False, staleness_limit_s=3600.0, stamp_tolerance_s=1e9)
+    names, positions = list(stream.joint_names), stream.joint_positions.tolist()
+    pressures, stamps = stream.pressure_values[:, 0].tolist(), stream.stamps_ns.tolist()
+
+    def one_pass() -> None:
+        monitor, encoder = core.Monitor(mech, config), OutputEncoder()
+        for i, stamp in enumerate(stamps):
+            encoder.outputs(monitor, monitor.on_pressure(PRESSURE_TOPIC, pressures[i], stamp, stamp))
+            encoder.outputs(monitor, monitor.on_joint_state(names, positions[i], [], stamp, stamp))
+
+    one_pass()   # load the kernels, warm the caches
+    spent.clear()
+    passes = 3
+    for _ in range(passes):
+        one_pass()
+    events = passes * 2 * len(stamps)
+    print(f"belarus_1221, {len(stamps)} samples at 100 Hz, {passes} passes, {events} events; us per event:")
+    for _, _, label in STAGES:
+        print(f"{label:40s} {1e6 * spent[label] / events:7.1f}")
+
+
+if __name__ == "__main__":
+    main()
