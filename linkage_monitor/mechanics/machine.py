@@ -16,8 +16,8 @@ import numpy as np
 
 from . import kernels, machine_kernels
 from .capacity import capacity_force, capacity_points, lift_cylinder, reference_length
-from .model import Mechanism, Tractor
 from .kinematics import KinematicState
+from .model import Mechanism, Tractor
 from .results import BatchResult, Status, Result
 from .solver import Solver
 
@@ -86,6 +86,8 @@ def steerability(tractor: Tractor, gravity: float, frame_load_points: np.ndarray
 
 def _steerability_rows(parameters: np.ndarray, frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
                        implement_load: np.ndarray, implement_x: np.ndarray) -> np.ndarray:
+    """``machine_kernels.steerability_rows`` of N poses: (N, len(COLUMNS)), with the tractor's
+    ``parameters`` (``machine_parameters``)."""
     return machine_kernels.steerability_rows(
         np.ascontiguousarray(frame_load_points, dtype=float), np.ascontiguousarray(frame_load_forces, dtype=float),
         np.ascontiguousarray(implement_load, dtype=float), np.ascontiguousarray(implement_x, dtype=float), parameters)
@@ -106,7 +108,6 @@ class MachineModel:
 
     def __init__(self, mech: Mechanism, solver: Solver, lift_cylinder_name: str | None = None) -> None:
         self.mech, self.solver = mech, solver
-        self.has_steerability = mech.tractor is not None
         self._tractor = machine_parameters(mech.tractor, mech.gravity) if mech.tractor is not None else None
         self.capacity_points: dict[str, np.ndarray] = {}
         self.capacity_force = float("nan")
@@ -133,6 +134,11 @@ class MachineModel:
                                layout.member_att[:, :layout.n_springs].copy(), point_att)
 
     @property
+    def has_steerability(self) -> bool:
+        """True when axle loads and steerability are computed (the file has a ``tractor`` block)."""
+        return self._tractor is not None
+
+    @property
     def has_capacity(self) -> bool:
         """True when lift capacity is computed (implement and a cylinder with relief_pressure)."""
         return bool(self.capacity_points)
@@ -150,17 +156,9 @@ class MachineModel:
         state = result.state
         q = (state.q[-1:] if isinstance(state, KinematicState)   # the live solve's pose, as solved
              else np.concatenate([result.body_poses[b.name] for b in self.mech.moving_bodies])[None])
-        ok = np.isfinite(q).all(axis=1)
-        steer: dict[str, float] = {}
-        if self._tractor is not None:
-            row = _steerability_rows(self._tractor, result.frame_load_points[None], result.frame_load_forces[None],
-                                     np.array([result.implement_load]), result.implement_cg[:1])[0]
-            steer = dict(zip(machine_kernels.COLUMNS, row.tolist()))
-        capacity: dict[str, float] = {}
-        if self.has_capacity:
-            loads = self._capacity(q, ok, np.array([result.implement_load]))[0].tolist()
-            capacity = dict(zip(self._capacity_keys, loads))
-        return MachineResult(steer, capacity)
+        return self._combine(q, np.isfinite(q).all(axis=1), result.frame_load_points[None],
+                             result.frame_load_forces[None], np.array([result.implement_load]),
+                             result.implement_cg[:1]).result(0)
 
     def _capacity(self, q: np.ndarray, ok: np.ndarray, implement_load: np.ndarray) -> np.ndarray:
         """Lift capacity (N) at each capacity point for the solved poses q (N, n) (virtual work,
