@@ -179,7 +179,9 @@ def test_use_sim_time_stamps_are_judged_against_clock(ros, tmp_path):
 
 def test_inputs_the_node_could_not_take_are_counted_and_reported(ros, tmp_path):
     """A burst far above the node's solve rate into a small reliable queue: what the node did
-    not record it reports lost on /diagnostics — published = recorded + reported lost."""
+    not record it reports lost on /diagnostics — published = recorded + reported lost, in the
+    node's bag (which also holds the report of losses found after the last heartbeat, written at
+    shutdown) and, as far as the client listened, on /diagnostics."""
     proc = start_node({"mechanism": "belarus_1221", "record_dir": str(tmp_path / "bags"), "sensor_qos": "reliable",
                        "reliable_queue_depth": 100, "pressure_topics": ["none"]}, tmp_path / "node.log")
     client = MonitorClient(pressure_topics=())
@@ -198,11 +200,14 @@ def test_inputs_the_node_could_not_take_are_counted_and_reported(ros, tmp_path):
     finally:
         client.close()
         assert stop(proc) == 0
-    recorded = sum(1 for topic, *_ in read_bag(node_bag(tmp_path / "bags"), topics=["/joint_states"]))
-    lost = sum(int(s.message.split(" ", 1)[0]) for s in reported)
+    bag = node_bag(tmp_path / "bags")
+    recorded = sum(1 for _ in read_bag(bag, topics=["/joint_states"]))
+    in_bag = [s for *_, m in read_bag(bag, topics=["/diagnostics"]) for s in m.status if s.name.endswith(": inputs")]
+    lost = sum(int(s.message.split(" ", 1)[0]) for s in in_bag)
     assert recorded < sent, "the burst must exceed the node: otherwise this test shows nothing"
-    assert all(s.level == b"\x01" for s in reported)
-    assert recorded + lost == sent, (recorded, lost, sent)
+    assert all(s.level == b"\x01" for s in in_bag + reported)
+    assert recorded + lost == sent, (recorded, lost, sent, in_bag[-1].message if in_bag else "no loss report")
+    assert [s.message for s in reported] == [s.message for s in in_bag[:len(reported)]]   # published as recorded
 
 
 def test_a_burst_over_two_topics_is_worked_off_in_arrival_order(ros, tmp_path):

@@ -319,17 +319,20 @@ class LinkageMonitorNode(Node):
             if self._reported is not None and time.monotonic() - self._last_heartbeat >= HEARTBEAT_S:
                 # the last reported status again (diagnostic_updater style); the bag holds it once already
                 self._publish_diagnostic(self._reported, now, record=False)
-            new_lost = self.loss.new_since_report()
-            if new_lost:
-                self._publish_status("inputs", Level.WARN, f"{new_lost} input message(s) lost in the last "
-                                     f"{HEARTBEAT_S:.0f} s (the monitor did not see them): {self.loss.summary()}",
-                                     now)
+            self._report_losses(f"in the last {HEARTBEAT_S:.0f} s", now)
             recorder_error = self.recorder.error if self.recorder is not None else None
             if recorder_error:
                 self._publish_status("recording", Level.ERROR, f"recording failed: {recorder_error}; solving and "
                                      "publishing go on", now)
         except Exception as exc:  # noqa: BLE001
             self.get_logger().error(f"heartbeat failed: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
+
+    def _report_losses(self, when: str, now: int) -> None:
+        """A WARN ``<node>: inputs`` with the inputs newly known lost, if any (heartbeat and shutdown)."""
+        new_lost = self.loss.new_since_report()
+        if new_lost:
+            self._publish_status("inputs", Level.WARN, f"{new_lost} input message(s) lost {when} (the monitor did "
+                                 f"not see them): {self.loss.summary()}", now)
 
     # ---- parameters: validate in on-set, apply in post-set ----------------------------------------
     def _config_with(self, params: list[Parameter]) -> MonitorConfig:
@@ -420,9 +423,9 @@ class LinkageMonitorNode(Node):
                                   hardware_id=self.monitor.mechanism.name, values=[KeyValue(key="part", value=part)])
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = self.get_clock().now().to_msg()
-        self.pub_diag.publish(msg)
         if part != "recording":
             self._record(self.monitor.config.topics.diagnostics, msg, now, now, OUTPUT_QOS)
+        self.pub_diag.publish(msg)
 
     def _record(self, topic: str, msg: Any, stamp: int, now: int, qos: QoSProfile, type_name: str | None = None
                 ) -> None:
@@ -435,7 +438,11 @@ class LinkageMonitorNode(Node):
         self.recorder.write(CONFIG_TOPIC, String(data=config.to_yaml()), now, qos=LATCHED, log_time_ns=now)
 
     def close(self) -> None:
-        """Finish the bag and the Rerun recording."""
+        """Report the inputs lost since the last heartbeat, finish the bag and the Rerun recording."""
+        try:
+            self._report_losses("since the last report, at shutdown", self._now())
+        except Exception as exc:  # noqa: BLE001 - the bag is finished whatever happens here
+            self.get_logger().error(f"final loss report failed: {type(exc).__name__}: {exc}")
         if self.recorder is not None:
             self.recorder.close()
             self.get_logger().info(f"bag written: {self.recorder.directory}")
