@@ -216,6 +216,24 @@ def test_threads_write_concurrently(tmp_path: Path) -> None:
     assert len(times) == 1200
 
 
+def test_a_writer_faster_than_the_background_thread_queues_at_most_max_queued(tmp_path: Path, monkeypatch) -> None:
+    """write() only queues; past MAX_QUEUED queued messages it writes the queue itself, so memory
+    stays bounded and every message lands, in order (read back by mcap-ros2-support)."""
+    import linkage_monitor.bag.writer as bag_writer
+
+    monkeypatch.setattr(bag_writer, "MAX_QUEUED", 50)
+    directory = tmp_path / "burst"
+    largest = 0
+    with BagWriter(directory, flush_period_s=60.0) as writer:
+        for i in range(1000):
+            writer.write("/p", _pressure(i), T0 + i, log_time_ns=T0 + i)
+            largest = max(largest, len(writer._queued))
+    assert largest <= 50
+    with open(next(directory.glob("*.mcap")), "rb") as f:
+        stamps = [m.publish_time for _, _, m in make_reader(f).iter_messages(log_time_order=False)]
+    assert stamps == [T0 + i for i in range(1000)]
+
+
 def test_refuses_misuse(tmp_path: Path) -> None:
     writer = BagWriter(tmp_path / "bag")
     writer.write("/joint_states", _joint_state(0), 0)

@@ -10,6 +10,13 @@ and the file is made to end in a valid DataEnd + Footer (no summary), so a proce
 with SIGKILL leaves a bag that footer-reading readers (rosbags, mcap SeekingReader, Rerun)
 open and that holds everything written up to the last flush. `metadata.yaml` is rewritten
 at the same time.
+
+Off the caller's path: `write` queues the message (its bytes, times and channel) and returns;
+the background thread writes the queue into the MCAP chunk every WRITE_PERIOD_S, in order (a
+live node's callback pays a list append per message, not the MCAP writer's record building,
+and the thread writes tens of messages in a row). `flush` and `close` write the queue first;
+above MAX_QUEUED queued messages `write` writes the queue itself (memory stays bounded, nothing
+is dropped).
 """
 
 from __future__ import annotations
@@ -40,6 +47,8 @@ _MCAP_MAGIC = b"\x89MCAP0\r\n"
 # summary_offset_start 0, summary_crc 0) + magic: the smallest valid MCAP ending.
 _TAIL = (struct.pack("<BQI", 0x0F, 4, 0) + struct.pack("<BQQQI", 0x02, 20, 0, 0, 0)
          + _MCAP_MAGIC)
+WRITE_PERIOD_S = 0.05   # s, the background thread writes the queued messages this often
+MAX_QUEUED = 10_000     # messages queued at most; beyond, write() writes the queue (in order) itself
 _YAML_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)   # libyaml: 4x faster, the same text (every flush)
 
 
@@ -167,8 +176,9 @@ class BagWriter:
     """Thread-safe writer of one rosbag2 MCAP bag directory.
 
     `BagWriter("bags/run1")` creates `bags/run1/metadata.yaml` and `bags/run1/run1_0.mcap`.
-    A background thread flushes every `flush_period_s` seconds, so a killed process loses at
-    most that much. Use as a context manager or call `close()`.
+    A background thread writes the queued messages every WRITE_PERIOD_S and flushes every
+    `flush_period_s` seconds, so a killed process loses at most that much. Use as a context
+    manager or call `close()`.
     """
 
     def __init__(self, directory: str | os.PathLike[str], name: str | None = None, *,
@@ -182,7 +192,10 @@ class BagWriter:
                            "choose a new directory or remove the old bag")
         if flush_period_s <= 0:
             raise ValueError(f"flush_period_s must be > 0 s, got {flush_period_s}")
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()         # the MCAP writer, the file, the span, the error state
+        self._queue_lock = threading.Lock()   # _queued and closing (held for an append or a swap only)
+        self._queued: list[tuple[_Topic, bytes, int, int]] = []   # (topic, CDR, log time, publish time)
+        self._flush_period_s = flush_period_s
         self._span = _Span()
         self._schemas: dict[str, int] = {}
         self._dirty = False
@@ -201,8 +214,7 @@ class BagWriter:
         except OSError as exc:
             raise BagError(f"cannot record into {exc.filename or self.directory}: {exc.strerror or exc} "
                            "(choose a writable directory, e.g. with the record_dir parameter)") from None
-        self._flusher = threading.Thread(target=self._flush_loop, args=(flush_period_s,),
-                                         name=f"BagWriter flush {self.name}", daemon=True)
+        self._flusher = threading.Thread(target=self._write_loop, name=f"BagWriter {self.name}", daemon=True)
         self._flusher.start()
 
     def __enter__(self) -> BagWriter:
@@ -222,6 +234,8 @@ class BagWriter:
         whose writer was killed (no index) need messages in log_time order.
         qos: offered QoS recorded for the topic at its first message (default: rclpy's
         default publisher profile, keep_last 10, reliable, volatile).
+        The message is queued and written by the background thread (module docstring); an
+        I/O error while writing it shows in ``error`` and ``unwritten``.
         """
         if isinstance(msg, (bytes, bytearray, memoryview)):
             if type_name is None:
@@ -230,23 +244,42 @@ class BagWriter:
         else:
             type_name = type_name or message_type_name(msg)
             data = exact_cdr(type_name, serialize_message(msg))
-        with self._lock:
+        # MCAP times are unsigned 64-bit: a stamp that is not (negative, absurd) is stored as 0
+        log_time = time.time_ns() if log_time_ns is None or not 0 <= log_time_ns < _U64 else int(log_time_ns)
+        publish_time = int(stamp_ns) if 0 <= stamp_ns < _U64 else 0
+        entry = self._span.topics.get(topic)
+        if entry is None or entry.type_name != type_name:
+            with self._lock:   # a new topic: its channel is registered now (another type: BagError)
+                self._check_open()
+                entry = self._topic(topic, type_name, qos) if self.error is None else None
+        with self._queue_lock:
             self._check_open()
-            if self.error is not None:
+            if entry is None or self.error is not None:
                 self.unwritten += 1
                 return
-            # receive order = log_time order, which readers of a killed (unindexed) bag need;
-            # MCAP times are unsigned 64-bit: a stamp that is not (negative, absurd) is stored as 0
-            log_time = time.time_ns() if log_time_ns is None or not 0 <= log_time_ns < _U64 else int(log_time_ns)
+            self._queued.append((entry, data, log_time, publish_time))
+            full = len(self._queued) >= MAX_QUEUED
+        if full:
+            with self._lock:
+                self._write_queued()
+
+    def _write_queued(self) -> None:
+        """Write the queued messages into the MCAP writer, in order (under ``_lock``). Receive order
+        = log_time order, which readers of a killed (unindexed) bag need: a log time earlier than
+        the last one written is moved up to it."""
+        with self._queue_lock:
+            queued, self._queued = self._queued, []
+        for k, (entry, data, log_time, publish_time) in enumerate(queued):
             log_time = max(log_time, self._span.end or 0)
-            publish_time = int(stamp_ns) if 0 <= stamp_ns < _U64 else 0
-            entry = self._topic(topic, type_name, qos)
-            try:
-                self._writer.add_message(entry.channel_id, log_time=log_time, data=data,
-                                         publish_time=publish_time, sequence=entry.count % (1 << 32))
-            except OSError as exc:
-                self._fail(exc)
-                self.unwritten += 1
+            if self.error is None:
+                try:
+                    self._writer.add_message(entry.channel_id, log_time=log_time, data=data,
+                                             publish_time=publish_time, sequence=entry.count % (1 << 32))
+                except OSError as exc:
+                    self._fail(exc)
+            if self.error is not None:
+                with self._queue_lock:
+                    self.unwritten += len(queued) - k
                 return
             entry.count += 1
             self._span.add(log_time)
@@ -277,7 +310,10 @@ class BagWriter:
         metadata.yaml). Called every flush_period_s by the background thread; the fsync runs
         outside the lock, so writers are not held up by a slow card."""
         with self._lock:
-            if self._closed.is_set() or not self._dirty or self.error is not None:
+            if self._closed.is_set() or self.error is not None:
+                return
+            self._write_queued()
+            if not self._dirty or self.error is not None:
                 return
             try:
                 self._writer.flush()
@@ -297,9 +333,11 @@ class BagWriter:
         """Finish the MCAP file (summary, indexes, `rosbag2` metadata record) and write the
         final metadata.yaml. Idempotent."""
         with self._lock:
-            if self._closed.is_set():
-                return
-            self._closed.set()
+            with self._queue_lock:
+                if self._closed.is_set():
+                    return
+                self._closed.set()   # write() refuses from here on
+            self._write_queued()
             if self.error is None:
                 try:
                     info = self._bag_information()
@@ -325,23 +363,29 @@ class BagWriter:
         if self._closed.is_set():
             raise BagError(f"bag {self.directory} is closed: open a new BagWriter")
 
-    def _topic(self, topic: str, type_name: str, qos: QoSProfile | None) -> _Topic:
+    def _topic(self, topic: str, type_name: str, qos: QoSProfile | None) -> _Topic | None:
+        """The topic's entry, its schema and channel registered at its first message (under
+        ``_lock``); BagError for a second type on a topic; None when the disk fails (``error``)."""
         entry = self._span.topics.get(topic)
-        if entry is not None:
+        if entry is not None:   # (write() looked without the lock: another thread may have registered it)
             if entry.type_name != type_name:
                 raise BagError(f"topic {topic!r} in bag {self.directory} holds {entry.type_name},"
                                f" cannot also record {type_name}: use another topic")
             return entry
-        schema_id = self._schemas.get(type_name)
-        if schema_id is None:
-            schema_id = self._writer.register_schema(
-                name=type_name, encoding="ros2msg",
-                data=message_definition(type_name).encode("utf-8"))
-            self._schemas[type_name] = schema_id
         qos_dict = qos_to_dict(qos if qos is not None else QoSProfile(depth=10))
-        channel_id = self._writer.register_channel(
-            topic=topic, message_encoding="cdr", schema_id=schema_id,
-            metadata={"offered_qos_profiles": yaml.safe_dump([qos_dict], sort_keys=False)})
+        try:
+            schema_id = self._schemas.get(type_name)
+            if schema_id is None:
+                schema_id = self._writer.register_schema(
+                    name=type_name, encoding="ros2msg",
+                    data=message_definition(type_name).encode("utf-8"))
+                self._schemas[type_name] = schema_id
+            channel_id = self._writer.register_channel(
+                topic=topic, message_encoding="cdr", schema_id=schema_id,
+                metadata={"offered_qos_profiles": yaml.safe_dump([qos_dict], sort_keys=False)})
+        except OSError as exc:
+            self._fail(exc)
+            return None
         entry = _Topic(topic, type_name, channel_id, qos_dict)
         self._span.topics[topic] = entry
         return entry
@@ -381,6 +425,15 @@ class BagWriter:
         tmp.write_text(text, encoding="utf-8")
         os.replace(tmp, self.directory / "metadata.yaml")
 
-    def _flush_loop(self, period_s: float) -> None:
-        while not self._closed.wait(period_s):
-            self.flush()
+    def _write_loop(self) -> None:
+        """The background thread: write the queue every WRITE_PERIOD_S, flush every flush_period_s."""
+        next_flush = time.monotonic() + self._flush_period_s
+        while not self._closed.wait(min(WRITE_PERIOD_S, self._flush_period_s)):
+            if time.monotonic() >= next_flush:
+                next_flush = time.monotonic() + self._flush_period_s
+                self.flush()
+                continue
+            with self._lock:
+                if not self._closed.is_set():
+                    self._write_queued()
+
