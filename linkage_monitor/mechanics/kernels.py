@@ -579,7 +579,8 @@ def _statics_parallel(n_pose, *args):
 def lift_capacity(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray, hinge_att: np.ndarray,
                   cyl_att: np.ndarray, lift: int, force: float, gravity: float, weight_att: np.ndarray,
                   weight_mass: np.ndarray, spring_att: np.ndarray, spring_force: np.ndarray,
-                  point_att: np.ndarray, column_scale: np.ndarray, max_condition: float) -> np.ndarray:
+                  point_att: np.ndarray, column_scale: np.ndarray, max_condition: float, ok: np.ndarray,
+                  implement_load: np.ndarray, cg_point: int) -> np.ndarray:
     """Vertical load (N, + = down) that the lift cylinder ``lift`` pushing with ``force`` (N) holds
     at each capacity point (attachments ``point_att``), for N poses q (N, n): virtual work along
     the motion with every hinge closed, every other cylinder held at its length and the lift
@@ -588,23 +589,39 @@ def lift_capacity(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray, hing
         G·δz_point = F·δs − Σ m·g·δz_cg + Σ F_spring·δL_spring        (seed 003: G = p_max·η·A·ds/dz)
 
     (weights m at ``weight_att``, spring forces (N, n_springs) + = pushing). The motion δq solves
-    [hinge rows; cylinder rows]·δq = e_lift, one factorization per pose for every point. Returns
-    (N, n_points); NaN where that system is near-singular (condition > ``max_condition``: a dead
-    centre) or not square.
+    [hinge rows; cylinder rows]·δq = e_lift, one factorization per pose for every point.
+
+    Returns (N, n_points + 1): G at each point, NaN where the pose is not ``ok`` (failed), where
+    that system is near-singular (condition > ``max_condition``: a dead centre) or not square, and
+    where G ≤ 0 (the cylinder lowers the point instead of lifting it: no capacity, not a negative
+    load); then the lift reserve, G at point ``cg_point`` / ``implement_load`` (N,) N, inf where
+    that load is not > 0.
     """
     n_pose, n = q.shape
-    out = np.full((n_pose, point_att.shape[0]), np.nan)
-    if 2 * hinge_att.shape[1] + cyl_att.shape[1] == n:
-        driver = _capacity_parallel if _parallel(n_pose) else _capacity_serial
-        driver(n_pose, out, q, att_body, att_ref, hinge_att, cyl_att, lift, force, gravity, weight_att, weight_mass,
-               spring_att, spring_force, point_att, column_scale, max_condition)
+    out = np.full((n_pose, point_att.shape[0] + 1), np.nan)
+    square = 2 * hinge_att.shape[1] + cyl_att.shape[1] == n
+    driver = _capacity_parallel if _parallel(n_pose) else _capacity_serial
+    driver(n_pose, out, q, att_body, att_ref, hinge_att, cyl_att, lift, force, gravity, weight_att, weight_mass,
+           spring_att, spring_force, point_att, column_scale, max_condition, ok, square, implement_load, cg_point)
     return out
 
 
 @njit(cache=True)
 def _capacity_pose(i, out, q, att_body, att_ref, hinge_att, cyl_att, lift, force, gravity, weight_att,
-                   weight_mass, spring_att, spring_force, point_att, column_scale, max_condition):
-    """Pose i of ``lift_capacity``, written into ``out``."""
+                   weight_mass, spring_att, spring_force, point_att, column_scale, max_condition, ok, square,
+                   implement_load, cg_point):
+    """Pose i of ``lift_capacity``, written into ``out`` (NaN on entry)."""
+    if ok[i] and square:
+        _capacity_points(i, out, q, att_body, att_ref, hinge_att, cyl_att, lift, force, gravity, weight_att,
+                         weight_mass, spring_att, spring_force, point_att, column_scale, max_condition)
+    load = implement_load[i]
+    out[i, -1] = out[i, cg_point] / load if load > 0.0 else math.inf
+
+
+@njit(cache=True)
+def _capacity_points(i, out, q, att_body, att_ref, hinge_att, cyl_att, lift, force, gravity, weight_att,
+                     weight_mass, spring_att, spring_force, point_att, column_scale, max_condition):
+    """G at each point of pose i (``lift_capacity``), written into ``out`` where > 0."""
     n = q.shape[1]
     nh, nc = hinge_att.shape[1], cyl_att.shape[1]
     _, jac = residual_jacobian(q[i], np.zeros(nc), att_body, att_ref, hinge_att, cyl_att,
@@ -625,7 +642,9 @@ def _capacity_pose(i, out, q, att_body, att_ref, hinge_att, cyl_att, lift, force
         db = _dp(dq, b, att_body, rel)
         work += spring_force[i, k] * (dx * (db[0] - da[0]) + dz * (db[1] - da[1])) / math.sqrt(dx * dx + dz * dz)
     for k in range(point_att.shape[0]):
-        out[i, k] = work / _dp(dq, point_att[k], att_body, rel)[1]
+        g = work / _dp(dq, point_att[k], att_body, rel)[1]
+        if g > 0.0:
+            out[i, k] = g
 
 
 @njit(cache=True)

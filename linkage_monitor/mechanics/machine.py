@@ -129,6 +129,7 @@ class MachineModel:
         self._layout = layout
         self._capacity_keys = (*self.capacity_points, "reserve")
         self._cg_column = list(self.capacity_points).index("implement_cg")
+        self._no_spring_force = np.zeros((1, 0))   # spring_force of a mechanism without springs (never indexed)
         self._capacity_args = (kin.hinge_att, all_cylinders, [c.name for c in mech.cylinders].index(cyl.name),
                                self.capacity_force, mech.gravity, layout.mass_att[others], layout.mass[others],
                                layout.member_att[:, :layout.n_springs].copy(), point_att)
@@ -168,21 +169,15 @@ class MachineModel:
         p_max lowers instead of lifting (e.g. the front axle of seed 001's base-change
         parallelogram: no lift capacity, not a negative load)."""
         kin = self.solver.kin
-        if not ok.all():
-            q = np.where(ok[:, None], q, kin.q_ref)   # failed poses: solved anywhere, masked below
-        q = np.ascontiguousarray(q)
+        q = np.ascontiguousarray(q, dtype=float)
         hinge_att, cylinder_att, lift, force, gravity, weight_att, weight_mass, spring_att, point_att = self._capacity_args
         spring_force = self._layout.spring_forces(kin.positions(q)[0]) if self._layout.n_springs else \
-            np.zeros((len(q), 0))
+            self._no_spring_force
         att_body, att_ref = kin.geometry[:2]
-        g = kernels.lift_capacity(q, att_body, att_ref, hinge_att, cylinder_att, lift, force, gravity, weight_att,
-                                  weight_mass, spring_att, spring_force, point_att, kin.column_scale,
-                                  self.solver.dead_centre_cond)
-        out = np.empty((len(q), g.shape[1] + 1))
-        out[:, :-1] = np.where(ok[:, None] & (g > 0.0), g, np.nan)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            out[:, -1] = np.where(implement_load > 0.0, out[:, self._cg_column] / implement_load, np.inf)
-        return out
+        return kernels.lift_capacity(q, att_body, att_ref, hinge_att, cylinder_att, lift, force, gravity, weight_att,
+                                     weight_mass, spring_att, spring_force, point_att, kin.column_scale,
+                                     self.solver.dead_centre_cond, np.ascontiguousarray(ok, dtype=np.bool_),
+                                     np.ascontiguousarray(implement_load, dtype=float), self._cg_column)
 
     def _combine(self, q: np.ndarray, ok: np.ndarray, frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
                  implement_load: np.ndarray, implement_x: np.ndarray) -> MachineBatch:

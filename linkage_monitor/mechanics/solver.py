@@ -290,8 +290,8 @@ class Solver:
                       hinges=hinges, cylinders=cylinders, contacts=contacts, implement_load=implement_load,
                       implement_cg=p[self._cg_att].copy() if self._cg_att is not None else np.full(2, np.nan),
                       frame_load_points=p[self._frame_att], frame_load_forces=frame_forces, residual=float(sol.residual[0]),
-                      consistency_residual=math.sqrt(float(state.phi[0] @ state.phi[0])),
-                      condition=float(max(sol.condition[0], state.condition[0])), status=Status.OK.label, state=state)
+                      consistency_residual=math.hypot(*state.phi[0].tolist()),
+                      condition=max(float(sol.condition[0]), float(state.condition[0])), status=Status.OK.label, state=state)
 
     def _solve(self, previous: KinematicState | None, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap,
                rates: ArrayMap, accelerations: ArrayMap) -> tuple[BatchResult, KinematicState]:

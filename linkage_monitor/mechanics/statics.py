@@ -12,6 +12,7 @@ the per-pose assembly and solution run compiled (``kernels.solve_statics``).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -35,6 +36,9 @@ class StaticsSolution:
     cylinder_length: np.ndarray
     spring_force: np.ndarray
     spring_axis: np.ndarray
+
+
+_NO_ACCEL_LINEAR, _NO_ACCEL_ANGULAR = np.zeros((1, 1, 2)), np.zeros((1, 1))   # not read: has_accel False
 
 
 class StaticsLayout:
@@ -172,7 +176,7 @@ class StaticsLayout:
         length = self.member_axes(p)[1][:, :self.n_springs]
         return self.spring_stiffness * (self.spring_free_length - length) + self.spring_preload
 
-    @property
+    @cached_property
     def program(self) -> tuple:
         """The layout as ``kernels.solve_statics`` takes it (see there)."""
         return (self.kin.lc, self.n_eq, self.t_col, self.t_att, self.t_body, self.t_const, self.t_member, self.t_sign,
@@ -195,7 +199,7 @@ class StaticsLayout:
         member_force = np.ascontiguousarray(np.concatenate([spring_force, cylinder_force], axis=1), dtype=float)
         member_force[:, self.unmeasured] = 0.0   # their force is an unknown (NaN on input)
         if accel is None:
-            lin, alpha, has_accel = np.zeros((1, 1, 2)), np.zeros((1, 1)), False
+            lin, alpha, has_accel = _NO_ACCEL_LINEAR, _NO_ACCEL_ANGULAR, False
         else:
             lin = np.ascontiguousarray(accel[0][:, self.mass_att])
             alpha, has_accel = np.ascontiguousarray(accel[1][:, self.mass_body]), True
