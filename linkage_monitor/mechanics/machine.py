@@ -40,11 +40,20 @@ class MachineBatch:
 
     steerability: dict[str, np.ndarray]
     lift_capacity: dict[str, np.ndarray]
+    size: int   # N, the number of poses (the dicts may be empty)
 
     def result(self, i: int) -> "MachineResult":
         """Pose i as a :class:`MachineResult` (floats), as ``MachineModel.evaluate`` returns it."""
-        return MachineResult({k: float(v[i]) for k, v in self.steerability.items()},
-                             {k: float(v[i]) for k, v in self.lift_capacity.items()})
+        return self.results(i, i + 1)[0]
+
+    def results(self, start: int = 0, stop: int | None = None) -> list["MachineResult"]:
+        """Poses start..stop-1 as :class:`MachineResult` objects (each array read once for all)."""
+        span = slice(start, stop)
+        steer = {k: v[span].tolist() for k, v in self.steerability.items()}
+        capacity = {k: v[span].tolist() for k, v in self.lift_capacity.items()}
+        n = len(range(*span.indices(self.size)))
+        return [MachineResult({k: v[j] for k, v in steer.items()}, {k: v[j] for k, v in capacity.items()})
+                for j in range(n)]
 
 
 @dataclass(frozen=True)
@@ -191,7 +200,7 @@ class MachineModel:
         if self.has_capacity:
             loads = self._capacity(q, ok, implement_load)
             capacity = {k: loads[:, j] for j, k in enumerate(self._capacity_keys)}
-        return MachineBatch(steer, capacity)
+        return MachineBatch(steer, capacity, len(q))
 
     def stroke_poses(self, cylinder: str, lengths: np.ndarray) -> BatchResult:
         """Transport poses with ``cylinder`` at ``lengths`` (m), solved batched by ``self.solver``.

@@ -142,21 +142,36 @@ class BatchResult:
 
     def result(self, i: int) -> Result:
         """Pose i as a :class:`Result` (its status may be an error: check ``status``/``message``)."""
-        return Result(
-            points={k: v[i].copy() for k, v in self.points.items()},
-            body_poses={k: v[i].copy() for k, v in self.body_poses.items()},
-            hinges={k: hinge_result(float(v[i, 0]), float(v[i, 1]), *self.hinge_bodies[k]) for k, v in self.hinge_force.items()},
-            cylinders={k: CylinderResult(length=float(self.cylinder_length[k][i]), force=float(self.cylinder_force[k][i]),
-                                         cap_pressure_predicted=float(self.cap_pressure_predicted[k][i]),
-                                         cap_pressure_measured=float(self.cap_pressure_measured[k][i]),
-                                         rod_pressure_measured=float(self.rod_pressure_measured[k][i]))
-                       for k in self.cylinder_force},
-            contacts={k: ContactResult(normal=float(v[i]), tangential=float(self.contact_tangential[k][i]))
-                      for k, v in self.contact_normal.items()},
-            implement_load=float(self.implement_load[i]), implement_cg=self.implement_cg[i].copy(),
-            frame_load_points=self.frame_load_points[i].copy(), frame_load_forces=self.frame_load_forces[i].copy(),
-            residual=float(self.residual[i]), consistency_residual=float(self.consistency_residual[i]),
-            condition=float(self.condition[i]), status=Status(int(self.status[i])).label, message=self.messages[i])
+        return self.results(i, i + 1)[0]
+
+    def results(self, start: int = 0, stop: int | None = None) -> list[Result]:
+        """Poses start..stop-1 as :class:`Result` objects: each array is read once for all of them
+        (Python floats and row copies), not once per pose."""
+        span = slice(start, stop)
+
+        def rows(group: dict[str, np.ndarray]) -> dict[str, list[np.ndarray]]:
+            return {k: list(v[span].copy()) for k, v in group.items()}
+
+        def floats(*arrays: np.ndarray) -> list:
+            return list(zip(*(a[span].tolist() for a in arrays)))
+
+        points, poses = rows(self.points), rows(self.body_poses)
+        hinges = {k: v[span].tolist() for k, v in self.hinge_force.items()}
+        cylinders = {k: floats(self.cylinder_length[k], self.cylinder_force[k], self.cap_pressure_predicted[k],
+                               self.cap_pressure_measured[k], self.rod_pressure_measured[k]) for k in self.cylinder_force}
+        contacts = {k: floats(v, self.contact_tangential[k]) for k, v in self.contact_normal.items()}
+        cgs, load_points, load_forces = (list(a[span].copy()) for a in (self.implement_cg, self.frame_load_points,
+                                                                        self.frame_load_forces))
+        scalars = floats(self.implement_load, self.residual, self.consistency_residual, self.condition, self.status)
+        return [Result(points={k: v[j] for k, v in points.items()}, body_poses={k: v[j] for k, v in poses.items()},
+                       hinges={k: hinge_result(v[j][0], v[j][1], *self.hinge_bodies[k]) for k, v in hinges.items()},
+                       cylinders={k: CylinderResult(*v[j]) for k, v in cylinders.items()},
+                       contacts={k: ContactResult(*v[j]) for k, v in contacts.items()},
+                       implement_load=load, implement_cg=cgs[j], frame_load_points=load_points[j],
+                       frame_load_forces=load_forces[j], residual=residual, consistency_residual=consistency,
+                       condition=condition, status=Status(int(status)).label, message=message)
+                for j, ((load, residual, consistency, condition, status), message)
+                in enumerate(zip(scalars, self.messages[span]))]
 
 
 def hinge_result(fx: float, fz: float, from_body: str, on_body: str) -> HingeResult:

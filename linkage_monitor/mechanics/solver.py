@@ -85,6 +85,7 @@ class Solver:
         self._frame_member_index = np.array([m for m, _, _ in self._frame_members], dtype=np.intp)
         self._frame_member_sign = np.array([[sg] for _, _, sg in self._frame_members]).reshape(-1, 1)
         self._hinge_bodies = [(h.name, h.bodies[1], h.bodies[0]) for h in mech.hinges]   # name, on, from
+        self._body_names = [b.name for b in mech.moving_bodies]
 
     # ---- public API -------------------------------------------------------------------------
     def solve(self, inputs: Inputs, previous: Result | None = None) -> Result:
@@ -286,7 +287,7 @@ class Solver:
                                        self._frame_member_sign * member_force[m, None] * axes[m]])
         points, poses = p[self._point_rows], q.reshape(-1, 3).copy()   # fresh arrays: their rows need no copies
         return Result(points=dict(zip(self._point_att, points)),
-                      body_poses={b.name: poses[i] for i, b in enumerate(mech.moving_bodies)},
+                      body_poses=dict(zip(self._body_names, poses)),
                       hinges=hinges, cylinders=cylinders, contacts=contacts, implement_load=implement_load,
                       implement_cg=p[self._cg_att].copy() if self._cg_att is not None else np.full(2, np.nan),
                       frame_load_points=p[self._frame_att], frame_load_forces=frame_forces, residual=float(sol.residual[0]),

@@ -266,9 +266,10 @@ class Monitor:
                                         pressures=column("pressures"), rates=column("rates"),
                                         accelerations=column("accelerations"))
         machine = self.machine.evaluate_batch(batch)
+        results, machine_results = batch.results(), machine.results()
         for k, (i, due) in enumerate(segment):
             status = Status(int(batch.status[k]))
-            steps[i] = (self._finish(due, batch.result(k), machine.result(k)) if status.solved
+            steps[i] = (self._finish(due, results[k], machine_results[k]) if status.solved
                         else self._failed(due, status, batch.messages[k]))
         segments.append(Segment(np.array([i for i, _ in segment]), np.array([d.stamp_ns for d in dues], dtype=np.int64),
                                 batch, machine, self.mechanism))

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
+from typing import Callable, Hashable
 
 import numpy as np
 
@@ -76,6 +77,18 @@ class Writer:
         self.align(8)
         self.data += _F64.pack(value)
         return len(self.data) - 8
+
+    def constant(self, key: Hashable, write: Callable[["Writer"], None], cache: dict) -> None:
+        """Append what ``write`` writes, from ``cache`` (keyed by ``key`` and the offset modulo 8, on
+        which the alignment padding depends): a run of fields that is the same in every message is
+        laid out once per alignment, not field by field each time."""
+        residue = (len(self.data) - len(ENCAPSULATION)) % 8
+        block = cache.get((key, residue))
+        if block is None:
+            scratch = Writer(bytearray(ENCAPSULATION) + bytes(residue))
+            write(scratch)
+            block = cache[(key, residue)] = bytes(scratch.data[len(ENCAPSULATION) + residue:])
+        self.data += block
 
     def header(self, frame_id: str) -> None:
         """A std_msgs/Header at the payload start with stamp 0 (``Template.fill`` writes it)."""

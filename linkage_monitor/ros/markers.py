@@ -66,6 +66,7 @@ class LinkageMarkers:
                         for k, b in enumerate(mechanism.bodies)]
         self._hinges = [(h.name, h.point) for h in mechanism.hinges]
         self._cylinders = [(c.name, c.base.point, c.rod_end.point) for c in mechanism.cylinders]
+        self._blocks: dict = {}   # Writer.constant's cache
 
     def markers(self, stamp_ns: int, result: Result) -> bytes:
         """The drawing of one solved pose, stamped ``stamp_ns`` (the input's header stamp), as the
@@ -82,33 +83,18 @@ class LinkageMarkers:
         def marker(ns: str, ident: int, kind: int, color: tuple[int, int, int], size: tuple[float, float, float],
                    where: Sequence[tuple[float, float]] = (), text: str = "",
                    position: tuple[float, float] = (0.0, 0.0)) -> None:
-            """One visualization_msgs/Marker, field by field in message order (Marker.msg, Kilted)."""
+            """One visualization_msgs/Marker, in message order (Marker.msg, Kilted); the runs of fields
+            that do not change between poses come from ``self._blocks`` (``Writer.constant``)."""
             w.time(stamp_ns)                                   # header
-            w.string(FRAME)
-            w.string(ns)
-            w.int32(ident)
-            w.int32(kind)
-            w.int32(Marker.ADD)
+            w.constant((ns, ident, kind), lambda b: _identity(b, ns, ident, kind), self._blocks)
             w.float64s(position[0], 0.0, position[1], 0.0, 0.0, 0.0, 1.0)   # pose: position, orientation
-            w.float64s(*size)                                  # scale
-            w.float32s(color[0] / 255, color[1] / 255, color[2] / 255, 1.0)
-            w.time(LIFETIME_S * 1_000_000_000)                 # lifetime
-            w.uint8(0)                                         # frame_locked
+            w.constant((size, color), lambda b: _appearance(b, size, color), self._blocks)
             w.uint32(len(where))                               # points (geometry_msgs/Point: x, y, z)
-            for x, z in where:
-                w.float64s(x, 0.0, z)
-            w.uint32(0)                                        # colors
-            w.string("")                                       # texture_resource
-            w.time(0)                                          # texture (sensor_msgs/CompressedImage): header,
-            w.string("")
-            w.string("")                                       # format,
-            w.uint32(0)                                        # data
-            w.uint32(0)                                        # uv_coordinates
+            if where:
+                w.float64s(*[c for x, z in where for c in (x, 0.0, z)])
+            w.constant("before text", _before_text, self._blocks)
             w.string(text)
-            w.string("")                                       # mesh_resource
-            w.string("")                                       # mesh_file: filename,
-            w.uint32(0)                                        # data
-            w.uint8(0)                                         # mesh_use_embedded_materials
+            w.constant("after text", _after_text, self._blocks)
 
         for k, (_, outline, color) in enumerate(self._bodies):
             marker("links", k, Marker.LINE_STRIP, color, (LINE_WIDTH, 0.0, 0.0), [points[p] for p in outline])
@@ -130,3 +116,39 @@ class LinkageMarkers:
             marker("cylinder_forces", k, Marker.ARROW, CYLINDER_COLOR, (0.015, 0.03, 0.05),
                    [(rx, rz), (rx + ux * force * scale, rz + uz * force * scale)])
         return bytes(w.data)
+
+
+def _identity(w: Writer, ns: str, ident: int, kind: int) -> None:
+    """Marker fields header.frame_id .. action."""
+    w.string(FRAME)
+    w.string(ns)
+    w.int32(ident)
+    w.int32(kind)
+    w.int32(Marker.ADD)
+
+
+def _appearance(w: Writer, size: tuple[float, float, float], color: tuple[int, int, int]) -> None:
+    """Marker fields scale .. frame_locked."""
+    w.float64s(*size)
+    w.float32s(color[0] / 255, color[1] / 255, color[2] / 255, 1.0)
+    w.time(LIFETIME_S * 1_000_000_000)                 # lifetime
+    w.uint8(0)                                         # frame_locked
+
+
+def _before_text(w: Writer) -> None:
+    """Marker fields colors .. uv_coordinates: empty."""
+    w.uint32(0)                                        # colors
+    w.string("")                                       # texture_resource
+    w.time(0)                                          # texture (sensor_msgs/CompressedImage): header,
+    w.string("")
+    w.string("")                                       # format,
+    w.uint32(0)                                        # data
+    w.uint32(0)                                        # uv_coordinates
+
+
+def _after_text(w: Writer) -> None:
+    """Marker fields mesh_resource .. mesh_use_embedded_materials: empty."""
+    w.string("")                                       # mesh_resource
+    w.string("")                                       # mesh_file: filename,
+    w.uint32(0)                                        # data
+    w.uint8(0)                                         # mesh_use_embedded_materials
