@@ -2,8 +2,14 @@
 JointStates by bench_node.py's driver in a child process (reliable QoS, one FluidPressure first,
 so every JointState is one solve), then the profile's top entries.
 
-Usage: .venv/bin/python bench/profile_node.py [--rate HZ] [--seconds S] [--top N]
+Usage: .venv/bin/python bench/profile_node.py [--rate HZ] [--seconds S] [--top N] [--stages]
 (default 200 Hz for 6 s; the table in docs/performance.md comes from this command)
+
+--stages: instead of cProfile (which inflates Python code several times), the node's stages
+timed on its own thread's CPU clock (``time.thread_time``): per input the whole callback
+(``_guarded``), the monitoring step, the outputs (three publishes + recording + markers), each
+recording call and the HitchState publish; and the process CPU per input (every thread: rclpy's,
+the middleware's, the bag writer's).
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "test"))
@@ -44,6 +51,7 @@ def main() -> None:
     parser.add_argument("--rate", type=float, default=200.0)
     parser.add_argument("--seconds", type=float, default=6.0)
     parser.add_argument("--top", type=int, default=30)
+    parser.add_argument("--stages", action="store_true", help="stage timers on the thread CPU clock, no cProfile")
     parser.add_argument("--drive", action="store_true", help=argparse.SUPPRESS)   # the child process
     args = parser.parse_args()
     from support.ros_env import isolate_ros_domain
@@ -62,20 +70,51 @@ def main() -> None:
         node = LinkageMonitorNode(parameter_overrides=[
             Parameter("sensor_qos", value="reliable"), Parameter("staleness_limit", value=3600.0),
             Parameter("record_dir", value=tmp)])
+        spent = _time_stages(node) if args.stages else None
         child = subprocess.Popen([sys.executable, __file__, "--drive", "--rate", str(args.rate), "--seconds",
                                   str(args.seconds)], env=dict(os.environ))
         profile = cProfile.Profile()
         cpu = time.process_time()
-        profile.enable()
+        if spent is None:
+            profile.enable()
         while child.poll() is None:
             rclpy.spin_once(node, timeout_sec=0.1)
         profile.disable()
-        print(f"node process CPU while driven (profiled): {time.process_time() - cpu:.2f} s")
+        cpu = time.process_time() - cpu
+        inputs = node.loss.received.get("/joint_states", 0)
+        print(f"node process CPU while driven{'' if spent else ' (profiled)'}: {cpu:.2f} s, "
+              f"{1e6 * cpu / max(inputs, 1):.0f} us per JointState ({inputs})")
         node.close()
         node.destroy_node()
     rclpy.shutdown()
+    if spent is not None:
+        print(f"{'stage (node thread CPU)':40s} {'calls':>7s} {'us per call':>12s}")
+        for label, (calls, seconds) in spent.items():
+            print(f"{label:40s} {calls:7d} {1e6 * seconds / max(calls, 1):12.1f}")
+        return
     stats = pstats.Stats(profile)
     stats.sort_stats("cumulative").print_stats(args.top)
+
+
+def _time_stages(node: Any) -> dict[str, list]:
+    """Wrap the node's stages with thread-CPU timers; returns label -> [calls, seconds]."""
+    spent: dict[str, list] = {}
+    for owner, name, label in ((node, "_guarded", "input callback (whole)"), (node.monitor, "step", "  monitoring step"),
+                               (node, "_publish", "  outputs: encode, publish, record"),
+                               (node, "_record", "  a recording call (BagWriter.write)"),
+                               (node.pub_hitch, "publish", "  a publish (HitchState)")):
+        function = getattr(owner, name)
+        entry = spent[label] = [0, 0.0]
+
+        def timed(*args: Any, _function: Any = function, _entry: list = entry, **kwargs: Any) -> Any:
+            t0 = time.thread_time()
+            try:
+                return _function(*args, **kwargs)
+            finally:
+                _entry[0] += 1
+                _entry[1] += time.thread_time() - t0
+        setattr(owner, name, timed)
+    return spent
 
 
 if __name__ == "__main__":

@@ -8,11 +8,17 @@ output messages (``OutputEncoder.outputs``). Printed: µs per event, averaged ov
 belarus_1221's simulated lift at 100 Hz (2 events per sample). Not a benchmark with a baseline:
 a profile, for docs/performance.md.
 
-Run: ``.venv/bin/python bench/profile_step.py``
+``--idle-ms T``: sleep T ms before every event, as a sensor stream leaves the CPU idle between
+messages (one pass). On these machines a step that follows an idle gap runs several times slower
+than in a tight loop (caches and the CPU are cold after the gap): the live node's steps are of
+that kind (docs/performance.md, fifth session).
+
+Run: ``.venv/bin/python bench/profile_step.py [--idle-ms T]``
 """
 
 from __future__ import annotations
 
+import argparse
 import collections
 import sys
 import time
@@ -46,6 +52,9 @@ def timed(spent: dict[str, float], label: str, function: Callable[..., Any]) -> 
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--idle-ms", type=float, default=0.0, help="ms of sleep before every event (default 0)")
+    idle_s = parser.parse_args().idle_ms * 1e-3
     spent: dict[str, float] = collections.defaultdict(float)
     for owner, name, label in STAGES:
         setattr(owner, name, timed(spent, label, getattr(owner, name)))
@@ -56,19 +65,24 @@ def main() -> None:
     names, positions = list(stream.joint_names), stream.joint_positions.tolist()
     pressures, stamps = stream.pressure_values[:, 0].tolist(), stream.stamps_ns.tolist()
 
-    def one_pass() -> None:
+    def one_pass(idle: float) -> None:
         monitor, encoder = core.Monitor(mech, config), OutputEncoder()
         for i, stamp in enumerate(stamps):
+            if idle:
+                time.sleep(idle)
             encoder.outputs(monitor, monitor.on_pressure(PRESSURE_TOPIC, pressures[i], stamp, stamp))
+            if idle:
+                time.sleep(idle)
             encoder.outputs(monitor, monitor.on_joint_state(names, positions[i], [], stamp, stamp))
 
-    one_pass()   # load the kernels, warm the caches
+    one_pass(0.0)   # load the kernels, warm the caches
     spent.clear()
-    passes = 3
+    passes = 1 if idle_s else 3
     for _ in range(passes):
-        one_pass()
+        one_pass(idle_s)
     events = passes * 2 * len(stamps)
-    print(f"belarus_1221, {len(stamps)} samples at 100 Hz, {passes} passes, {events} events; us per event:")
+    print(f"belarus_1221, {len(stamps)} samples at 100 Hz, {passes} pass(es), {events} events, "
+          f"{1e3 * idle_s:g} ms idle before each; us per event:")
     for _, _, label in STAGES:
         print(f"{label:40s} {1e6 * spent[label] / events:7.1f}")
 
