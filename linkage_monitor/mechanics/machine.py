@@ -44,6 +44,7 @@ class MachineBatch:
 
     def result(self, i: int) -> "MachineResult":
         """Pose i as a :class:`MachineResult` (floats), as ``MachineModel.evaluate`` returns it."""
+        i = range(self.size)[i]   # IndexError out of range; a negative i counts from the end
         return self.results(i, i + 1)[0]
 
     def results(self, start: int = 0, stop: int | None = None) -> list["MachineResult"]:

@@ -142,6 +142,7 @@ class BatchResult:
 
     def result(self, i: int) -> Result:
         """Pose i as a :class:`Result` (its status may be an error: check ``status``/``message``)."""
+        i = range(len(self))[i]   # IndexError out of range; a negative i counts from the end
         return self.results(i, i + 1)[0]
 
     def results(self, start: int = 0, stop: int | None = None) -> list[Result]:
