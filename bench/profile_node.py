@@ -97,23 +97,15 @@ def main() -> None:
 
 
 def _time_stages(node: Any) -> dict[str, list]:
-    """Wrap the node's stages with thread-CPU timers; returns label -> [calls, seconds]."""
+    """Wrap the node's stages with thread-CPU timers (profile_step.timed); returns label -> [calls, seconds]."""
+    from profile_step import timed
+
     spent: dict[str, list] = {}
     for owner, name, label in ((node, "_guarded", "input callback (whole)"), (node.monitor, "step", "  monitoring step"),
                                (node, "_publish", "  outputs: encode, publish, record"),
                                (node, "_record", "  a recording call (BagWriter.write)"),
                                (node.pub_hitch, "publish", "  a publish (HitchState)")):
-        function = getattr(owner, name)
-        entry = spent[label] = [0, 0.0]
-
-        def timed(*args: Any, _function: Any = function, _entry: list = entry, **kwargs: Any) -> Any:
-            t0 = time.thread_time()
-            try:
-                return _function(*args, **kwargs)
-            finally:
-                _entry[0] += 1
-                _entry[1] += time.thread_time() - t0
-        setattr(owner, name, timed)
+        setattr(owner, name, timed(spent, label, getattr(owner, name), time.thread_time))
     return spent
 
 

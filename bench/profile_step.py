@@ -19,7 +19,6 @@ Run: ``.venv/bin/python bench/profile_step.py [--idle-ms T]``
 from __future__ import annotations
 
 import argparse
-import collections
 import sys
 import time
 from pathlib import Path
@@ -41,13 +40,19 @@ STAGES = [(core.Monitor, "step", "step (whole)"), (core.Monitor, "_accept", "  a
           (core.Monitor, "_finish", "  findings"), (OutputEncoder, "outputs", "three CDR messages (after the step)")]
 
 
-def timed(spent: dict[str, float], label: str, function: Callable[..., Any]) -> Callable[..., Any]:
+def timed(spent: dict[str, list], label: str, function: Callable[..., Any],
+          clock: Callable[[], float] = time.perf_counter) -> Callable[..., Any]:
+    """``function`` counting its calls and the seconds of ``clock`` it takes into ``spent[label]``
+    ([calls, seconds]; also used by profile_node.py with the thread CPU clock)."""
+    entry = spent.setdefault(label, [0, 0.0])
+
     def wrapper(*args: Any, **kwargs: Any) -> Any:
-        t0 = time.perf_counter()
+        t0 = clock()
         try:
             return function(*args, **kwargs)
         finally:
-            spent[label] += time.perf_counter() - t0
+            entry[0] += 1
+            entry[1] += clock() - t0
     return wrapper
 
 
@@ -55,7 +60,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--idle-ms", type=float, default=0.0, help="ms of sleep before every event (default 0)")
     idle_s = parser.parse_args().idle_ms * 1e-3
-    spent: dict[str, float] = collections.defaultdict(float)
+    spent: dict[str, list] = {}
     for owner, name, label in STAGES:
         setattr(owner, name, timed(spent, label, getattr(owner, name)))
     mech = load_preset("belarus_1221")
@@ -76,7 +81,8 @@ def main() -> None:
             encoder.outputs(monitor, monitor.on_joint_state(names, positions[i], [], stamp, stamp))
 
     one_pass(0.0)   # load the kernels, warm the caches
-    spent.clear()
+    for entry in spent.values():
+        entry[:] = [0, 0.0]
     passes = 1 if idle_s else 3
     for _ in range(passes):
         one_pass(idle_s)
@@ -84,7 +90,7 @@ def main() -> None:
     print(f"belarus_1221, {len(stamps)} samples at 100 Hz, {passes} pass(es), {events} events, "
           f"{1e3 * idle_s:g} ms idle before each; us per event:")
     for _, _, label in STAGES:
-        print(f"{label:40s} {1e6 * spent[label] / events:7.1f}")
+        print(f"{label:40s} {1e6 * spent[label][1] / events:7.1f}")
 
 
 if __name__ == "__main__":
