@@ -10,7 +10,9 @@ moments M = x·Fz − z·Fx (positive turns +x towards +z).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -21,6 +23,7 @@ from .model import Mechanism, Tractor
 from .results import BatchResult, Status, Result
 from .solver import Solver
 
+_EMPTY = np.zeros(0)
 STEERABILITY_KEYS = machine_kernels.COLUMNS   # front_axle_load, rear_axle_load, total_weight, wheelbase, ratio,
 # ratio_min, margin, front_ballast_needed, ratio_unit, ratio_tractor, max_implement_mass
 CAPACITY_KEYS = ("hitch_axis", "behind_610mm", "implement_cg")
@@ -43,26 +46,49 @@ class MachineBatch:
     size: int   # N, the number of poses (the dicts may be empty)
 
     def result(self, i: int) -> "MachineResult":
-        """Pose i as a :class:`MachineResult` (floats), as ``MachineModel.evaluate`` returns it."""
+        """Pose i as a :class:`MachineResult`, as ``MachineModel.evaluate`` returns it."""
         i = range(self.size)[i]   # IndexError out of range; a negative i counts from the end
         return self.results(i, i + 1)[0]
 
     def results(self, start: int = 0, stop: int | None = None) -> list["MachineResult"]:
-        """Poses start..stop-1 as :class:`MachineResult` objects (each array read once for all)."""
+        """Poses start..stop-1 as :class:`MachineResult` objects (rows of the stacked arrays)."""
         span = slice(start, stop)
-        steer = {k: v[span].tolist() for k, v in self.steerability.items()}
-        capacity = {k: v[span].tolist() for k, v in self.lift_capacity.items()}
         n = len(range(*span.indices(self.size)))
-        return [MachineResult({k: v[j] for k, v in steer.items()}, {k: v[j] for k, v in capacity.items()})
-                for j in range(n)]
+        steer_keys, capacity_keys = tuple(self.steerability), tuple(self.lift_capacity)
+        steer = (np.stack([v[span] for v in self.steerability.values()], axis=1) if steer_keys
+                 else np.zeros((n, 0)))
+        capacity = (np.stack([v[span] for v in self.lift_capacity.values()], axis=1) if capacity_keys
+                    else np.zeros((n, 0)))
+        return [MachineResult(steer[j], capacity[j], steer_keys, capacity_keys) for j in range(n)]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class MachineResult:
-    """Machine-level results of one pose: dicts as in :class:`MachineBatch` (floats)."""
+    """Machine-level results of one pose: rows in the order of their keys (the dicts of
+    :class:`MachineBatch` for one pose, built when first asked for; empty without a ``tractor``
+    block / lift capacity)."""
 
-    steerability: dict[str, float] = field(default_factory=dict)
-    lift_capacity: dict[str, float] = field(default_factory=dict)
+    steerability_row: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    capacity_row: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    steerability_keys: tuple[str, ...] = ()
+    capacity_keys: tuple[str, ...] = ()
+
+    @cached_property
+    def steerability(self) -> dict[str, float]:
+        """``STEERABILITY_KEYS`` -> value (N, m, -, kg as in :class:`MachineBatch`)."""
+        return dict(zip(self.steerability_keys, self.steerability_row.tolist()))
+
+    @cached_property
+    def lift_capacity(self) -> dict[str, float]:
+        """Capacity points -> N, and ``reserve`` (-)."""
+        return dict(zip(self.capacity_keys, self.capacity_row.tolist()))
+
+    def value(self, key: str) -> float:
+        """One value of either row by its key (e.g. ``margin``, ``reserve``); NaN when it is not computed."""
+        for keys, row in ((self.steerability_keys, self.steerability_row), (self.capacity_keys, self.capacity_row)):
+            if key in keys:
+                return float(row[keys.index(key)])
+        return math.nan
 
 
 def _summary(capacity: dict, steer: dict) -> dict:
@@ -122,6 +148,9 @@ class MachineModel:
         self.capacity_points: dict[str, np.ndarray] = {}
         self.capacity_force = float("nan")
         self.capacity_error = ""
+        # the keys of MachineResult's rows: empty for a part the mechanism does not support
+        self.steerability_keys: tuple[str, ...] = STEERABILITY_KEYS if self._tractor is not None else ()
+        self.capacity_keys: tuple[str, ...] = ()
         if mech.implement is None or not any(c.relief_pressure is not None for c in mech.cylinders):
             self.capacity_error = "no implement or no cylinder with relief_pressure: lift capacity not computed"
             return
@@ -137,7 +166,7 @@ class MachineModel:
         point_att = np.array([kin.attach(imp.body, f"capacity point {k}", pt) for k, pt in self.capacity_points.items()],
                              dtype=np.int64)
         self._layout = layout
-        self._capacity_keys = (*self.capacity_points, "reserve")
+        self.capacity_keys = (*self.capacity_points, "reserve")
         self._cg_column = list(self.capacity_points).index("implement_cg")
         self._no_spring_force = np.zeros((1, 0))   # spring_force of a mechanism without springs (never indexed)
         self._capacity_args = (kin.hinge_att, all_cylinders, [c.name for c in mech.cylinders].index(cyl.name),
@@ -166,15 +195,17 @@ class MachineModel:
         """Machine-level results of one solved pose (a ``Result`` of ``self.solver``)."""
         state = result.state
         q = (state.q[-1:] if isinstance(state, KinematicState)   # the live solve's pose, as solved
-             else np.concatenate([result.body_poses[b.name] for b in self.mech.moving_bodies])[None])
-        return self._combine(q, np.isfinite(q).all(axis=1), result.frame_load_points[None],
-                             result.frame_load_forces[None], np.array([result.implement_load]),
-                             result.implement_cg[:1]).result(0)
+             else result.body_q.reshape(1, -1))
+        steer, capacity = self._rows(q, np.isfinite(q).all(axis=1), result.frame_load_points[None],
+                                     result.frame_load_forces[None], np.array([result.implement_load]),
+                                     result.implement_cg[:1])
+        return MachineResult(steer[0] if steer is not None else _EMPTY, capacity[0] if capacity is not None else _EMPTY,
+                             self.steerability_keys, self.capacity_keys)
 
     def _capacity(self, q: np.ndarray, ok: np.ndarray, implement_load: np.ndarray) -> np.ndarray:
         """Lift capacity (N) at each capacity point for the solved poses q (N, n) (virtual work,
         ``kernels.lift_capacity``), then the lift reserve (capacity at the implement cg / implement
-        load (N,) N): (N, len(capacity points) + 1) in ``_capacity_keys`` order. NaN where not ``ok``
+        load (N,) N): (N, len(capacity points) + 1) in ``capacity_keys`` order. NaN where not ``ok``
         (failed), where the motion is at a dead centre, or at a point that the cylinder pushing at
         p_max lowers instead of lifting (e.g. the front axle of seed 001's base-change
         parallelogram: no lift capacity, not a negative load)."""
@@ -191,17 +222,20 @@ class MachineModel:
 
     def _combine(self, q: np.ndarray, ok: np.ndarray, frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
                  implement_load: np.ndarray, implement_x: np.ndarray) -> MachineBatch:
-        """Steerability from the frame loads, lift capacity at the poses q (N, n) where ``ok``, and
-        the lift reserve (capacity at the implement cg / implement load)."""
-        steer: dict[str, np.ndarray] = {}
-        if self._tractor is not None:
-            rows = _steerability_rows(self._tractor, frame_load_points, frame_load_forces, implement_load, implement_x)
-            steer = {k: rows[:, j] for j, k in enumerate(machine_kernels.COLUMNS)}
-        capacity: dict[str, np.ndarray] = {}
-        if self.has_capacity:
-            loads = self._capacity(q, ok, implement_load)
-            capacity = {k: loads[:, j] for j, k in enumerate(self._capacity_keys)}
-        return MachineBatch(steer, capacity, len(q))
+        """``_rows`` of N poses as a :class:`MachineBatch` (a column per key)."""
+        steer, capacity = self._rows(q, ok, frame_load_points, frame_load_forces, implement_load, implement_x)
+        return MachineBatch({k: steer[:, j] for j, k in enumerate(self.steerability_keys)} if steer is not None else {},
+                            {k: capacity[:, j] for j, k in enumerate(self.capacity_keys)} if capacity is not None
+                            else {}, len(q))
+
+    def _rows(self, q: np.ndarray, ok: np.ndarray, frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
+              implement_load: np.ndarray, implement_x: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Steerability from the frame loads (N, len(STEERABILITY_KEYS)), lift capacity at the poses
+        q (N, n) where ``ok`` and the lift reserve (N, len(capacity points) + 1); None for a part the
+        mechanism does not support."""
+        steer = (_steerability_rows(self._tractor, frame_load_points, frame_load_forces, implement_load, implement_x)
+                 if self._tractor is not None else None)
+        return steer, self._capacity(q, ok, implement_load) if self.has_capacity else None
 
     def stroke_poses(self, cylinder: str, lengths: np.ndarray) -> BatchResult:
         """Transport poses with ``cylinder`` at ``lengths`` (m), solved batched by ``self.solver``.

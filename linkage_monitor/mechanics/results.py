@@ -5,8 +5,8 @@ SI units, global frame (x forward, z up, origin at the rear wheels' ground conta
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from enum import IntEnum
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -75,12 +75,30 @@ class ContactResult(NamedTuple):
 
 
 @dataclass(frozen=True)
-class Result:
-    """Everything solved for one pose.
+class ResultNames:
+    """The names a :class:`Result`'s rows follow, the same for every pose of one solver:
+    ``points`` (mechanism points), ``bodies`` (moving bodies), ``hinges`` (name, on_body,
+    from_body), ``cylinders``, ``contacts``."""
 
-    ``body_poses[name]`` = [x, z, θ]: position (m) of the body's origin (centroid of its points
-    in the reference pose) and rotation from the reference pose (rad). ``frame_load_points`` /
-    ``frame_load_forces`` (K, 2): where (m) and what force (N) the linkage puts ON the ground body,
+    points: tuple[str, ...]
+    bodies: tuple[str, ...]
+    hinges: tuple[tuple[str, str, str], ...]
+    cylinders: tuple[str, ...]
+    contacts: tuple[str, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class Result:
+    """Everything solved for one pose, as arrays whose rows follow ``names``; the per-name views
+    (``points``, ``body_poses``, ``hinges``, ``cylinders``, ``contacts``) are built when first
+    asked for (the live node's outputs are written from the arrays).
+
+    ``point_xz`` (P, 2) m: the mechanism's points. ``body_q`` (B, 3): per moving body [x, z, θ],
+    position (m) of the body's origin (centroid of its points in the reference pose) and rotation
+    from the reference pose (rad). ``hinge_force`` (H, 2) N: the reaction on ``on_body`` from
+    ``from_body``. ``cylinder_values`` (C, 5): the fields of :class:`CylinderResult` (m, N, Pa).
+    ``contact_values`` (K, 2): those of :class:`ContactResult` (N). ``frame_load_points`` /
+    ``frame_load_forces`` (F, 2): where (m) and what force (N) the linkage puts ON the ground body,
     one row per frame-side hinge and cylinder/spring mount (names in ``Solver.frame_load_names``).
     ``implement_load`` = vertical load (N, + = down) at ``implement_cg``: estimated when a
     cylinder force is measured, else the configured weight. ``residual`` = norm of the
@@ -89,11 +107,12 @@ class Result:
     pulls: N < 0; ``message`` names it).
     """
 
-    points: dict[str, np.ndarray]
-    body_poses: dict[str, np.ndarray]
-    hinges: dict[str, HingeResult]
-    cylinders: dict[str, CylinderResult]
-    contacts: dict[str, ContactResult]
+    names: ResultNames
+    point_xz: np.ndarray
+    body_q: np.ndarray
+    hinge_force: np.ndarray
+    cylinder_values: np.ndarray
+    contact_values: np.ndarray
     implement_load: float
     implement_cg: np.ndarray
     frame_load_points: np.ndarray
@@ -103,7 +122,38 @@ class Result:
     condition: float
     status: str
     message: str = ""
-    state: object = field(default=None, repr=False, compare=False)  # the solver's pose, to warm-start the next solve
+    state: object = field(default=None, repr=False)  # the solver's pose, to warm-start the next solve
+
+    @cached_property
+    def hinge_magnitude(self) -> np.ndarray:
+        """|F| (H,) N of each hinge reaction."""
+        return np.hypot(self.hinge_force[:, 0], self.hinge_force[:, 1])
+
+    @cached_property
+    def points(self) -> dict[str, np.ndarray]:
+        """Point name -> [x, z] m."""
+        return dict(zip(self.names.points, self.point_xz))
+
+    @cached_property
+    def body_poses(self) -> dict[str, np.ndarray]:
+        """Moving body name -> [x, z, θ] (m, m, rad)."""
+        return dict(zip(self.names.bodies, self.body_q))
+
+    @cached_property
+    def hinges(self) -> dict[str, HingeResult]:
+        """Hinge name -> its reaction."""
+        return {name: HingeResult(fx, fz, magnitude, on, off) for (name, on, off), (fx, fz), magnitude
+                in zip(self.names.hinges, self.hinge_force.tolist(), self.hinge_magnitude.tolist())}
+
+    @cached_property
+    def cylinders(self) -> dict[str, CylinderResult]:
+        """Cylinder name -> length, force and pressures."""
+        return {name: CylinderResult(*row) for name, row in zip(self.names.cylinders, self.cylinder_values.tolist())}
+
+    @cached_property
+    def contacts(self) -> dict[str, ContactResult]:
+        """Ground contact name -> normal and friction force."""
+        return {name: ContactResult(*row) for name, row in zip(self.names.contacts, self.contact_values.tolist())}
 
 
 @dataclass
@@ -146,38 +196,39 @@ class BatchResult:
         return self.results(i, i + 1)[0]
 
     def results(self, start: int = 0, stop: int | None = None) -> list[Result]:
-        """Poses start..stop-1 as :class:`Result` objects: each array is read once for all of them
-        (Python floats and row copies), not once per pose."""
+        """Poses start..stop-1 as :class:`Result` objects: the arrays are stacked once for all of
+        them, each pose's rows are views of the stack."""
         span = slice(start, stop)
+        names = self.names
 
-        def rows(group: dict[str, np.ndarray]) -> dict[str, list[np.ndarray]]:
-            return {k: list(v[span].copy()) for k, v in group.items()}
+        def stacked(group: dict[str, np.ndarray], keys: tuple[str, ...], width: int) -> np.ndarray:
+            return (np.stack([group[k][span] for k in keys], axis=1) if keys
+                    else np.zeros((len(self.status[span]), 0, width)))
 
-        def floats(*arrays: np.ndarray) -> list:
-            return list(zip(*(a[span].tolist() for a in arrays)))
+        def columns(*groups: dict[str, np.ndarray], keys: tuple[str, ...]) -> np.ndarray:
+            return (np.stack([np.stack([g[k][span] for g in groups], axis=-1) for k in keys], axis=1) if keys
+                    else np.zeros((len(self.status[span]), 0, len(groups))))
 
-        points, poses = rows(self.points), rows(self.body_poses)
-        hinges = {k: v[span].tolist() for k, v in self.hinge_force.items()}
-        cylinders = {k: floats(self.cylinder_length[k], self.cylinder_force[k], self.cap_pressure_predicted[k],
-                               self.cap_pressure_measured[k], self.rod_pressure_measured[k]) for k in self.cylinder_force}
-        contacts = {k: floats(v, self.contact_tangential[k]) for k, v in self.contact_normal.items()}
-        cgs, load_points, load_forces = (list(a[span].copy()) for a in (self.implement_cg, self.frame_load_points,
-                                                                        self.frame_load_forces))
-        scalars = floats(self.implement_load, self.residual, self.consistency_residual, self.condition, self.status)
-        return [Result(points={k: v[j] for k, v in points.items()}, body_poses={k: v[j] for k, v in poses.items()},
-                       hinges={k: hinge_result(v[j][0], v[j][1], *self.hinge_bodies[k]) for k, v in hinges.items()},
-                       cylinders={k: CylinderResult(*v[j]) for k, v in cylinders.items()},
-                       contacts={k: ContactResult(*v[j]) for k, v in contacts.items()},
-                       implement_load=load, implement_cg=cgs[j], frame_load_points=load_points[j],
-                       frame_load_forces=load_forces[j], residual=residual, consistency_residual=consistency,
-                       condition=condition, status=Status(int(status)).label, message=message)
+        points, poses = stacked(self.points, names.points, 2), stacked(self.body_poses, names.bodies, 3)
+        hinges = stacked(self.hinge_force, tuple(h for h, _, _ in names.hinges), 2)
+        cylinders = columns(self.cylinder_length, self.cylinder_force, self.cap_pressure_predicted,
+                            self.cap_pressure_measured, self.rod_pressure_measured, keys=names.cylinders)
+        contacts = columns(self.contact_normal, self.contact_tangential, keys=names.contacts)
+        cgs, load_points, load_forces = (a[span] for a in (self.implement_cg, self.frame_load_points,
+                                                           self.frame_load_forces))
+        scalars = zip(*(a[span].tolist() for a in (self.implement_load, self.residual, self.consistency_residual,
+                                                    self.condition, self.status)))
+        return [Result(names, points[j], poses[j], hinges[j], cylinders[j], contacts[j], load, cgs[j], load_points[j],
+                       load_forces[j], residual, consistency, condition, Status(int(status)).label, message)
                 for j, ((load, residual, consistency, condition, status), message)
                 in enumerate(zip(scalars, self.messages[span]))]
 
-
-def hinge_result(fx: float, fz: float, from_body: str, on_body: str) -> HingeResult:
-    """HingeResult of the force (fx, fz) N on ``on_body`` from ``from_body`` (Python floats: cheap per pose)."""
-    return HingeResult(fx, fz, math.hypot(fx, fz), on_body, from_body)
+    @property
+    def names(self) -> ResultNames:
+        """The names the rows of this batch's :class:`Result` objects follow."""
+        return ResultNames(tuple(self.points), tuple(self.body_poses),
+                           tuple((h, on, off) for h, (off, on) in self.hinge_bodies.items()),
+                           tuple(self.cylinder_force), tuple(self.contact_normal))
 
 
 def angle_readings(mech: "Mechanism", batch: BatchResult) -> dict[str, np.ndarray]:

@@ -14,7 +14,7 @@ import numpy as np
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
 from .kinematics import Kinematics, KinematicState
 from .model import Cylinder, Mechanism
-from .results import BatchResult, ContactResult, CylinderResult, Result, Status, hinge_result
+from .results import BatchResult, Result, ResultNames, Status
 from .statics import StaticsLayout
 
 ATMOSPHERE = 101325.0  # Pa; a gauge pressure below −1 atm is a negative absolute pressure
@@ -84,8 +84,11 @@ class Solver:
         self._frame_hinge_sign = np.array([[sg] for _, _, sg in self._frame_hinges]).reshape(-1, 1)
         self._frame_member_index = np.array([m for m, _, _ in self._frame_members], dtype=np.intp)
         self._frame_member_sign = np.array([[sg] for _, _, sg in self._frame_members]).reshape(-1, 1)
-        self._hinge_bodies = [(h.name, h.bodies[1], h.bodies[0]) for h in mech.hinges]   # name, on, from
-        self._body_names = [b.name for b in mech.moving_bodies]
+        self.names = ResultNames(tuple(self._point_att), tuple(b.name for b in mech.moving_bodies),
+                                 tuple((h.name, h.bodies[1], h.bodies[0]) for h in mech.hinges),
+                                 tuple(c.name for c in mech.cylinders), tuple(c.name for c in mech.contacts))
+        self._per_cap_area = np.array([1.0 / (c.count * c.cap_area) for c in mech.cylinders])
+        self._friction = np.array([c.friction for c in mech.contacts])
 
     # ---- public API -------------------------------------------------------------------------
     def solve(self, inputs: Inputs, previous: Result | None = None) -> Result:
@@ -258,41 +261,38 @@ class Solver:
             return None
         state = KinematicState(s=s[None], q=q, phi=phi, jac=jac, status=np.zeros(1, dtype=int), messages=[""],
                                condition=cond)
-        return self._result(q[0], p[0], u, sol, layout, measured[0], cap, rod, state)
+        cylinders = self.names.cylinders
+        return self._result(q[0], p[0], u, sol, layout, measured[0], np.array([cap[c] for c in cylinders]),
+                            np.array([rod[c] for c in cylinders]), state)
 
     def _result(self, q: np.ndarray, p: np.ndarray, u: np.ndarray, sol, layout: StaticsLayout, measured: np.ndarray,
-                cap: dict[str, float], rod: dict[str, float], state: KinematicState) -> Result:
-        """The Result of one solved pose (OK) from its coordinates q, attachment positions p and unknowns u
-        (the one-pose counterpart of ``_assemble`` + ``BatchResult.result``)."""
-        mech = self.mech
-        cylinders, forces = {}, []
-        lengths = sol.cylinder_length[0].tolist()
-        for k, c in enumerate(mech.cylinders):
-            f = float(measured[k]) if c.name in layout.force_known else float(u[layout.cyl_col[c.name]])
-            forces.append(f)
-            cylinders[c.name] = CylinderResult(lengths[k], f, f / (c.count * c.cap_area), cap[c.name], rod[c.name])
+                cap: np.ndarray, rod: np.ndarray, state: KinematicState) -> Result:
+        """The Result of one solved pose (OK) from its coordinates q, attachment positions p, unknowns u
+        and the measured cylinder forces and gauge pressures (C,) (the one-pose counterpart of
+        ``_assemble`` + ``BatchResult.results``)."""
+        cylinders = np.empty((len(cap), 5))   # CylinderResult's fields per cylinder
+        cylinders[:, 0] = sol.cylinder_length[0]
+        cylinders[:, 1] = force = np.where(layout.force_measured, measured, u[layout.cylinder_cols])
+        cylinders[:, 2] = force * self._per_cap_area
+        cylinders[:, 3] = cap
+        cylinders[:, 4] = rod
+        member_force = np.concatenate((sol.spring_force[0], force))
+        axes = np.concatenate((sol.spring_axis[0], sol.cylinder_axis[0]))
         hinge_force = u[layout.hinge_cols]   # (n_hinges, 2) N on bodies[1] from bodies[0]
-        hinges = {name: hinge_result(fx, fz, off, on)
-                  for (name, on, off), (fx, fz) in zip(self._hinge_bodies, hinge_force.tolist())}
-        contacts = {c.name: ContactResult(float(u[layout.contact_col[c.name]]),
-                                          c.friction * float(u[layout.contact_col[c.name]]))
-                    for c in mech.contacts}
-        imp = mech.implement
-        implement_load = (float(u[layout.implement_col]) if layout.implement_col is not None
-                          else imp.mass * mech.gravity if imp is not None else math.nan)
-        member_force = np.concatenate([sol.spring_force[0], forces])
-        axes = np.concatenate([sol.spring_axis[0], sol.cylinder_axis[0]])
         m = self._frame_member_index
-        frame_forces = np.concatenate([self._frame_hinge_sign * hinge_force[self._frame_hinge_index],
-                                       self._frame_member_sign * member_force[m, None] * axes[m]])
-        points, poses = p[self._point_rows], q.reshape(-1, 3).copy()   # fresh arrays: their rows need no copies
-        return Result(points=dict(zip(self._point_att, points)),
-                      body_poses=dict(zip(self._body_names, poses)),
-                      hinges=hinges, cylinders=cylinders, contacts=contacts, implement_load=implement_load,
-                      implement_cg=p[self._cg_att].copy() if self._cg_att is not None else np.full(2, np.nan),
-                      frame_load_points=p[self._frame_att], frame_load_forces=frame_forces, residual=float(sol.residual[0]),
-                      consistency_residual=math.hypot(*state.phi[0].tolist()),
-                      condition=max(float(sol.condition[0]), float(state.condition[0])), status=Status.OK.label, state=state)
+        frame_forces = np.concatenate((self._frame_hinge_sign * hinge_force[self._frame_hinge_index],
+                                       self._frame_member_sign * member_force[m, None] * axes[m]))
+        contacts = np.empty((len(layout.contact_cols), 2))   # ContactResult's fields per contact
+        contacts[:, 0] = normal = u[layout.contact_cols]
+        contacts[:, 1] = self._friction * normal
+        imp = self.mech.implement
+        implement_load = (float(u[layout.implement_col]) if layout.implement_col is not None
+                          else imp.mass * self.mech.gravity if imp is not None else math.nan)
+        return Result(self.names, p[self._point_rows], q.reshape(-1, 3), hinge_force, cylinders,
+                      contacts, implement_load,
+                      p[self._cg_att] if self._cg_att is not None else np.full(2, np.nan), p[self._frame_att],
+                      frame_forces, float(sol.residual[0]), math.hypot(*state.phi[0].tolist()),
+                      max(float(sol.condition[0]), float(state.condition[0])), Status.OK.label, state=state)
 
     def _solve(self, previous: KinematicState | None, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap,
                rates: ArrayMap, accelerations: ArrayMap) -> tuple[BatchResult, KinematicState]:

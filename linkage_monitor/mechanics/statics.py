@@ -75,6 +75,10 @@ class StaticsLayout:
             self.contact_col[contact.name] = len(self.columns)
             column(f"contact '{contact.name}' normal force", [(contact.body, contact.point, "dir",
                                                               contact.force_direction)])
+        # per cylinder (mech order): force measured, else the column of its unknown force (0 for measured ones)
+        self.force_measured = np.array([c.name in force_known for c in mech.cylinders], dtype=bool)
+        self.cylinder_cols = np.array([self.cyl_col.get(c.name, 0) for c in mech.cylinders], dtype=np.intp)
+        self.contact_cols = np.array(list(self.contact_col.values()), dtype=np.intp)   # mech.contacts order
         self.implement_col: int | None = None
         imp = mech.implement
         if imp is not None and force_known and len(self.columns) < self.n_eq:

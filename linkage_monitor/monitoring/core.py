@@ -81,7 +81,8 @@ class Step:
                 "steerability margin [-]": f"{steer.get('margin', math.nan):.4f}",
                 "front axle load [N]": fmt(steer.get("front_axle_load", math.nan)),
                 "lift reserve [-]": f"{capacity.get('reserve', math.nan):.4f}",
-                "largest hinge reaction [N]": fmt(max((h.magnitude for h in result.hinges.values()), default=math.nan)),
+                "largest hinge reaction [N]": fmt(float(result.hinge_magnitude.max(initial=-math.inf))
+                                                  if result.hinge_magnitude.size else math.nan),
                 "equilibrium residual [N]": f"{result.residual:.3g}",
                 "kinematic residual [m]": f"{result.consistency_residual:.3g}",
             })
@@ -312,15 +313,15 @@ class Monitor:
             findings.append(Finding(Code.SENSORS_DISAGREE, f"measurements disagree: kinematic residual "
                                     f"{fmt(result.consistency_residual * 1e3)} mm > {fmt(CONSISTENCY_WARN_M * 1e3)} mm "
                                     "(check sensor calibration)"))
-        largest = max([h.magnitude for h in result.hinges.values()] + [abs(c.force) for c in result.cylinders.values()],
+        largest = max(result.hinge_magnitude.tolist() + [abs(f) for f in result.cylinder_values[:, 1].tolist()],
                       default=0.0)
         if result.residual > RESIDUAL_WARN_SHARE * largest:
             findings.append(Finding(Code.PRESSURES_DISAGREE, f"equilibrium residual {fmt(result.residual)} N > "
                                     f"{RESIDUAL_WARN_SHARE:.0%} of the largest force ({fmt(largest)} N): the measured "
                                     "pressures disagree"))
-        steer, capacity = machine.steerability, machine.lift_capacity
-        margin, reserve = steer.get("margin", math.nan), capacity.get("reserve", math.nan)
+        margin, reserve = machine.value("margin"), machine.value("reserve")
         if margin < 0.0:
+            steer = machine.steerability
             reference = self.mechanism.tractor.steerability_reference if self.mechanism.tractor else "unit"
             findings.append(Finding(Code.STEERABILITY_LOW, f"steerability margin {margin:+.3f} < 0: the front axle "
                                     f"carries {steer['ratio']:.1%} of the {reference} weight, below ratio_min "
@@ -329,5 +330,5 @@ class Monitor:
         if reserve < 1.0:
             findings.append(Finding(Code.LIFT_RESERVE_LOW, f"lift reserve {reserve:.2f} < 1: implement load "
                                     f"{fmt(result.implement_load / 1e3)} kN exceeds the lift capacity "
-                                    f"{fmt(capacity['implement_cg'] / 1e3)} kN at its centre of gravity"))
+                                    f"{fmt(machine.value('implement_cg') / 1e3)} kN at its centre of gravity"))
         return Step(due.stamp_ns, due.trigger, tuple(findings), Pose(result, machine), due.inputs)

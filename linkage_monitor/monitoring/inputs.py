@@ -72,11 +72,11 @@ class InputTracker:
         self._joint_to_input = {name: name for name in measured}
         self._joint_to_input.update(config.joint_map)
         self.readings: dict[str, Reading] = {}
-
-    @property
-    def required(self) -> frozenset[str]:
-        """Names of every input a solve needs (angles, cylinder lengths, mapped pressures)."""
-        return self.angle_names | self.cylinder_names | self.pressure_names
+        # names of every input a solve needs (angles, cylinder lengths, mapped pressures), and in name order
+        self.required = measured | self.pressure_names
+        self._required_order = tuple(sorted(self.required))
+        self._cylinder_order, self._angle_order, self._pressure_order, self._kinematic_order = (
+            tuple(sorted(names)) for names in (self.cylinder_names, self.angle_names, self.pressure_names, measured))
 
     def carry_over(self, previous: InputTracker) -> None:
         """Keep the readings of ``previous`` (a configuration change does not forget the sensors)."""
@@ -176,22 +176,21 @@ class InputTracker:
         Staleness is the absolute difference of stamps: a reading from the future is as stale as
         one from the past.
         """
-        missing = sorted(self.required - self.readings.keys())
-        if missing:
+        r = self.readings
+        if not self.required <= r.keys():
+            missing = sorted(self.required - r.keys())
             return Finding(Code.NO_VALUE_YET, f"no solve: no value yet for {', '.join(missing)}")
         limit_ns = self.config.staleness_limit_s * NS
-        stale = [(n, abs(stamp_ns - self.readings[n].stamp_ns)) for n in sorted(self.required)]
-        stale = [(n, age) for n, age in stale if age > limit_ns]
+        stale = [(n, age) for n in self._required_order if (age := abs(stamp_ns - r[n].stamp_ns)) > limit_ns]
         if stale:
             ages = ", ".join(f"{n} ({fmt(age / NS)} s)" for n, age in stale)
             return Finding(Code.STALE_INPUT, f"no solve: stale input {ages} > staleness limit "
                                              f"{fmt(self.config.staleness_limit_s)} s")
-        r = self.readings
-        kinematic = sorted(self.cylinder_names | self.angle_names)
+        kinematic = self._kinematic_order
         dynamic = self.config.kinetostatics
-        return Inputs(cylinders={n: r[n].value for n in sorted(self.cylinder_names)},
-                      angles={n: r[n].value for n in sorted(self.angle_names)},
-                      pressures={n: r[n].value for n in sorted(self.pressure_names)},
+        return Inputs(cylinders={n: r[n].value for n in self._cylinder_order},
+                      angles={n: r[n].value for n in self._angle_order},
+                      pressures={n: r[n].value for n in self._pressure_order},
                       rates={n: _zero_if_nan(r[n].rate) for n in kinematic} if dynamic else {},
                       accelerations={n: _zero_if_nan(r[n].acceleration) for n in kinematic} if dynamic else {})
 

@@ -36,10 +36,11 @@ class LoadHistory:
         duration = (max(stamps, default=0) - start) * 1e-9
         poses = [(s.stamp_ns, s.pose) for s in run.steps if s.pose is not None]
         t = np.array([(stamp - start) * 1e-9 for stamp, _ in poses])
-        names = list(poses[0][1].result.hinges) if poses else []
-        hinge = {name: np.array([p.result.hinges[name].magnitude for _, p in poses]) for name in names}
-        margin = np.array([p.machine.steerability.get("margin", np.nan) for _, p in poses])
-        reserve = np.array([p.machine.lift_capacity.get("reserve", np.nan) for _, p in poses])
+        names = [name for name, _, _ in poses[0][1].result.names.hinges] if poses else []
+        magnitudes = np.array([p.result.hinge_magnitude for _, p in poses]).reshape(len(poses), len(names))
+        hinge = {name: magnitudes[:, k] for k, name in enumerate(names)}
+        margin = np.array([p.machine.value("margin") for _, p in poses])
+        reserve = np.array([p.machine.value("reserve") for _, p in poses])
         return cls(t, hinge, margin, reserve, duration)
 
     def time_below(self, values: np.ndarray, limit: float) -> float:

@@ -232,13 +232,14 @@ def _account(summary: Summary, step: Step) -> None:
     if step.pose is None:
         return
     summary.solved += 1
-    for name, h in step.pose.result.hinges.items():
-        if h.magnitude > summary.peak_hinge.get(name, (-1.0, 0.0))[0]:
-            summary.peak_hinge[name] = (h.magnitude, at)
-    margin = step.pose.machine.steerability.get("margin", math.nan)
+    result = step.pose.result
+    for (name, _, _), magnitude in zip(result.names.hinges, result.hinge_magnitude.tolist()):
+        if magnitude > summary.peak_hinge.get(name, (-1.0, 0.0))[0]:
+            summary.peak_hinge[name] = (magnitude, at)
+    margin = step.pose.machine.value("margin")
     if math.isfinite(margin) and (summary.min_margin is None or margin < summary.min_margin[0]):
         summary.min_margin = (margin, at)
-    reserve = step.pose.machine.lift_capacity.get("reserve", math.nan)
+    reserve = step.pose.machine.value("reserve")
     if math.isfinite(reserve) and (summary.min_reserve is None or reserve < summary.min_reserve[0]):
         summary.min_reserve = (reserve, at)
 

@@ -71,9 +71,8 @@ class LinkageMarkers:
     def markers(self, stamp_ns: int, result: Result) -> bytes:
         """The drawing of one solved pose, stamped ``stamp_ns`` (the input's header stamp), as the
         CDR bytes of a visualization_msgs/MarkerArray (published and recorded as they are)."""
-        points = {name: (float(x), float(z)) for name, (x, z) in result.points.items()}
-        hinge_f = np.array([[result.hinges[h].fx, result.hinges[h].fz] for h, _ in self._hinges]).reshape(-1, 2)
-        cyl_f = np.array([result.cylinders[c].force for c, _, _ in self._cylinders])
+        points = dict(zip(result.names.points, result.point_xz.tolist()))   # name -> [x, z]
+        hinge_f, cyl_f = result.hinge_force, result.cylinder_values[:, 1]   # rows in the mechanism's order
         if self.force_scale is None:
             self.force_scale = force_scale(hinge_f, cyl_f)
         scale = self.force_scale

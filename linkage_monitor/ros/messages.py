@@ -15,10 +15,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
 from builtin_interfaces.msg import Time
 from std_msgs.msg import Header
 
 from linkage_monitor.mechanics import Mechanism, Result
+from linkage_monitor.mechanics.machine import MachineResult
 from linkage_monitor.monitoring.core import Monitor, Step
 from linkage_monitor.monitoring.findings import Code, Level
 from linkage_monitor.msg import HingeReactions, HitchState, Steerability
@@ -34,6 +36,9 @@ STEERABILITY_RATIOS = ("ratio", "ratio_unit", "ratio_tractor", "ratio_min", "mar
 STEERABILITY_LOADS = ("front_axle_load", "rear_axle_load", "total_weight", "wheelbase")
 STEERABILITY_FIELDS = STEERABILITY_LOADS + STEERABILITY_RATIOS   # the float64 slots in order
 CAPACITY_FIELDS = ("hitch_axis", "behind_610mm", "implement_cg", "reserve")   # MachineResult.lift_capacity keys
+# msg/CylinderState.msg's float64 fields (length, force, cap / rod measured, cap predicted) as columns of
+# Result.cylinder_values (CylinderResult order: length, force, cap predicted, cap / rod measured)
+CYLINDER_STATE_ORDER = np.array([0, 1, 3, 4, 2], dtype=np.intp)
 
 
 @dataclass(frozen=True)
@@ -94,40 +99,43 @@ class OutputEncoder:
         if monitor.mechanism is not self._mechanism:
             self._lay_out(monitor)
         result, machine = step.pose.result, step.pose.machine
-        return Outputs(self._hinge_reactions(step, result), self._hitch_state(step, result, machine.lift_capacity),
-                       bytes(self._steerability.fill(step.stamp_ns, [machine.steerability.get(k, math.nan)
-                                                                     for k in STEERABILITY_FIELDS])))
+        return Outputs(self._hinge_reactions(step, result), self._hitch_state(step, result, machine),
+                       bytes(self._steerability.fill(step.stamp_ns, self._steer_values.of(machine.steerability_row))))
 
     # ---- layouts -----------------------------------------------------------------------------
     def _lay_out(self, monitor: Monitor) -> None:
         mech = monitor.mechanism
         self._mechanism, self._overdetermined = mech, monitor.overdetermined
-        self._hinge_points = [(h.name, h.point) for h in mech.hinges]
-        bodies = {h.name: h.bodies for h in mech.hinges}
+        points = list(mech.points)
+        self._hinge_rows = np.array([points.index(h.point) for h in mech.hinges], dtype=np.intp)
+        self._steer_values = _Picked(monitor.machine.steerability_keys, STEERABILITY_FIELDS)
+        self._capacity_values = _Picked(monitor.machine.capacity_keys, CAPACITY_FIELDS)
+        self._hinge_values = np.empty((len(mech.hinges), 5))         # fx, fz, magnitude, x, z per hinge
+        self._hitch_values = np.empty(5 * len(mech.cylinders) + 4 + len(CAPACITY_FIELDS))
         w, slots = Writer(), []
         w.header(FRAME_ID)                              # msg/HingeReactions.msg, field by field
         w.string(mech.name)
         w.uint32(len(mech.hinges))
-        for name, _ in self._hinge_points:               # msg/HingeReaction.msg
-            w.string(name)
-            w.string(bodies[name][1])                    # on_body: the hinge's second body
-            w.string(bodies[name][0])                    # from_body
+        for h in mech.hinges:                            # msg/HingeReaction.msg
+            w.string(h.name)
+            w.string(h.bodies[1])                        # on_body: the hinge's second body
+            w.string(h.bodies[0])                        # from_body
             slots += [w.float64() for _ in range(5)]     # fx, fz, magnitude, x, z
         self._hinges = Template.of(w, slots)
 
-        self._cylinders = [c.name for c in mech.cylinders]
         w, slots = Writer(), []
         w.header(FRAME_ID)                              # msg/HitchState.msg
-        w.uint32(len(self._cylinders))
-        for name in self._cylinders:                     # msg/CylinderState.msg
-            w.string(name)
+        w.uint32(len(mech.cylinders))
+        for c in mech.cylinders:                         # msg/CylinderState.msg
+            w.string(c.name)
             slots += [w.float64() for _ in range(5)]     # length, force, cap / rod measured, cap predicted
         slots.append(w.float64())                        # implement_load
         w.uint8(int(monitor.estimates_load))            # implement_load_estimated
         slots += [w.float64() for _ in range(7)]         # cg x, z, hitch axis height, 3 capacities, reserve
         status = w.uint8(HitchState.STATUS_OK)
         self._hitch = Template.of(w, slots, (status,))
-        self._hitch_point = mech.implement.hitch_point if mech.implement else None
+        hitch_point = mech.implement.hitch_point if mech.implement else None
+        self._hitch_row = points.index(hitch_point) if hitch_point is not None else None
 
         w, slots = Writer(), []
         w.header(FRAME_ID)                              # msg/Steerability.msg
@@ -138,27 +146,43 @@ class OutputEncoder:
 
     # ---- per step ----------------------------------------------------------------------------
     def _hinge_reactions(self, step: Step, result: Result) -> bytes:
-        values: list[float] = []
-        for name, point in self._hinge_points:
-            h, xz = result.hinges[name], result.points[point]
-            values += (h.fx, h.fz, h.magnitude, xz[0], xz[1])
+        values = self._hinge_values
+        values[:, :2] = result.hinge_force
+        values[:, 2] = result.hinge_magnitude
+        values[:, 3:] = result.point_xz[self._hinge_rows]
         status, text = hinge_status(step, result, self._overdetermined)
-        w = Writer(self._hinges.fill(step.stamp_ns, values))
+        w = Writer(self._hinges.fill(step.stamp_ns, values.ravel()))
         w.uint8(status)
         w.string(text)
         w.float64(result.residual)
         w.float64(result.consistency_residual)
         return bytes(w.data)
 
-    def _hitch_state(self, step: Step, result: Result, capacity: dict[str, float]) -> bytes:
-        values: list[float] = []
-        for name in self._cylinders:
-            c = result.cylinders[name]
-            values += (c.length, c.force, c.cap_pressure_measured, c.rod_pressure_measured, c.cap_pressure_predicted)
-        point = self._hitch_point
-        values += (result.implement_load, result.implement_cg[0], result.implement_cg[1],
-                   result.points[point][1] if point else math.nan)
-        values += [capacity.get(k, math.nan) for k in CAPACITY_FIELDS]
+    def _hitch_state(self, step: Step, result: Result, machine: MachineResult) -> bytes:
+        values, row = self._hitch_values, self._hitch_row
+        n = result.cylinder_values.size
+        values[:n] = result.cylinder_values[:, CYLINDER_STATE_ORDER].ravel()
+        values[n:n + 4] = (result.implement_load, result.implement_cg[0], result.implement_cg[1],
+                           result.point_xz[row, 1] if row is not None else math.nan)
+        values[n + 4:] = self._capacity_values.of(machine.capacity_row)
         w = Writer(self._hitch.fill(step.stamp_ns, values, (hitch_status(step),)))
         w.string(step.message)
         return bytes(w.data)
+
+
+class _Picked:
+    """The values of a message's ``fields`` from a MachineResult row whose columns are ``keys``
+    (NaN for a field the row lacks, and for all of them when the row is empty)."""
+
+    def __init__(self, keys: tuple[str, ...], fields: tuple[str, ...]) -> None:
+        self._position = np.array([k for k, f in enumerate(fields) if f in keys], dtype=np.intp)
+        self._column = np.array([keys.index(f) for f in fields if f in keys], dtype=np.intp)
+        self._values = np.full(len(fields), math.nan)
+
+    def of(self, row: np.ndarray) -> np.ndarray:
+        """``row``'s values in field order (a buffer reused by the next call)."""
+        if row.size:
+            self._values[self._position] = row[self._column]
+        else:
+            self._values[:] = math.nan
+        return self._values

@@ -173,11 +173,10 @@ class RerunView:
         rec.set_time(TIMELINE, timestamp=np.datetime64(int(stamp_ns), "ns"))
         if result.status != "ok":
             self.log_status(stamp_ns, f"{result.status}: {result.message}", level="WARN")
-        points = np.array([result.points[p] for p in self.mechanism.points])
+        points = result.point_xz   # rows in the mechanism's order, as hinge_force and cylinder_values
         if not np.isfinite(points).all():
             return
-        hinge_f = np.array([[result.hinges[h].fx, result.hinges[h].fz] for h in self._hinge_names]).reshape(-1, 2)
-        cyl_f = np.array([result.cylinders[c].force for c, _, _ in self._cylinders])
+        hinge_f, cyl_f = result.hinge_force, result.cylinder_values[:, 1]
         self._fix_scale(stamp_ns, hinge_f, cyl_f)
         strips, hinge_xy, cyl_strips, cyl_vec = self._geometry({k: v[None] for k, v in result.points.items()},
                                                                hinge_f[None], cyl_f[None])
