@@ -6,8 +6,8 @@ SI units, global frame (x forward, z up, origin at the rear wheels' ground conta
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
 from enum import IntEnum
+from functools import cached_property
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -196,8 +196,8 @@ class BatchResult:
         return self.results(i, i + 1)[0]
 
     def results(self, start: int = 0, stop: int | None = None) -> list[Result]:
-        """Poses start..stop-1 as :class:`Result` objects: the arrays are stacked once for all of
-        them, each pose's rows are views of the stack."""
+        """Poses start..stop-1 as :class:`Result` objects: the arrays are stacked (copied) once for
+        all of them, each pose's rows are views of the stack."""
         span = slice(start, stop)
         names = self.names
 
@@ -214,8 +214,8 @@ class BatchResult:
         cylinders = columns(self.cylinder_length, self.cylinder_force, self.cap_pressure_predicted,
                             self.cap_pressure_measured, self.rod_pressure_measured, keys=names.cylinders)
         contacts = columns(self.contact_normal, self.contact_tangential, keys=names.contacts)
-        cgs, load_points, load_forces = (a[span] for a in (self.implement_cg, self.frame_load_points,
-                                                           self.frame_load_forces))
+        cgs, load_points, load_forces = (a[span].copy() for a in (self.implement_cg, self.frame_load_points,
+                                                                  self.frame_load_forces))
         scalars = zip(*(a[span].tolist() for a in (self.implement_load, self.residual, self.consistency_residual,
                                                     self.condition, self.status)))
         return [Result(names, points[j], poses[j], hinges[j], cylinders[j], contacts[j], load, cgs[j], load_points[j],

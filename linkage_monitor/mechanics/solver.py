@@ -89,6 +89,7 @@ class Solver:
                                  tuple(c.name for c in mech.cylinders), tuple(c.name for c in mech.contacts))
         self._per_cap_area = np.array([1.0 / (c.count * c.cap_area) for c in mech.cylinders])
         self._friction = np.array([c.friction for c in mech.contacts])
+        self._angle_reference = kin.angle_reference.tolist()   # rad, the angle inputs' readings in the reference pose
 
     # ---- public API -------------------------------------------------------------------------
     def solve(self, inputs: Inputs, previous: Result | None = None) -> Result:
@@ -233,16 +234,18 @@ class Solver:
         nc = kin.cyl_att.shape[1]
         sensors = self._sensors
         try:
-            s = np.array([inputs.cylinders[n] if j < nc else inputs.angles[n] for j, n in enumerate(kin.input_names)],
-                         dtype=float)
+            values = [float(inputs.cylinders[n]) if j < nc else float(inputs.angles[n])
+                      for j, n in enumerate(kin.input_names)]
             pressures = {sensors[n]: float(v) for n, v in inputs.pressures.items()}
         except (KeyError, TypeError, ValueError):
             return None
-        if not (np.isfinite(s).all() and (s[:nc] > 0.0).all()
+        if not (all(math.isfinite(v) for v in values) and all(v > 0.0 for v in values[:nc])
                 and all(math.isfinite(v) and v >= -ATMOSPHERE for v in pressures.values())):
             return None
-        s = kin.wrap_angles(s)
-        q, phi, jac, cond, on_branch = kin.continue_from(start if start is not None else kin.reference, s[None])
+        for j, reference in enumerate(self._angle_reference, start=nc):   # kin.wrap_angles on floats
+            values[j] = reference + ((values[j] - reference + math.pi) % (2.0 * math.pi) - math.pi)
+        s = np.array([values])
+        q, phi, jac, cond, on_branch = kin.continue_from(start if start is not None else kin.reference, s)
         limit = 1e-9 * kin.lc if kin.m == kin.n else self.consistency_tol
         if not (on_branch[0] and np.abs(phi[0]).max() <= limit and cond[0] <= self.dead_centre_cond):
             return None
@@ -259,7 +262,7 @@ class Solver:
         u = sol.unknowns[0]
         if not sol.condition[0] <= self.dead_centre_cond or any(u[col] < 0.0 for col in layout.contact_col.values()):
             return None
-        state = KinematicState(s=s[None], q=q, phi=phi, jac=jac, status=np.zeros(1, dtype=int), messages=[""],
+        state = KinematicState(s=s, q=q, phi=phi, jac=jac, status=np.zeros(1, dtype=int), messages=[""],
                                condition=cond)
         cylinders = self.names.cylinders
         return self._result(q[0], p[0], u, sol, layout, measured[0], np.array([cap[c] for c in cylinders]),

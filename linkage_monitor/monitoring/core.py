@@ -81,8 +81,7 @@ class Step:
                 "steerability margin [-]": f"{steer.get('margin', math.nan):.4f}",
                 "front axle load [N]": fmt(steer.get("front_axle_load", math.nan)),
                 "lift reserve [-]": f"{capacity.get('reserve', math.nan):.4f}",
-                "largest hinge reaction [N]": fmt(float(result.hinge_magnitude.max(initial=-math.inf))
-                                                  if result.hinge_magnitude.size else math.nan),
+                "largest hinge reaction [N]": fmt(max(result.hinge_magnitude.tolist(), default=math.nan)),
                 "equilibrium residual [N]": f"{result.residual:.3g}",
                 "kinematic residual [m]": f"{result.consistency_residual:.3g}",
             })
