@@ -46,7 +46,7 @@ $(PKG_STAMP): $(DEPS_STAMP) setup.py CMakeLists.txt package.xml $(MSGS)
 
 # The physics kernels compiled once into numba's on-disk cache (about a minute the first time),
 # so that the node and the tests load machine code instead of compiling it.
-$(WARM_STAMP): $(PKG_STAMP) linkage_monitor/mechanics/kernels.py linkage_monitor/mechanics/machine_kernels.py
+$(WARM_STAMP): $(PKG_STAMP) linkage_monitor/mechanics/kernels.py
 	@echo ">> compiling the physics kernels (numba, cached on disk)"
 	$(PY) -m linkage_monitor.mechanics.warm
 	@touch $@

@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from linkage_monitor.mechanics import kinematics, machine, solver, statics  # noqa: E402
+from linkage_monitor.mechanics import kernels, machine  # noqa: E402
 from linkage_monitor.mechanics import load_preset  # noqa: E402
 from linkage_monitor.monitoring import core  # noqa: E402
 from linkage_monitor.monitoring.config import MonitorConfig  # noqa: E402
@@ -34,9 +34,8 @@ from linkage_monitor.sim.telemetry import simulate  # noqa: E402
 
 PRESSURE_TOPIC = "/pressure/lift_cap_pressure"
 STAGES = [(core.Monitor, "step", "step (whole)"), (core.Monitor, "_accept", "  acceptance"),
-          (solver.Solver, "solve", "  solve"), (kinematics.Kinematics, "continue_from", "    kinematics kernel call"),
-          (statics.StaticsLayout, "solve", "    statics call"), (solver.Solver, "_result", "    Result built"),
-          (machine.MachineModel, "evaluate", "  machine level"), (machine.MachineModel, "_capacity", "    lift capacity"),
+          (machine.MachineModel, "solve", "  solve with machine level"),
+          (kernels, "live_pose", "    compiled call (kernels.live_pose)"),
           (core.Monitor, "_finish", "  findings"), (OutputEncoder, "outputs", "three CDR messages (after the step)")]
 
 

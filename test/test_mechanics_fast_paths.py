@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from linkage_monitor.mechanics import Inputs, Solver, load_mechanism
+from linkage_monitor.mechanics.results import Status
 from linkage_monitor.mechanics import kernels
 from test_mechanics_oracles import FIXTURES, virtual_work
 
@@ -100,17 +101,23 @@ def _same_result(a, b, where: str) -> None:
         np.testing.assert_allclose(getattr(a, field), getattr(b, field), rtol=1e-9, atol=1e-6, err_msg=f"{where} {field}")
 
 
-@pytest.mark.parametrize("name", ["belarus_1221", "damping_hitch", "drill_coulter", "ksu1_mower_adapter",
-                                  "ttz1080_base_change"])
-def test_one_pose_path_gives_what_the_batch_path_gives(name: str) -> None:
-    """Solver.solve takes a usual pose straight through the kernels (Solver._solve_plain); the
-    same inputs through the general batched path (solve_batch, from the reference pose) give the
-    same Result. Poses: a live sequence around the reference inputs (warm starts), pressures from
-    0.3 to 3 times a reference value, angle readings wrapped by ±2π."""
-    from linkage_monitor.mechanics import load_preset
+PRESETS = ["belarus_1221", "damping_hitch", "drill_coulter", "ksu1_mower_adapter", "ttz1080_base_change"]
 
-    mech = load_preset(name)
+
+@pytest.mark.parametrize("name", PRESETS + [f"fixture:{f}" for f in ("arm_angle", "four_bar", "hitch",
+                                                                      "spring_contact")])
+def test_one_pose_path_gives_what_the_batch_path_gives(name: str) -> None:
+    """MachineModel.solve takes a usual pose through one compiled call (kernels.live_pose, via
+    Solver._solve_plain); the same inputs through the general batched path (solve_batch from the
+    reference pose, then MachineModel.evaluate_batch) give the same Result and machine-level rows.
+    Poses: a live sequence around the reference inputs (warm starts), pressures from 0.3 to 3
+    times a reference value, angle readings wrapped by ±2π."""
+    from linkage_monitor.mechanics import load_preset
+    from linkage_monitor.mechanics.machine import MachineModel
+
+    mech = load_mechanism(FIXTURES / f"{name[8:]}.yaml") if name.startswith("fixture:") else load_preset(name)
     solver = Solver(mech)
+    model = MachineModel(mech, solver)
     kin = solver.kin
     s_ref, nc = kin.reference_inputs(), kin.cyl_att.shape[1]
     rng = np.random.default_rng(11)
@@ -121,9 +128,16 @@ def test_one_pose_path_gives_what_the_batch_path_gives(name: str) -> None:
         inputs = Inputs(cylinders={n: float(v) for n, v in zip(kin.input_names[:nc], s[:nc])},
                         angles={n: float(v) for n, v in zip(kin.input_names[nc:], s[nc:])},
                         pressures={p.name: 5e6 * rng.uniform(0.3, 3.0) for p in mech.measurements.pressures})
-        assert solver._solve_plain(inputs, previous.state if previous else None) is not None, k
-        one = solver.solve(inputs, previous=previous)
         batch = solver.solve_batch(cylinders=inputs.cylinders, angles=inputs.angles, pressures=inputs.pressures)
+        plain = solver._solve_plain(inputs, previous.state if previous else None, model.program) is not None
+        assert plain == (batch.status[0] == Status.OK), f"{name} pose {k}: {batch.messages[0]}"
+        one, machine = model.solve(inputs, previous=previous)
         _same_result(one, batch.result(0), f"{name} pose {k}")
-        previous, checked = one, checked + 1
-    assert checked == 40
+        expected = model.evaluate_batch(batch).result(0)
+        assert (machine.steerability_keys, machine.capacity_keys) == (expected.steerability_keys,
+                                                                      expected.capacity_keys)
+        np.testing.assert_allclose(machine.steerability_row, expected.steerability_row, rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(machine.capacity_row, expected.capacity_row, rtol=1e-9, atol=1e-9)
+        _same_result(solver.solve(inputs, previous=previous), one, f"{name} pose {k}, without the machine")
+        previous, checked = one, checked + plain
+    assert checked >= 10   # the usual pose is the one-call path's (lifting off takes the general one)

@@ -263,16 +263,16 @@ def test_an_internal_failure_is_reported_and_the_node_goes_on(ros, tmp_path, mon
         names, t = list(stream.joint_names), int(stream.stamps_ns[0])
         client.publish_pressure(PRESSURE_TOPIC, t, float(stream.pressure_values[0, 0]) + ATMOSPHERIC_PRESSURE)
         _spin(executor, lambda: False, 0.3)
-        real_solve = node.monitor.solver.solve
+        real_solve = node.monitor.machine.solve
 
         def broken(*args, **kwargs):
             raise RuntimeError("injected failure")
-        monkeypatch.setattr(node.monitor.solver, "solve", broken)
+        monkeypatch.setattr(node.monitor.machine, "solve", broken)
         client.publish_joint_state(t + 1000, names, stream.joint_positions[0].tolist())
         assert _spin(executor, lambda: client.diagnostics_at(t + 1000), 10)
         status = client.diagnostics_at(t + 1000)[0]
         assert status.level == b"\x02" and "internal error" in status.message and "injected failure" in status.message
-        monkeypatch.setattr(node.monitor.solver, "solve", real_solve)
+        monkeypatch.setattr(node.monitor.machine, "solve", real_solve)
         client.publish_joint_state(t + 2000, names, stream.joint_positions[0].tolist())
         assert _spin(executor, lambda: client.outputs_at("hinge_reactions", t + 2000), 10)
     finally:

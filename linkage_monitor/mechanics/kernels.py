@@ -666,3 +666,192 @@ def _dp(dq: np.ndarray, att: int, att_body: np.ndarray, rel: np.ndarray) -> tupl
     if b < 0:
         return 0.0, 0.0
     return dq[3 * b] - rel[att, 1] * dq[3 * b + 2], dq[3 * b + 1] + rel[att, 0] * dq[3 * b + 2]
+
+
+# ---- axle loads and steerability (seed 003) --------------------------------------------------------
+# ``steerability_pose``'s parameters (one float64 array, in this order) and its row's columns
+# (machine.STEERABILITY_KEYS in this order)
+STEERABILITY_PARAMETERS = ("gravity", "wheelbase", "ratio_min", "tractor_mass", "tractor_cg_x", "ballast_mass",
+                           "ballast_x", "unit_reference")
+STEERABILITY_COLUMNS = ("front_axle_load", "rear_axle_load", "total_weight", "wheelbase", "ratio", "ratio_min",
+                        "margin", "front_ballast_needed", "ratio_unit", "ratio_tractor", "max_implement_mass")
+N_STEERABILITY = len(STEERABILITY_COLUMNS)
+
+
+@njit(cache=True)
+def _not_negative(x: float) -> float:
+    """max(0, x) that keeps NaN (as np.maximum does)."""
+    return 0.0 if x < 0.0 else x
+
+
+@njit(cache=True, error_model="numpy")
+def steerability_pose(points: np.ndarray, forces: np.ndarray, implement_load: float, implement_x: float,
+                      parameters: np.ndarray, row: np.ndarray) -> None:
+    """Axle loads and steerability of one pose into ``row`` (len(STEERABILITY_COLUMNS)).
+
+    points / forces (K, 2): m / N, the forces the linkage puts ON the frame (``frame_load_forces``);
+    implement_load N and implement_x m: the implement's weight and its cg's x; parameters:
+    STEERABILITY_PARAMETERS (``unit_reference`` 1.0: ratio of the unit's weight, 0.0: of the empty
+    tractor's).
+
+    Axle loads (seed 003's moment balance about B, on the tractor's free body):
+    L·R_A = m_tr·g·x_tr + m_cw·g·x_cw − Σ(x·Fz − z·Fx); R_B = (m_tr + m_cw)·g − ΣFz − R_A.
+    Steerability (seed 003): k = R_A / W ≥ ratio_min = r, W = R_A + R_B (unit) or m_tr·g (tractor).
+    By global equilibrium R_A grows by g·x/L per kg at x, so with c = 1 for the unit and 0 for the
+    tractor reference: front ballast for k = r, m_cw = m_cw0 + (r·W − R_A)/(g·(x_cw/L − r·c));
+    largest implement mass m_6 = P_6/g + (R_A − r·W)/(g·(r·c − x_S6/L)); inf where the
+    denominator is ≤ 0 (ballast or mass cannot reach the ratio), never below 0.
+    """
+    g, wheelbase, r = parameters[0], parameters[1], parameters[2]
+    tractor_mass, tractor_x, ballast_mass, ballast_x = parameters[3], parameters[4], parameters[5], parameters[6]
+    unit = parameters[7] > 0.5
+    tractor_weight = tractor_mass * g
+    c = 1.0 if unit else 0.0
+    ballast_slope = g * (ballast_x / wheelbase - r * c)
+    moment, lift = 0.0, 0.0
+    for k in range(points.shape[0]):
+        moment += points[k, 0] * forces[k, 1] - points[k, 1] * forces[k, 0]
+        lift += forces[k, 1]
+    front = (tractor_weight * tractor_x + ballast_mass * g * ballast_x - moment) / wheelbase
+    rear = (tractor_mass + ballast_mass) * g - lift - front
+    total = front + rear
+    ratio_unit, ratio_tractor = front / total, front / tractor_weight
+    ref_weight, ratio = (total, ratio_unit) if unit else (tractor_weight, ratio_tractor)
+    ballast = (_not_negative(ballast_mass + (r * ref_weight - front) / ballast_slope) if ballast_slope > 0.0
+               else math.inf)
+    implement_slope = g * (r * c - implement_x / wheelbase)
+    max_mass = (_not_negative(implement_load / g + (front - r * ref_weight) / implement_slope)
+                if implement_slope > 0.0 else math.inf)
+    row[0], row[1], row[2], row[3], row[4], row[5] = front, rear, total, wheelbase, ratio, r
+    row[6], row[7], row[8], row[9], row[10] = ratio - r, ballast, ratio_unit, ratio_tractor, max_mass
+
+
+@njit(cache=True, error_model="numpy")
+def steerability_rows(points: np.ndarray, forces: np.ndarray, implement_load: np.ndarray, implement_x: np.ndarray,
+                      parameters: np.ndarray) -> np.ndarray:
+    """``steerability_pose`` of N poses (points / forces (N, K, 2), implement_load / implement_x
+    (N,)): (N, len(STEERABILITY_COLUMNS))."""
+    out = np.empty((points.shape[0], N_STEERABILITY))
+    for i in range(points.shape[0]):
+        steerability_pose(points[i], forces[i], implement_load[i], implement_x[i], parameters, out[i])
+    return out
+
+
+# ---- one live pose, end to end ---------------------------------------------------------------------
+@njit(cache=True)
+def live_pose(s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kinematics, statics, outputs,
+              machine):
+    """The live node's pose in one call, from the per-pose kernels above: loop closure from a
+    solved pose (``_kinematic_pose``), equilibrium with the measured cylinder forces
+    (``_statics_pose``), the outputs of a ``Result``, lift capacity (``_capacity_pose``) and
+    steerability (``steerability_pose``).
+
+    s (1, n_inputs): inputs (m, rad). pressure_forces (3, C): per cylinder the measured force (N,
+    NaN = not measured), cap and rod gauge pressures (Pa, NaN = not measured). q_start (1, n),
+    jac_start (1, m, n), s_start (1, n_inputs): the solved pose to start from. limit: largest
+    constraint residual accepted (m); max_condition: the dead-centre condition number.
+    kinematics: ``Kinematics.program``; statics: ``StaticsLayout.program``; outputs:
+    ``Solver.outputs_program`` of that layout; machine: ``MachineModel.program`` (empty arrays for
+    a part the mechanism does not support).
+
+    Returns (plain, q, Φ, ∂Φ/∂q, kinematic condition (1,), point_xz, hinge_force, cylinder_values,
+    contact_values, implement_cg, frame_load_points, frame_load_forces, [implement_load, residual,
+    consistency residual, condition], steerability row, capacity row) in ``Result``'s and
+    ``MachineResult``'s layouts. ``plain`` is False when the pose is not the usual one — off the
+    reference branch, not assembled to ``limit``, at a dead centre, a contact lifting off — and
+    then the rest is not meaningful: the general path (``Solver._solve``) words the verdict.
+    """
+    (att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc, column_scale, loop_rows, loop_cols,
+     loop_ptr, ref_branch) = kinematics
+    (n_unknowns, spring_stiffness, spring_free_length, spring_preload, hinge_cols, force_measured, cylinder_cols,
+     contact_cols, implement_col, implement_weight, per_cap_area, friction, point_rows, cg_att, frame_att,
+     frame_hinge_index, frame_hinge_sign, frame_member_index, frame_member_sign) = outputs
+    (parameters, cap_hinge_att, cap_cylinder_att, lift, lift_force, gravity, weight_att, weight_mass, point_att,
+     cg_point) = machine
+    member_att = statics[13]   # (2, M): the ends of springs then cylinders
+    n, m = q_start.shape[1], jac_start.shape[1]
+    n_springs, n_cylinders = spring_stiffness.shape[0], per_cap_area.shape[0]
+    n_members = n_springs + n_cylinders
+    q, phi, jac = np.empty((1, n)), np.empty((1, m)), np.empty((1, m, n))
+    kin_cond, on_branch = np.empty(1), np.empty(1, dtype=np.bool_)
+    point_xz, hinge_force = np.empty((point_rows.shape[0], 2)), np.empty((hinge_cols.shape[0], 2))
+    cylinders, contacts = np.empty((n_cylinders, 5)), np.empty((contact_cols.shape[0], 2))
+    implement_cg = np.full(2, np.nan)
+    n_frame_hinges = frame_hinge_index.shape[0]
+    frame_points, frame_forces = np.empty((frame_att.shape[0], 2)), np.empty((frame_att.shape[0], 2))
+    scalars = np.empty(4)
+    steer = np.empty(N_STEERABILITY if parameters.shape[0] > 0 else 0)
+    capacity = np.full((1, point_att.shape[0] + 1 if point_att.shape[0] > 0 else 0), np.nan)
+    plain = False
+    _kinematic_pose(0, q, phi, jac, kin_cond, on_branch, q_start, jac_start, s_start, s, 25, att_body, att_ref,
+                    hinge_att, cyl_att, angle_body, angle_reference, lc, column_scale, loop_rows, loop_cols, loop_ptr,
+                    ref_branch)
+    if not (on_branch[0] and _max_abs(phi[0]) <= limit and kin_cond[0] <= max_condition):
+        return (plain, q, phi, jac, kin_cond, point_xz, hinge_force, cylinders, contacts, implement_cg, frame_points,
+                frame_forces, scalars, steer, capacity[0])
+    p1, _ = positions(q[0], att_body, att_ref)
+    p = p1.reshape((1, p1.shape[0], 2))
+    member_force = np.empty((1, n_members))
+    for k in range(n_springs):   # k·(free length − length) + preload (StaticsLayout.spring_forces)
+        a, b = member_att[0, k], member_att[1, k]
+        dx, dz = p1[b, 0] - p1[a, 0], p1[b, 1] - p1[a, 1]
+        member_force[0, k] = spring_stiffness[k] * (spring_free_length[k] - math.sqrt(dx * dx + dz * dz)) \
+            + spring_preload[k]
+    for k in range(n_cylinders):   # an unmeasured cylinder's force is an unknown
+        member_force[0, n_springs + k] = pressure_forces[0, k] if force_measured[k] else 0.0
+    u_out, residual, cond = np.empty((1, n_unknowns)), np.empty(1), np.empty(1)
+    axes, lengths = np.empty((1, n_members, 2)), np.empty((1, n_members))
+    _statics_pose(0, u_out, residual, cond, axes, lengths, p, member_force, np.zeros((1, 1, 2)), np.zeros((1, 1)),
+                  False, *statics)
+    u = u_out[0]
+    if not cond[0] <= max_condition:
+        return (plain, q, phi, jac, kin_cond, point_xz, hinge_force, cylinders, contacts, implement_cg, frame_points,
+                frame_forces, scalars, steer, capacity[0])
+    for k in range(contact_cols.shape[0]):
+        normal = u[contact_cols[k]]
+        if normal < 0.0:   # lifts off
+            return (plain, q, phi, jac, kin_cond, point_xz, hinge_force, cylinders, contacts, implement_cg,
+                    frame_points, frame_forces, scalars, steer, capacity[0])
+        contacts[k, 0], contacts[k, 1] = normal, friction[k] * normal
+    plain = True
+    for k in range(point_rows.shape[0]):
+        point_xz[k, 0], point_xz[k, 1] = p1[point_rows[k], 0], p1[point_rows[k], 1]
+    for h in range(hinge_cols.shape[0]):   # N on bodies[1] from bodies[0]
+        hinge_force[h, 0], hinge_force[h, 1] = u[hinge_cols[h, 0]], u[hinge_cols[h, 1]]
+    for k in range(n_cylinders):
+        force = pressure_forces[0, k] if force_measured[k] else u[cylinder_cols[k]]
+        member_force[0, n_springs + k] = force
+        cylinders[k, 0], cylinders[k, 1], cylinders[k, 2] = lengths[0, n_springs + k], force, force * per_cap_area[k]
+        cylinders[k, 3], cylinders[k, 4] = pressure_forces[1, k], pressure_forces[2, k]
+    for j in range(frame_att.shape[0]):   # the forces ON the ground body: hinges, then member ends
+        frame_points[j, 0], frame_points[j, 1] = p1[frame_att[j], 0], p1[frame_att[j], 1]
+        if j < n_frame_hinges:
+            sign, h = frame_hinge_sign[j], frame_hinge_index[j]
+            frame_forces[j, 0], frame_forces[j, 1] = sign * hinge_force[h, 0], sign * hinge_force[h, 1]
+        else:
+            e = frame_member_index[j - n_frame_hinges]
+            f = frame_member_sign[j - n_frame_hinges] * member_force[0, e]
+            frame_forces[j, 0], frame_forces[j, 1] = f * axes[0, e, 0], f * axes[0, e, 1]
+    if cg_att >= 0:
+        implement_cg[0], implement_cg[1] = p1[cg_att, 0], p1[cg_att, 1]
+    load = u[implement_col] if implement_col >= 0 else implement_weight
+    consistency = 0.0
+    for r in range(m):
+        consistency += phi[0, r] * phi[0, r]
+    scalars[0], scalars[1], scalars[2], scalars[3] = load, residual[0], math.sqrt(consistency), max(cond[0],
+                                                                                                    kin_cond[0])
+    if parameters.shape[0]:
+        steerability_pose(frame_points, frame_forces, load, implement_cg[0], parameters, steer)
+    if point_att.shape[0]:
+        square = 2 * cap_hinge_att.shape[1] + cap_cylinder_att.shape[1] == n
+        _capacity_pose(0, capacity, q, att_body, att_ref, cap_hinge_att, cap_cylinder_att, lift, lift_force, gravity,
+                       weight_att, weight_mass, member_att[:, :n_springs].copy(), member_force[:, :n_springs].copy(),
+                       point_att,
+                       column_scale, max_condition, np.ones(1, dtype=np.bool_), square, np.full(1, load), cg_point)
+    return (plain, q, phi, jac, kin_cond, point_xz, hinge_force, cylinders, contacts, implement_cg, frame_points,
+            frame_forces, scalars, steer, capacity[0])
+
+
+# ``live_pose``'s ``machine`` when no machine-level results are wanted (``MachineModel.program``'s types)
+NO_MACHINE = (np.zeros(0), np.zeros((2, 0), dtype=np.int64), np.zeros((2, 0), dtype=np.int64), 0, math.nan, math.nan,
+              np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=np.int64), 0)

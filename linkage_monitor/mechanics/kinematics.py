@@ -118,6 +118,12 @@ class Kinematics:
                             self.hinge_att, self.cyl_att, self.angle_bodies, self.angle_reference, self.lc)
         return self._arrays
 
+    @property
+    def program(self) -> tuple:
+        """``geometry`` with what ``kernels.solve_poses`` also takes: the column scale, the loops'
+        index arrays and the reference assembly branch (``kernels.live_pose``'s ``kinematics``)."""
+        return (*self.geometry, self.column_scale, *self._loop_arrays, self._ref_branch)
+
     def _padded(self, q: np.ndarray) -> np.ndarray:
         """q (N, n) with the ground's (x, z, θ) = 0 appended as columns n..n+2."""
         return np.concatenate([q, np.zeros((q.shape[0], 3))], axis=1)
@@ -266,7 +272,7 @@ class Kinematics:
         """``kernels.solve_poses`` from the last pose of ``start`` for inputs s (N, n_inputs): q, Φ,
         ∂Φ/∂q, condition number and whether each pose is on the reference assembly branch."""
         return kernels.solve_poses(start.q[-1:], start.jac[-1:], start.s[-1:], np.ascontiguousarray(s, dtype=float),
-                                   25, *self.geometry, self.column_scale, *self._loop_arrays, self._ref_branch)
+                                   25, *self.program)
 
     @property
     def reference(self) -> KinematicState:

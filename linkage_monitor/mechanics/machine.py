@@ -16,15 +16,15 @@ from functools import cached_property
 
 import numpy as np
 
-from . import kernels, machine_kernels
+from . import kernels
 from .capacity import capacity_force, capacity_points, lift_cylinder, reference_length
 from .kinematics import KinematicState
 from .model import Mechanism, Tractor
 from .results import BatchResult, Status, Result
-from .solver import Solver
+from .solver import Inputs, Solver
 
 _EMPTY = np.zeros(0)
-STEERABILITY_KEYS = machine_kernels.COLUMNS   # front_axle_load, rear_axle_load, total_weight, wheelbase, ratio,
+STEERABILITY_KEYS = kernels.STEERABILITY_COLUMNS   # front_axle_load, rear_axle_load, total_weight, wheelbase, ratio,
 # ratio_min, margin, front_ballast_needed, ratio_unit, ratio_tractor, max_implement_mass
 CAPACITY_KEYS = ("hitch_axis", "behind_610mm", "implement_cg")
 
@@ -100,7 +100,7 @@ def _summary(capacity: dict, steer: dict) -> dict:
 
 
 def machine_parameters(tractor: Tractor, gravity: float) -> np.ndarray:
-    """The tractor's constants as ``machine_kernels.steerability_rows`` takes them (PARAMETERS order);
+    """The tractor's constants as ``kernels.steerability_pose`` takes them (STEERABILITY_PARAMETERS order);
     with no front ballast configured, 0 kg at the front axle (x = wheelbase)."""
     fb = tractor.front_ballast
     ballast_mass, ballast_x = (fb.mass, fb.x) if fb is not None else (0.0, tractor.wheelbase)
@@ -114,17 +114,17 @@ def steerability(tractor: Tractor, gravity: float, frame_load_points: np.ndarray
     linkage puts ON the frame (points / forces (N, K, 2), m / N) and the implement load (N,) N at x
     (N,) m: the tractor's free body (seed 003's moment balance about B, done on the tractor alone so
     that soil forces on the implement count correctly; wheel traction acts at z = 0) and seed 003's
-    steerability k = R_A / W ≥ ratio_min (formulas: ``machine_kernels.steerability_rows``)."""
+    steerability k = R_A / W ≥ ratio_min (formulas: ``kernels.steerability_pose``)."""
     rows = _steerability_rows(machine_parameters(tractor, gravity), frame_load_points, frame_load_forces,
                               implement_load, implement_x)
-    return {k: rows[:, j] for j, k in enumerate(machine_kernels.COLUMNS)}
+    return {k: rows[:, j] for j, k in enumerate(STEERABILITY_KEYS)}
 
 
 def _steerability_rows(parameters: np.ndarray, frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
                        implement_load: np.ndarray, implement_x: np.ndarray) -> np.ndarray:
-    """``machine_kernels.steerability_rows`` of N poses: (N, len(COLUMNS)), with the tractor's
+    """``kernels.steerability_rows`` of N poses: (N, len(STEERABILITY_KEYS)), with the tractor's
     ``parameters`` (``machine_parameters``)."""
-    return machine_kernels.steerability_rows(
+    return kernels.steerability_rows(
         np.ascontiguousarray(frame_load_points, dtype=float), np.ascontiguousarray(frame_load_forces, dtype=float),
         np.ascontiguousarray(implement_load, dtype=float), np.ascontiguousarray(implement_x, dtype=float), parameters)
 
@@ -151,6 +151,8 @@ class MachineModel:
         # the keys of MachineResult's rows: empty for a part the mechanism does not support
         self.steerability_keys: tuple[str, ...] = STEERABILITY_KEYS if self._tractor is not None else ()
         self.capacity_keys: tuple[str, ...] = ()
+        # what kernels.live_pose takes to give this model's rows in the live solve (kernels.NO_MACHINE's types)
+        self.program: tuple = (self._tractor if self._tractor is not None else _EMPTY, *kernels.NO_MACHINE[1:])
         if mech.implement is None or not any(c.relief_pressure is not None for c in mech.cylinders):
             self.capacity_error = "no implement or no cylinder with relief_pressure: lift capacity not computed"
             return
@@ -169,9 +171,13 @@ class MachineModel:
         self.capacity_keys = (*self.capacity_points, "reserve")
         self._cg_column = list(self.capacity_points).index("implement_cg")
         self._no_spring_force = np.zeros((1, 0))   # spring_force of a mechanism without springs (never indexed)
-        self._capacity_args = (kin.hinge_att, all_cylinders, [c.name for c in mech.cylinders].index(cyl.name),
-                               self.capacity_force, mech.gravity, layout.mass_att[others], layout.mass[others],
-                               layout.member_att[:, :layout.n_springs].copy(), point_att)
+        lift = [c.name for c in mech.cylinders].index(cyl.name)
+        weight_att, weight_mass = layout.mass_att[others], layout.mass[others]
+        self._capacity_args = (kin.hinge_att, all_cylinders, lift, self.capacity_force, mech.gravity, weight_att,
+                               weight_mass, layout.member_att[:, :layout.n_springs].copy(), point_att)
+        self.program = (self.program[0], np.ascontiguousarray(kin.hinge_att, dtype=np.int64), all_cylinders, lift,
+                        float(self.capacity_force), float(mech.gravity), weight_att.astype(np.int64),
+                        weight_mass.astype(float), point_att, self._cg_column)
 
     @property
     def has_steerability(self) -> bool:
@@ -190,6 +196,14 @@ class MachineModel:
         ok = (batch.status < Status.INPUT) & np.isfinite(q).all(axis=1)
         return self._combine(q, ok, batch.frame_load_points, batch.frame_load_forces, batch.implement_load,
                              batch.implement_cg[:, 0])
+
+    def solve(self, inputs: Inputs, previous: Result | None = None) -> tuple[Result, MachineResult]:
+        """One pose (``Solver.solve``, warm-started from ``previous``) with its machine-level results,
+        the usual live pose in one compiled call (``Solver.solve_with_machine``); raises as ``solve``."""
+        result, rows = self.solver.solve_with_machine(inputs, previous, self.program)
+        if rows is None:
+            return result, self.evaluate(result)
+        return result, MachineResult(rows[0], rows[1], self.steerability_keys, self.capacity_keys)
 
     def evaluate(self, result: Result) -> MachineResult:
         """Machine-level results of one solved pose (a ``Result`` of ``self.solver``)."""

@@ -11,6 +11,7 @@ from typing import Mapping
 
 import numpy as np
 
+from . import kernels
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
 from .kinematics import Kinematics, KinematicState
 from .model import Cylinder, Mechanism
@@ -19,6 +20,8 @@ from .statics import StaticsLayout
 
 ATMOSPHERE = 101325.0  # Pa; a gauge pressure below −1 atm is a negative absolute pressure
 ArrayMap = Mapping[str, "float | np.ndarray"]
+_SOLVED = np.zeros(1, dtype=int)   # KinematicState.status of one solved pose (shared, read-only)
+_SOLVED.flags.writeable = False
 
 
 @dataclass(frozen=True)
@@ -77,7 +80,7 @@ class Solver:
                     self.frame_load_names.append(f"{name} {end.point}")
         self._sensors = {ps.name: ps for ps in mech.measurements.pressures}
         self._point_rows = np.array(list(self._point_att.values()), dtype=np.intp)   # attachments of mech.points
-        # the frame loads of one pose as index arrays (``_result``): hinges, then member ends
+        # the frame loads of one pose as index arrays (``outputs_program``): hinges, then member ends
         self._frame_att = np.array([a for _, a, _ in self._frame_hinges] + [a for _, a, _ in self._frame_members],
                                    dtype=np.intp)
         self._frame_hinge_index = np.array([i for i, _, _ in self._frame_hinges], dtype=np.intp)
@@ -90,6 +93,8 @@ class Solver:
         self._per_cap_area = np.array([1.0 / (c.count * c.cap_area) for c in mech.cylinders])
         self._friction = np.array([c.friction for c in mech.contacts])
         self._angle_reference = kin.angle_reference.tolist()   # rad, the angle inputs' readings in the reference pose
+        self._cylinder_index = {c.name: k for k, c in enumerate(mech.cylinders)}
+        self._outputs_programs: dict[frozenset[str], tuple] = {}
 
     # ---- public API -------------------------------------------------------------------------
     def solve(self, inputs: Inputs, previous: Result | None = None) -> Result:
@@ -100,9 +105,16 @@ class Solver:
         little between messages: 2 iterations); without it, from the reference pose. Either way
         the answer is the same pose on the reference assembly branch (the solver keeps no state).
         """
+        return self.solve_with_machine(inputs, previous, kernels.NO_MACHINE)[0]
+
+    def solve_with_machine(self, inputs: Inputs, previous: Result | None, machine: tuple
+                           ) -> tuple[Result, tuple[np.ndarray, np.ndarray] | None]:
+        """``solve``, with the machine-level rows (steerability, lift capacity) of ``machine``
+        (``MachineModel.program``) computed in the same compiled call — or None for them when the
+        pose took the general path (then ``MachineModel.evaluate`` gives them)."""
         start = previous.state if previous is not None else None
         start = start if isinstance(start, KinematicState) else None
-        plain = self._solve_plain(inputs, start)
+        plain = self._solve_plain(inputs, start, machine)
         if plain is not None:
             return plain
         arrays = {kind: {k: np.array([v], dtype=float) for k, v in getattr(inputs, kind).items()}
@@ -111,7 +123,7 @@ class Solver:
         res = batch.result(0)
         code = int(batch.status[0])
         if code in (Status.OK, Status.LIFT_OFF):
-            return replace(res, state=ks)
+            return replace(res, state=ks), None
         raise {Status.INPUT: InputError, Status.ASSEMBLY: AssemblyError, Status.DEAD_CENTRE: DeadCentreError}[Status(code)](
             res.message)
 
@@ -223,12 +235,34 @@ class Solver:
                                               f"absolute pressure: check the sensor and its zero offset")
         return problems
 
-    def _solve_plain(self, inputs: Inputs, start: KinematicState | None) -> Result | None:
-        """The usual live pose, straight through the kernels: every input given, finite and in range,
-        no rates, assembled on the reference branch from ``start`` (or the reference pose), no dead
-        centre, no contact lifting off. None for anything else: ``_solve`` then solves the pose and
-        words what is wrong. Gives what ``_solve`` would (test_mechanics_fast_paths.py)."""
-        kin, mech = self.kin, self.mech
+    def outputs_program(self, layout: StaticsLayout) -> tuple:
+        """What ``kernels.live_pose`` needs, beyond the layout's own program, to write a Result's
+        arrays for poses solved with ``layout`` (its ``outputs``; built once per layout)."""
+        program = self._outputs_programs.get(layout.force_known)
+        if program is None:
+            mech = self.mech
+            imp = mech.implement
+            implement_weight = imp.mass * mech.gravity if imp is not None else math.nan
+            program = (layout.n_unknowns, layout.spring_stiffness.astype(float), layout.spring_free_length.astype(float),
+                       layout.spring_preload.astype(float), np.ascontiguousarray(layout.hinge_cols, dtype=np.int64),
+                       layout.force_measured.astype(np.bool_), layout.cylinder_cols.astype(np.int64),
+                       layout.contact_cols.astype(np.int64),
+                       layout.implement_col if layout.implement_col is not None else -1, float(implement_weight),
+                       self._per_cap_area, self._friction.astype(float), self._point_rows.astype(np.int64),
+                       self._cg_att if self._cg_att is not None else -1, self._frame_att.astype(np.int64),
+                       self._frame_hinge_index.astype(np.int64), self._frame_hinge_sign.ravel().astype(float),
+                       self._frame_member_index.astype(np.int64), self._frame_member_sign.ravel().astype(float))
+            self._outputs_programs[layout.force_known] = program
+        return program
+
+    def _solve_plain(self, inputs: Inputs, start: KinematicState | None, machine: tuple
+                     ) -> tuple[Result, tuple[np.ndarray, np.ndarray]] | None:
+        """The usual live pose in one compiled call (``kernels.live_pose``): every input given, finite
+        and in range, no rates, assembled on the reference branch from ``start`` (or the reference
+        pose), no dead centre, no contact lifting off. None for anything else: ``_solve`` then solves
+        the pose and words what is wrong. Gives what ``_solve`` and ``MachineModel.evaluate`` would
+        (test_mechanics_fast_paths.py)."""
+        kin = self.kin
         if inputs.rates or inputs.accelerations or len(inputs.cylinders) + len(inputs.angles) != kin.n_inputs:
             return None
         nc = kin.cyl_att.shape[1]
@@ -236,66 +270,36 @@ class Solver:
         try:
             values = [float(inputs.cylinders[n]) if j < nc else float(inputs.angles[n])
                       for j, n in enumerate(kin.input_names)]
-            pressures = {sensors[n]: float(v) for n, v in inputs.pressures.items()}
+            pressures = [(sensors[n], float(v)) for n, v in inputs.pressures.items()]
         except (KeyError, TypeError, ValueError):
             return None
         if not (all(math.isfinite(v) for v in values) and all(v > 0.0 for v in values[:nc])
-                and all(math.isfinite(v) and v >= -ATMOSPHERE for v in pressures.values())):
+                and all(math.isfinite(v) and v >= -ATMOSPHERE for _, v in pressures)):
             return None
         for j, reference in enumerate(self._angle_reference, start=nc):   # kin.wrap_angles on floats
             values[j] = reference + ((values[j] - reference + math.pi) % (2.0 * math.pi) - math.pi)
+        cylinders = self.mech.cylinders
+        cap, rod = [math.nan] * len(cylinders), [math.nan] * len(cylinders)
+        for ps, value in pressures:
+            (cap if ps.chamber == "cap" else rod)[self._cylinder_index[ps.cylinder]] = value
+        layout = self.statics_layout(frozenset(ps.cylinder for ps, _ in pressures))
+        measured = [_measured_force(c, cap[k], rod[k]) if known else math.nan
+                    for k, (c, known) in enumerate(zip(cylinders, layout.force_measured.tolist()))]
+        start = start if start is not None else kin.reference
         s = np.array([values])
-        q, phi, jac, cond, on_branch = kin.continue_from(start if start is not None else kin.reference, s)
-        limit = 1e-9 * kin.lc if kin.m == kin.n else self.consistency_tol
-        if not (on_branch[0] and np.abs(phi[0]).max() <= limit and cond[0] <= self.dead_centre_cond):
+        (plain, q, phi, jac, kin_cond, points, hinge_force, cylinder_values, contact_values, implement_cg,
+         frame_points, frame_forces, scalars, steer, capacity) = kernels.live_pose(
+            s, np.array([measured, cap, rod]), start.q[-1:], start.jac[-1:], start.s[-1:],
+            1e-9 * kin.lc if kin.m == kin.n else self.consistency_tol, self.dead_centre_cond, kin.program,
+            layout.program, self.outputs_program(layout), machine)
+        if not plain:
             return None
-        force_known = frozenset(ps.cylinder for ps in pressures)
-        cap = {c.name: math.nan for c in mech.cylinders}
-        rod = dict(cap)
-        for ps, value in pressures.items():
-            (cap if ps.chamber == "cap" else rod)[ps.cylinder] = value
-        measured = np.array([[_measured_force(c, cap[c.name], rod[c.name]) if c.name in force_known else math.nan
-                              for c in mech.cylinders]])
-        layout = self.statics_layout(force_known)
-        p, _ = kin.positions(q)
-        sol = layout.solve(p, measured, None)
-        u = sol.unknowns[0]
-        if not sol.condition[0] <= self.dead_centre_cond or any(u[col] < 0.0 for col in layout.contact_col.values()):
-            return None
-        state = KinematicState(s=s, q=q, phi=phi, jac=jac, status=np.zeros(1, dtype=int), messages=[""],
-                               condition=cond)
-        cylinders = self.names.cylinders
-        return self._result(q[0], p[0], u, sol, layout, measured[0], np.array([cap[c] for c in cylinders]),
-                            np.array([rod[c] for c in cylinders]), state)
-
-    def _result(self, q: np.ndarray, p: np.ndarray, u: np.ndarray, sol, layout: StaticsLayout, measured: np.ndarray,
-                cap: np.ndarray, rod: np.ndarray, state: KinematicState) -> Result:
-        """The Result of one solved pose (OK) from its coordinates q, attachment positions p, unknowns u
-        and the measured cylinder forces and gauge pressures (C,) (the one-pose counterpart of
-        ``_assemble`` + ``BatchResult.results``)."""
-        cylinders = np.empty((len(cap), 5))   # CylinderResult's fields per cylinder
-        cylinders[:, 0] = sol.cylinder_length[0]
-        cylinders[:, 1] = force = np.where(layout.force_measured, measured, u[layout.cylinder_cols])
-        cylinders[:, 2] = force * self._per_cap_area
-        cylinders[:, 3] = cap
-        cylinders[:, 4] = rod
-        member_force = np.concatenate((sol.spring_force[0], force))
-        axes = np.concatenate((sol.spring_axis[0], sol.cylinder_axis[0]))
-        hinge_force = u[layout.hinge_cols]   # (n_hinges, 2) N on bodies[1] from bodies[0]
-        m = self._frame_member_index
-        frame_forces = np.concatenate((self._frame_hinge_sign * hinge_force[self._frame_hinge_index],
-                                       self._frame_member_sign * member_force[m, None] * axes[m]))
-        contacts = np.empty((len(layout.contact_cols), 2))   # ContactResult's fields per contact
-        contacts[:, 0] = normal = u[layout.contact_cols]
-        contacts[:, 1] = self._friction * normal
-        imp = self.mech.implement
-        implement_load = (float(u[layout.implement_col]) if layout.implement_col is not None
-                          else imp.mass * self.mech.gravity if imp is not None else math.nan)
-        return Result(self.names, p[self._point_rows], q.reshape(-1, 3), hinge_force, cylinders,
-                      contacts, implement_load,
-                      p[self._cg_att] if self._cg_att is not None else np.full(2, np.nan), p[self._frame_att],
-                      frame_forces, float(sol.residual[0]), math.hypot(*state.phi[0].tolist()),
-                      max(float(sol.condition[0]), float(state.condition[0])), Status.OK.label, state=state)
+        load, residual, consistency, condition = scalars.tolist()
+        state = KinematicState(s=s, q=q, phi=phi, jac=jac, status=_SOLVED, messages=[""], condition=kin_cond)
+        return (Result(self.names, points, q[0].reshape(-1, 3), hinge_force, cylinder_values, contact_values, load,
+                       implement_cg, frame_points, frame_forces, residual, consistency, condition, Status.OK.label,
+                       state=state),
+                (steer, capacity))
 
     def _solve(self, previous: KinematicState | None, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap,
                rates: ArrayMap, accelerations: ArrayMap) -> tuple[BatchResult, KinematicState]:

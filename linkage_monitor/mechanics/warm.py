@@ -31,7 +31,7 @@ def warm_up() -> float:
         model = MachineModel(mech, solver)
         ref = {k: dict(v) for k, v in mech.reference_inputs.items()}
         result = solver.solve(Inputs(**ref))
-        model.evaluate(solver.solve(Inputs(**ref), previous=result))
+        model.evaluate(model.solve(Inputs(**ref), previous=result)[0])
         for n_pose in (2, kernels.PARALLEL_MIN):
             arrays = {k: {n: np.full(n_pose, v) for n, v in group.items()} for k, group in ref.items()}
             names = list(arrays.get("cylinders", {})) + list(arrays.get("angles", {}))

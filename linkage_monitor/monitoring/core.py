@@ -195,7 +195,7 @@ class Monitor:
         (milliseconds each), which is better paid at start-up than on the first inputs."""
         reference = Inputs(**{k: dict(v) for k, v in self.mechanism.reference_inputs.items()})
         try:
-            self.machine.evaluate(self.solver.solve(reference, previous=self.solver.solve(reference)))
+            self.machine.evaluate(self.machine.solve(reference, previous=self.solver.solve(reference))[0])
         except LinkageError:
             pass   # a reference pose that does not solve is the file's problem, reported at the first input
 
@@ -220,12 +220,12 @@ class Monitor:
             if isinstance(due, Step):
                 return due
             try:
-                result = self.solver.solve(due.inputs, previous=self.warm)
+                result, machine = self.machine.solve(due.inputs, previous=self.warm)
             except LinkageError as exc:
                 self.warm = None
                 return self._failed(due, EXCEPTION_STATUS.get(type(exc), Status.INPUT), str(exc))
             self.warm = result
-            return self._finish(due, result, self.machine.evaluate(result))
+            return self._finish(due, result, machine)
         except Exception as exc:  # noqa: BLE001 - the adapter boundary: report, forget the warm start, go on
             return self._internal_error(event, exc)
 
