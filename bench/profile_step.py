@@ -1,10 +1,9 @@
 """Where one in-process monitoring step's time goes, stage by stage (the step of ``bench_step.py``).
 
 Each stage is wrapped with a wall-clock timer (``time.perf_counter``; a wrapper adds ~0.3 µs):
-``Monitor.step`` (the whole step), its acceptance (``_accept``), the solve (``Solver.solve``; inside
-it the kinematics kernel call, the statics call and building the ``Result``), the machine level
-(``MachineModel.evaluate``; inside it lift capacity), the findings (``_finish``) and the three
-output messages (``OutputEncoder.outputs``). Printed: µs per event, averaged over three passes of
+``Monitor.step`` (the whole step), its acceptance (``_accept``), the solve with the machine level
+(``MachineModel.solve``; inside it the one compiled call, ``kernels.live_pose``), the findings
+(``_finish``) and the three output messages (``OutputEncoder.outputs``). Printed: µs per event, averaged over three passes of
 belarus_1221's simulated lift at 100 Hz (2 events per sample). Not a benchmark with a baseline:
 a profile, for docs/performance.md.
 

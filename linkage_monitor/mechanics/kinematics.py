@@ -58,6 +58,7 @@ class Kinematics:
         self._origins = origins
         self._att: dict[tuple[str, str], int] = {}
         self._arrays: tuple | None = None
+        self._program: tuple | None = None
         self._att_body: list[int] = []
         self._att_ref: list[np.ndarray] = []
         # constraint rows
@@ -105,7 +106,7 @@ class Kinematics:
             self._att[ident] = len(self._att_body)
             self._att_body.append(bi)
             self._att_ref.append(pos - self._origins[bi] if bi >= 0 else pos.copy())
-            self._arrays = None
+            self._arrays = self._program = None
         return self._att[ident]
 
     @property
@@ -122,7 +123,9 @@ class Kinematics:
     def program(self) -> tuple:
         """``geometry`` with what ``kernels.solve_poses`` also takes: the column scale, the loops'
         index arrays and the reference assembly branch (``kernels.live_pose``'s ``kinematics``)."""
-        return (*self.geometry, self.column_scale, *self._loop_arrays, self._ref_branch)
+        if self._program is None:
+            self._program = (*self.geometry, self.column_scale, *self._loop_arrays, self._ref_branch)
+        return self._program
 
     def _padded(self, q: np.ndarray) -> np.ndarray:
         """q (N, n) with the ground's (x, z, θ) = 0 appended as columns n..n+2."""

@@ -95,6 +95,9 @@ class Solver:
         self._angle_reference = kin.angle_reference.tolist()   # rad, the angle inputs' readings in the reference pose
         self._cylinder_index = {c.name: k for k, c in enumerate(mech.cylinders)}
         self._outputs_programs: dict[frozenset[str], tuple] = {}
+        self._programs_by_sensors: dict[tuple[str, ...], tuple] = {}   # pressure sensors given -> _solve_plain's
+        # largest constraint residual (m) of an assembled pose (kin.solve's): 1e-9·lc when closed exactly
+        self._assembly_limit = 1e-9 * kin.lc if kin.m == kin.n else consistency_tol
 
     # ---- public API -------------------------------------------------------------------------
     def solve(self, inputs: Inputs, previous: Result | None = None) -> Result:
@@ -282,16 +285,19 @@ class Solver:
         cap, rod = [math.nan] * len(cylinders), [math.nan] * len(cylinders)
         for ps, value in pressures:
             (cap if ps.chamber == "cap" else rod)[self._cylinder_index[ps.cylinder]] = value
-        layout = self.statics_layout(frozenset(ps.cylinder for ps, _ in pressures))
+        programs = self._programs_by_sensors.get(tuple(inputs.pressures))
+        if programs is None:   # the layout of these measured cylinder forces, once per set of pressure sensors
+            layout = self.statics_layout(frozenset(ps.cylinder for ps, _ in pressures))
+            programs = self._programs_by_sensors[tuple(inputs.pressures)] = (
+                layout.force_measured.tolist(), layout.program, self.outputs_program(layout))
         measured = [_measured_force(c, cap[k], rod[k]) if known else math.nan
-                    for k, (c, known) in enumerate(zip(cylinders, layout.force_measured.tolist()))]
+                    for k, (c, known) in enumerate(zip(cylinders, programs[0]))]
         start = start if start is not None else kin.reference
         s = np.array([values])
         (plain, q, phi, jac, kin_cond, points, hinge_force, cylinder_values, contact_values, implement_cg,
          frame_points, frame_forces, scalars, steer, capacity) = kernels.live_pose(
             s, np.array([measured, cap, rod]), start.q[-1:], start.jac[-1:], start.s[-1:],
-            1e-9 * kin.lc if kin.m == kin.n else self.consistency_tol, self.dead_centre_cond, kin.program,
-            layout.program, self.outputs_program(layout), machine)
+            self._assembly_limit, self.dead_centre_cond, kin.program, programs[1], programs[2], machine)
         if not plain:
             return None
         load, residual, consistency, condition = scalars.tolist()

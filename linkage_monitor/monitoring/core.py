@@ -164,6 +164,9 @@ class _Due:
     inputs: Inputs
 
 
+_LIFT_OFF = Status.LIFT_OFF.label
+
+
 class Monitor:
     """Mechanism + configuration -> solver, machine model and the latest inputs; events -> Steps.
 
@@ -306,14 +309,13 @@ class Monitor:
     def _finish(self, due: _Due, result: Result, machine: MachineResult) -> Step:
         """Findings and key-values of one solved pose with its machine-level results."""
         findings = []
-        if result.status == Status.LIFT_OFF.label:
+        if result.status == _LIFT_OFF:
             findings.append(Finding(Code.LIFT_OFF, result.message or "a ground contact lifts off"))
         if result.consistency_residual > CONSISTENCY_WARN_M:
             findings.append(Finding(Code.SENSORS_DISAGREE, f"measurements disagree: kinematic residual "
                                     f"{fmt(result.consistency_residual * 1e3)} mm > {fmt(CONSISTENCY_WARN_M * 1e3)} mm "
                                     "(check sensor calibration)"))
-        largest = max(result.hinge_magnitude.tolist() + [abs(f) for f in result.cylinder_values[:, 1].tolist()],
-                      default=0.0)
+        largest = max(result.hinge_magnitude.max(initial=0.0), np.abs(result.cylinder_values[:, 1]).max(initial=0.0))
         if result.residual > RESIDUAL_WARN_SHARE * largest:
             findings.append(Finding(Code.PRESSURES_DISAGREE, f"equilibrium residual {fmt(result.residual)} N > "
                                     f"{RESIDUAL_WARN_SHARE:.0%} of the largest force ({fmt(largest)} N): the measured "
