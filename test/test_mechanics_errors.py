@@ -35,6 +35,10 @@ def test_unassemblable_says_by_how_much() -> None:
     batch = solver.solve_batch(cylinders={"cyl": np.array([math.sqrt(2.0), 2.1])})
     assert list(batch.status) == [0, 3] and "100.0 mm" in batch.messages[1]
     assert np.isnan(batch.cylinder_force["cyl"][1]) and np.isfinite(batch.cylinder_force["cyl"][0])
+    # a sweep that only needs the verdict skips the reach bisection: same statuses, the open constraint named
+    quick = solver.solve_batch(cylinders={"cyl": np.array([math.sqrt(2.0), 2.1])}, reach=False)
+    assert list(quick.status) == [0, 3] and "cannot assemble" in quick.messages[1]
+    assert "assembles only up to" in batch.messages[1] and "assembles only up to" not in quick.messages[1]
 
 
 def test_static_dead_centre_reports_condition_number() -> None:

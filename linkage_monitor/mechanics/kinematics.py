@@ -218,12 +218,14 @@ class Kinematics:
         return ~np.any(self.branch(jac) * self._ref_branch < 0.0, axis=1)
 
     def solve(self, s: np.ndarray, previous: KinematicState | None, dead_centre_cond: float,
-              consistency_tol: float) -> KinematicState:
+              consistency_tol: float, reach: bool = True) -> KinematicState:
         """Assemble N poses for inputs s (N, n_inputs), keeping the reference pose's assembly branch.
 
         Newton starts from the tangent prediction off ``previous`` (one solved pose: a live node
         passes its last one, 2 iterations for a slowly moving stroke) or off the reference pose;
         poses that fail or land on another branch are redone by continuation from the reference pose.
+        ``reach``: the message of a pose out of reach says how far it is (``reachable_fraction``, a
+        bisection of ~30 Newton solves); False: which constraint stays open at the closest pose.
         """
         n_pose = s.shape[0]
         s = self.wrap_angles(s)
@@ -250,9 +252,9 @@ class Kinematics:
                 messages[i] = (f"cannot assemble the linkage for {self.describe_inputs(s[i])} on the reference "
                                "pose's assembly branch: the inputs fit only a mirrored assembly of a loop (check the "
                                "sensors and their zero offsets)")
-        if still.size and self.m == self.n:  # say how far the inputs are out of reach
-            reach = self.reachable_fraction(s[still])
-            for i, t in zip(still, reach):
+        if still.size and self.m == self.n and reach:  # say how far the inputs are out of reach
+            fraction = self.reachable_fraction(s[still])
+            for i, t in zip(still, fraction):
                 status[i], messages[i] = Status.ASSEMBLY, self.reach_message(s[i], t)
         for i in np.flatnonzero(~(np.abs(phi).max(axis=1) <= limit) & (status == Status.OK)):
             status[i] = Status.ASSEMBLY

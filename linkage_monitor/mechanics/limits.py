@@ -120,7 +120,7 @@ def _swept_spans(mech: Mechanism) -> dict[str, tuple[float, float]]:
             continue
         length0 = _reference_length(mech, cyl, reference)
         grid = np.linspace(0.4 * length0, 1.8 * length0, SWEEP_POINTS)
-        batch = solver.solve_batch(cylinders={cyl: grid})
+        batch = solver.solve_batch(cylinders={cyl: grid}, reach=False)
         ok = batch.status != Status.ASSEMBLY
         interval = interval_around(grid, ok, length0)
         if interval is None:
@@ -137,7 +137,7 @@ def _swept_spans(mech: Mechanism) -> dict[str, tuple[float, float]]:
             solver = _driven_by(mech, "angles", entry)
             if solver is not None:
                 grid = a.reference + np.linspace(-math.pi, math.pi, SWEEP_POINTS)
-                batch = solver.solve_batch(angles={a.name: grid})
+                batch = solver.solve_batch(angles={a.name: grid}, reach=False)
                 interval = interval_around(grid, batch.status != Status.ASSEMBLY, a.reference)
                 spans_of = [np.array(interval)] if interval is not None else []
         if spans_of:

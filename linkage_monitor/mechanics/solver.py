@@ -132,13 +132,15 @@ class Solver:
 
     def solve_batch(self, cylinders: ArrayMap | None = None, angles: ArrayMap | None = None,
                     pressures: ArrayMap | None = None, rates: ArrayMap | None = None,
-                    accelerations: ArrayMap | None = None) -> BatchResult:
+                    accelerations: ArrayMap | None = None, reach: bool = True) -> BatchResult:
         """Solve N poses at once (arrays of shape (N,), scalars broadcast), from the reference pose.
 
         Per-pose failures are reported in ``status`` / ``messages``; unknown or missing input
-        names and an unobservable mechanism raise.
+        names and an unobservable mechanism raise. ``reach=False``: a pose out of reach is not
+        told how far it is (``Kinematics.solve``; for sweeps that only need the status).
         """
-        batch, _ = self._solve(None, cylinders or {}, angles or {}, pressures or {}, rates or {}, accelerations or {})
+        batch, _ = self._solve(None, cylinders or {}, angles or {}, pressures or {}, rates or {}, accelerations or {},
+                               reach)
         return batch
 
     # ---- internals --------------------------------------------------------------------------
@@ -308,14 +310,14 @@ class Solver:
                 (steer, capacity))
 
     def _solve(self, previous: KinematicState | None, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap,
-               rates: ArrayMap, accelerations: ArrayMap) -> tuple[BatchResult, KinematicState]:
+               rates: ArrayMap, accelerations: ArrayMap, reach: bool = True) -> tuple[BatchResult, KinematicState]:
         mech, kin = self.mech, self.kin
         n_pose, arrays = self._arrays(cylinders, angles, pressures, rates, accelerations)
         s = self._input_matrix(arrays, n_pose, "inputs")
         problems = self._input_problems(s, arrays)
         bad = np.array([bool(p) for p in problems])
         s_clean = np.where(bad[:, None], kin.reference_inputs(), s)
-        ks = kin.solve(s_clean, previous, self.dead_centre_cond, self.consistency_tol)
+        ks = kin.solve(s_clean, previous, self.dead_centre_cond, self.consistency_tol, reach)
         status, messages = ks.status.copy(), list(ks.messages)
         for i in np.flatnonzero(bad):
             status[i], messages[i] = Status.INPUT, problems[i]
