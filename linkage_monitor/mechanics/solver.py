@@ -122,7 +122,8 @@ class Solver:
             return plain
         arrays = {kind: {k: np.array([v], dtype=float) for k, v in getattr(inputs, kind).items()}
                   for kind in ("cylinders", "angles", "pressures", "rates", "accelerations")}
-        batch, ks = self._solve(start, **arrays)
+        batch, ks = self._solve(start, arrays["cylinders"], arrays["angles"], arrays["pressures"], arrays["rates"],
+                                arrays["accelerations"])
         res = batch.result(0)
         code = int(batch.status[0])
         if code in (Status.OK, Status.LIFT_OFF):
@@ -132,7 +133,7 @@ class Solver:
 
     def solve_batch(self, cylinders: ArrayMap | None = None, angles: ArrayMap | None = None,
                     pressures: ArrayMap | None = None, rates: ArrayMap | None = None,
-                    accelerations: ArrayMap | None = None, reach: bool = True) -> BatchResult:
+                    accelerations: ArrayMap | None = None, *, reach: bool = True) -> BatchResult:
         """Solve N poses at once (arrays of shape (N,), scalars broadcast), from the reference pose.
 
         Per-pose failures are reported in ``status`` / ``messages``; unknown or missing input
@@ -140,7 +141,7 @@ class Solver:
         told how far it is (``Kinematics.solve``; for sweeps that only need the status).
         """
         batch, _ = self._solve(None, cylinders or {}, angles or {}, pressures or {}, rates or {}, accelerations or {},
-                               reach)
+                               reach=reach)
         return batch
 
     # ---- internals --------------------------------------------------------------------------
@@ -310,7 +311,7 @@ class Solver:
                 (steer, capacity))
 
     def _solve(self, previous: KinematicState | None, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap,
-               rates: ArrayMap, accelerations: ArrayMap, reach: bool = True) -> tuple[BatchResult, KinematicState]:
+               rates: ArrayMap, accelerations: ArrayMap, *, reach: bool = True) -> tuple[BatchResult, KinematicState]:
         mech, kin = self.mech, self.kin
         n_pose, arrays = self._arrays(cylinders, angles, pressures, rates, accelerations)
         s = self._input_matrix(arrays, n_pose, "inputs")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import sys
 import time
+from typing import Any
 
 import numpy as np
 
@@ -33,7 +34,7 @@ def warm_up() -> float:
         result = solver.solve(Inputs(**ref))
         model.evaluate(model.solve(Inputs(**ref), previous=result)[0])
         for n_pose in (2, kernels.PARALLEL_MIN):
-            arrays = {k: {n: np.full(n_pose, v) for n, v in group.items()} for k, group in ref.items()}
+            arrays: dict[str, Any] = {k: {n: np.full(n_pose, v) for n, v in group.items()} for k, group in ref.items()}
             names = list(arrays.get("cylinders", {})) + list(arrays.get("angles", {}))
             rates = {n: np.zeros(n_pose) for n in names}
             batch = solver.solve_batch(**arrays, rates=rates, accelerations=rates)
@@ -43,7 +44,8 @@ def warm_up() -> float:
         far = {"cylinders": {n: 1.6 * v for n, v in ref.get("cylinders", {}).items()},
                "angles": {n: v + 2.0 for n, v in ref.get("angles", {}).items()},
                "pressures": ref.get("pressures", {})}
-        solver.solve_batch(**{k: {n: np.full(2, v) for n, v in group.items()} for k, group in far.items()})
+        far_arrays: dict[str, Any] = {k: {n: np.full(2, v) for n, v in group.items()} for k, group in far.items()}
+        solver.solve_batch(**far_arrays)
         try:
             solver.solve(Inputs(**far))
         except LinkageError:
