@@ -141,3 +141,51 @@ def test_one_pose_path_gives_what_the_batch_path_gives(name: str) -> None:
         _same_result(solver.solve(inputs, previous=previous), one, f"{name} pose {k}, without the machine")
         previous, checked = one, checked + plain
     assert checked >= 10   # the usual pose is the one-call path's (lifting off takes the general one)
+
+
+def _same_batch(a, b, where: str) -> None:
+    """Two BatchResults pose by pose (``_same_result``), statuses and messages equal."""
+    assert list(a.status) == list(b.status), where
+    assert a.messages == b.messages, where
+    for i in range(len(a)):
+        if a.status[i] < Status.INPUT:
+            _same_result(a.result(i), b.result(i), f"{where} pose {i}")
+
+
+@pytest.mark.parametrize("name", PRESETS + [f"fixture:{f}" for f in ("arm_angle", "four_bar", "hitch",
+                                                                      "spring_contact")])
+def test_series_path_gives_what_the_batch_path_gives(name: str) -> None:
+    """MachineModel.solve_series (replay: a recording solved as the live node solves it, each pose
+    from the one before, in one compiled call) gives what solve_batch + evaluate_batch give (every
+    pose from the reference pose). The series: a slow stroke around the reference inputs with
+    pressures from 0.3 to 3 times a reference value and angle readings wrapped by ±2π, and in it a
+    NaN reading, inputs far out of reach and a jump back."""
+    from linkage_monitor.mechanics import load_preset
+    from linkage_monitor.mechanics.machine import MachineModel
+
+    mech = load_mechanism(FIXTURES / f"{name[8:]}.yaml") if name.startswith("fixture:") else load_preset(name)
+    solver = Solver(mech)
+    model = MachineModel(mech, solver)
+    kin = solver.kin
+    s_ref, nc = kin.reference_inputs(), kin.cyl_att.shape[1]
+    rng = np.random.default_rng(5)
+    n_pose = 60
+    scale = 1.0 + 0.003 * np.sin(np.arange(n_pose) / 6.0) if kin.m == kin.n else np.ones(n_pose)
+    s = s_ref[None] * scale[:, None]
+    s[:, nc:] += 2.0 * np.pi * rng.integers(-1, 2, (n_pose, s.shape[1] - nc))
+    s[20, 0] = np.nan                  # a sensor fault
+    s[30:33] = 1.8 * s_ref             # out of reach (or off the branch) for three poses, then back
+    s[40, nc:] += 3.0                  # an angle reading that jumps
+    cylinders = {n: s[:, j] for j, n in enumerate(kin.input_names[:nc])}
+    angles = {n: s[:, nc + j] for j, n in enumerate(kin.input_names[nc:])}
+    pressures = {p.name: 5e6 * rng.uniform(0.3, 3.0, n_pose) for p in mech.measurements.pressures}
+    series, machine = model.solve_series(cylinders, angles, pressures)
+    batch = solver.solve_batch(cylinders=cylinders, angles=angles, pressures=pressures)
+    _same_batch(series, batch, name)
+    expected = model.evaluate_batch(batch)
+    for group in ("steerability", "lift_capacity"):
+        assert getattr(machine, group).keys() == getattr(expected, group).keys()
+        for key, column in getattr(machine, group).items():
+            np.testing.assert_allclose(column, getattr(expected, group)[key], rtol=1e-9, atol=1e-9,
+                                       err_msg=f"{name} {group} {key}")
+    assert (series.status == Status.OK).sum() >= 20

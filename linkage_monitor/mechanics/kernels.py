@@ -372,6 +372,8 @@ def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, jac_out: np.
         shift[r0 + j] = ds if j < nc else lc * ds
     q0 = q_start[0] + solve_linear(jac_start[0], shift)
     q, phi, jac = newton(q0, s[i], max_iter, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc)
+    for b in range(q.shape[0] // 3):   # a rotation that Newton took by whole turns: the equivalent nearest the start
+        q[3 * b + 2] = q_start[0, 3 * b + 2] + _wrap(q[3 * b + 2] - q_start[0, 3 * b + 2])
     q_out[i], phi_out[i], jac_out[i] = q, phi, jac
     cond[i] = condition(jac, column_scale)
     signs = loop_signs(jac, loop_rows, loop_cols, loop_ptr)
@@ -737,30 +739,81 @@ def steerability_rows(points: np.ndarray, forces: np.ndarray, implement_load: np
     return out
 
 
-# ---- one live pose, end to end ---------------------------------------------------------------------
+# ---- one live pose, end to end; a series of them -----------------------------------------------
+@njit(cache=True)
+def _pose_outputs(n_pose, n, m, outputs, machine):
+    """The output arrays of ``live_series`` for n_pose poses (see there), NaN where not written."""
+    (_, spring_stiffness, _, _, hinge_cols, _, _, contact_cols, _, _, per_cap_area, _, point_rows, _, frame_att, _,
+     _, _, _) = outputs
+    parameters, point_att = machine[0], machine[8]
+    n_steer = N_STEERABILITY if parameters.shape[0] > 0 else 0
+    n_capacity = point_att.shape[0] + 1 if point_att.shape[0] > 0 else 0
+    return (np.zeros(n_pose, dtype=np.bool_), np.full((n_pose, n), np.nan), np.full((n_pose, m), np.nan),
+            np.full((n_pose, m, n), np.nan), np.full(n_pose, np.nan), np.full((n_pose, point_rows.shape[0], 2), np.nan),
+            np.full((n_pose, hinge_cols.shape[0], 2), np.nan), np.full((n_pose, per_cap_area.shape[0], 5), np.nan),
+            np.full((n_pose, contact_cols.shape[0], 2), np.nan), np.full((n_pose, 2), np.nan),
+            np.full((n_pose, frame_att.shape[0], 2), np.nan), np.full((n_pose, frame_att.shape[0], 2), np.nan),
+            np.full((n_pose, 4), np.nan), np.full((n_pose, n_steer), np.nan), np.full((n_pose, n_capacity), np.nan))
+
+
 @njit(cache=True)
 def live_pose(s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kinematics, statics, outputs,
               machine):
-    """The live node's pose in one call, from the per-pose kernels above: loop closure from a
-    solved pose (``_kinematic_pose``), equilibrium with the measured cylinder forces
-    (``_statics_pose``), the outputs of a ``Result``, lift capacity (``_capacity_pose``) and
-    steerability (``steerability_pose``).
+    """The live node's pose in one call: ``live_series`` of one pose (s (1, n_inputs), pressure_forces
+    (3, C)) from the solved pose (q_start (1, n), jac_start (1, m, n), s_start (1, n_inputs)).
 
-    s (1, n_inputs): inputs (m, rad). pressure_forces (3, C): per cylinder the measured force (N,
-    NaN = not measured), cap and rod gauge pressures (Pa, NaN = not measured). q_start (1, n),
-    jac_start (1, m, n), s_start (1, n_inputs): the solved pose to start from. limit: largest
-    constraint residual accepted (m); max_condition: the dead-centre condition number.
-    kinematics: ``Kinematics.program``; statics: ``StaticsLayout.program``; outputs:
-    ``Solver.outputs_program`` of that layout; machine: ``MachineModel.program`` (empty arrays for
-    a part the mechanism does not support).
-
-    Returns (plain, q, Φ, ∂Φ/∂q, kinematic condition (1,), point_xz, hinge_force, cylinder_values,
-    contact_values, implement_cg, frame_load_points, frame_load_forces, [implement_load, residual,
-    consistency residual, condition], steerability row, capacity row) in ``Result``'s and
-    ``MachineResult``'s layouts. ``plain`` is False when the pose is not the usual one — off the
-    reference branch, not assembled to ``limit``, at a dead centre, a contact lifting off — and
-    then the rest is not meaningful: the general path (``Solver._solve``) words the verdict.
+    Returns (plain, q (1, n), Φ (1, m), ∂Φ/∂q (1, m, n), kinematic condition (1,), then the pose's rows
+    of the other outputs of ``live_series``).
     """
+    out = _pose_outputs(1, q_start.shape[1], jac_start.shape[1], outputs, machine)
+    _live_pose_at(0, out, s, pressure_forces.reshape((1,) + pressure_forces.shape), q_start, jac_start, s_start,
+                  limit, max_condition, kinematics, statics, outputs, machine)
+    return (out[0][0], out[1], out[2], out[3], out[4], out[5][0], out[6][0], out[7][0], out[8][0], out[9][0],
+            out[10][0], out[11][0], out[12][0], out[13][0], out[14][0])
+
+
+@njit(cache=True)
+def live_series(s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kinematics, statics, outputs,
+                machine):
+    """A recorded series of poses as the live node solves them (replay): pose i from the last pose
+    before it that took this path, the first from (q_start (1, n), jac_start (1, m, n), s_start
+    (1, n_inputs)). s (N, n_inputs): inputs (m, rad); pressure_forces (N, 3, C): per cylinder the
+    measured force (N, NaN = not measured), cap and rod gauge pressures (Pa, NaN = not measured).
+    limit: largest constraint residual accepted (m); max_condition: the dead-centre condition
+    number. kinematics: ``Kinematics.program``; statics: ``StaticsLayout.program``; outputs:
+    ``Solver.outputs_program`` of that layout; machine: ``MachineModel.program`` (empty arrays for a
+    part the mechanism does not support).
+
+    Each pose, from the per-pose kernels above: loop closure (``_kinematic_pose``), equilibrium with
+    the measured cylinder forces (``_statics_pose``), the arrays of a ``Result``, lift capacity
+    (``_capacity_pose``) and steerability (``steerability_pose``). Returns (plain (N,), q (N, n), Φ
+    (N, m), ∂Φ/∂q (N, m, n), kinematic condition (N,), point_xz, hinge_force, cylinder_values,
+    contact_values (N, rows, fields), implement_cg (N, 2), frame_load_points, frame_load_forces (N, F,
+    2), [implement_load, residual, consistency residual, condition] (N, 4), steerability rows,
+    capacity rows) in ``Result``'s and ``MachineResult``'s layouts. ``plain[i]`` is False when pose i
+    is not the usual one — off the reference branch, not assembled to ``limit``, at a dead centre, a
+    contact lifting off — and then its rows are not meaningful: the general path
+    (``Solver._solve``) words the verdict.
+    """
+    n_pose = s.shape[0]
+    out = _pose_outputs(n_pose, q_start.shape[1], jac_start.shape[1], outputs, machine)
+    last = -1
+    for i in range(n_pose):
+        if last < 0:
+            _live_pose_at(i, out, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kinematics,
+                          statics, outputs, machine)
+        else:
+            _live_pose_at(i, out, s, pressure_forces, out[1][last:last + 1], out[3][last:last + 1],
+                          s[last:last + 1], limit, max_condition, kinematics, statics, outputs, machine)
+        if out[0][i]:
+            last = i
+    return out
+
+
+@njit(cache=True)
+def _live_pose_at(i, out, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kinematics, statics,
+                  outputs, machine):
+    """Pose i of ``live_series``, written into its rows of ``out`` (``_pose_outputs``)."""
     (att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc, column_scale, loop_rows, loop_cols,
      loop_ptr, ref_branch) = kinematics
     (n_unknowns, spring_stiffness, spring_free_length, spring_preload, hinge_cols, force_measured, cylinder_cols,
@@ -769,27 +822,18 @@ def live_pose(s, pressure_forces, q_start, jac_start, s_start, limit, max_condit
     (parameters, cap_hinge_att, cap_cylinder_att, lift, lift_force, gravity, weight_att, weight_mass, point_att,
      cg_point) = machine
     member_att = statics[13]   # (2, M): the ends of springs then cylinders
-    n, m = q_start.shape[1], jac_start.shape[1]
+    (plain, q, phi, jac, kin_cond, point_xz, hinge_force, cylinders, contacts, implement_cg, frame_points,
+     frame_forces, scalars, steer, capacity) = out
+    n, m = q.shape[1], phi.shape[1]
     n_springs, n_cylinders = spring_stiffness.shape[0], per_cap_area.shape[0]
     n_members = n_springs + n_cylinders
-    q, phi, jac = np.empty((1, n)), np.empty((1, m)), np.empty((1, m, n))
-    kin_cond, on_branch = np.empty(1), np.empty(1, dtype=np.bool_)
-    point_xz, hinge_force = np.empty((point_rows.shape[0], 2)), np.empty((hinge_cols.shape[0], 2))
-    cylinders, contacts = np.empty((n_cylinders, 5)), np.empty((contact_cols.shape[0], 2))
-    implement_cg = np.full(2, np.nan)
-    n_frame_hinges = frame_hinge_index.shape[0]
-    frame_points, frame_forces = np.empty((frame_att.shape[0], 2)), np.empty((frame_att.shape[0], 2))
-    scalars = np.empty(4)
-    steer = np.empty(N_STEERABILITY if parameters.shape[0] > 0 else 0)
-    capacity = np.full((1, point_att.shape[0] + 1 if point_att.shape[0] > 0 else 0), np.nan)
-    plain = False
-    _kinematic_pose(0, q, phi, jac, kin_cond, on_branch, q_start, jac_start, s_start, s, 25, att_body, att_ref,
-                    hinge_att, cyl_att, angle_body, angle_reference, lc, column_scale, loop_rows, loop_cols, loop_ptr,
-                    ref_branch)
-    if not (on_branch[0] and _max_abs(phi[0]) <= limit and kin_cond[0] <= max_condition):
-        return (plain, q, phi, jac, kin_cond, point_xz, hinge_force, cylinders, contacts, implement_cg, frame_points,
-                frame_forces, scalars, steer, capacity[0])
-    p1, _ = positions(q[0], att_body, att_ref)
+    on_branch = np.empty(1, dtype=np.bool_)
+    _kinematic_pose(0, q[i:i + 1], phi[i:i + 1], jac[i:i + 1], kin_cond[i:i + 1], on_branch, q_start, jac_start,
+                    s_start, s[i:i + 1], 25, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc,
+                    column_scale, loop_rows, loop_cols, loop_ptr, ref_branch)
+    if not (on_branch[0] and _max_abs(phi[i]) <= limit and kin_cond[i] <= max_condition):
+        return
+    p1, _ = positions(q[i], att_body, att_ref)
     p = p1.reshape((1, p1.shape[0], 2))
     member_force = np.empty((1, n_members))
     for k in range(n_springs):   # k·(free length − length) + preload (StaticsLayout.spring_forces)
@@ -798,58 +842,57 @@ def live_pose(s, pressure_forces, q_start, jac_start, s_start, limit, max_condit
         member_force[0, k] = spring_stiffness[k] * (spring_free_length[k] - math.sqrt(dx * dx + dz * dz)) \
             + spring_preload[k]
     for k in range(n_cylinders):   # an unmeasured cylinder's force is an unknown
-        member_force[0, n_springs + k] = pressure_forces[0, k] if force_measured[k] else 0.0
+        member_force[0, n_springs + k] = pressure_forces[i, 0, k] if force_measured[k] else 0.0
     u_out, residual, cond = np.empty((1, n_unknowns)), np.empty(1), np.empty(1)
     axes, lengths = np.empty((1, n_members, 2)), np.empty((1, n_members))
     _statics_pose(0, u_out, residual, cond, axes, lengths, p, member_force, np.zeros((1, 1, 2)), np.zeros((1, 1)),
                   False, *statics)
     u = u_out[0]
     if not cond[0] <= max_condition:
-        return (plain, q, phi, jac, kin_cond, point_xz, hinge_force, cylinders, contacts, implement_cg, frame_points,
-                frame_forces, scalars, steer, capacity[0])
+        return
+    for k in range(contact_cols.shape[0]):
+        if u[contact_cols[k]] < 0.0:   # lifts off
+            return
     for k in range(contact_cols.shape[0]):
         normal = u[contact_cols[k]]
-        if normal < 0.0:   # lifts off
-            return (plain, q, phi, jac, kin_cond, point_xz, hinge_force, cylinders, contacts, implement_cg,
-                    frame_points, frame_forces, scalars, steer, capacity[0])
-        contacts[k, 0], contacts[k, 1] = normal, friction[k] * normal
-    plain = True
+        contacts[i, k, 0], contacts[i, k, 1] = normal, friction[k] * normal
     for k in range(point_rows.shape[0]):
-        point_xz[k, 0], point_xz[k, 1] = p1[point_rows[k], 0], p1[point_rows[k], 1]
+        point_xz[i, k, 0], point_xz[i, k, 1] = p1[point_rows[k], 0], p1[point_rows[k], 1]
     for h in range(hinge_cols.shape[0]):   # N on bodies[1] from bodies[0]
-        hinge_force[h, 0], hinge_force[h, 1] = u[hinge_cols[h, 0]], u[hinge_cols[h, 1]]
+        hinge_force[i, h, 0], hinge_force[i, h, 1] = u[hinge_cols[h, 0]], u[hinge_cols[h, 1]]
     for k in range(n_cylinders):
-        force = pressure_forces[0, k] if force_measured[k] else u[cylinder_cols[k]]
+        force = pressure_forces[i, 0, k] if force_measured[k] else u[cylinder_cols[k]]
         member_force[0, n_springs + k] = force
-        cylinders[k, 0], cylinders[k, 1], cylinders[k, 2] = lengths[0, n_springs + k], force, force * per_cap_area[k]
-        cylinders[k, 3], cylinders[k, 4] = pressure_forces[1, k], pressure_forces[2, k]
+        cylinders[i, k, 0], cylinders[i, k, 1] = lengths[0, n_springs + k], force
+        cylinders[i, k, 2] = force * per_cap_area[k]
+        cylinders[i, k, 3], cylinders[i, k, 4] = pressure_forces[i, 1, k], pressure_forces[i, 2, k]
+    n_frame_hinges = frame_hinge_index.shape[0]
     for j in range(frame_att.shape[0]):   # the forces ON the ground body: hinges, then member ends
-        frame_points[j, 0], frame_points[j, 1] = p1[frame_att[j], 0], p1[frame_att[j], 1]
+        frame_points[i, j, 0], frame_points[i, j, 1] = p1[frame_att[j], 0], p1[frame_att[j], 1]
         if j < n_frame_hinges:
             sign, h = frame_hinge_sign[j], frame_hinge_index[j]
-            frame_forces[j, 0], frame_forces[j, 1] = sign * hinge_force[h, 0], sign * hinge_force[h, 1]
+            frame_forces[i, j, 0], frame_forces[i, j, 1] = sign * hinge_force[i, h, 0], sign * hinge_force[i, h, 1]
         else:
             e = frame_member_index[j - n_frame_hinges]
             f = frame_member_sign[j - n_frame_hinges] * member_force[0, e]
-            frame_forces[j, 0], frame_forces[j, 1] = f * axes[0, e, 0], f * axes[0, e, 1]
+            frame_forces[i, j, 0], frame_forces[i, j, 1] = f * axes[0, e, 0], f * axes[0, e, 1]
     if cg_att >= 0:
-        implement_cg[0], implement_cg[1] = p1[cg_att, 0], p1[cg_att, 1]
+        implement_cg[i, 0], implement_cg[i, 1] = p1[cg_att, 0], p1[cg_att, 1]
     load = u[implement_col] if implement_col >= 0 else implement_weight
     consistency = 0.0
     for r in range(m):
-        consistency += phi[0, r] * phi[0, r]
-    scalars[0], scalars[1], scalars[2], scalars[3] = load, residual[0], math.sqrt(consistency), max(cond[0],
-                                                                                                    kin_cond[0])
+        consistency += phi[i, r] * phi[i, r]
+    scalars[i, 0], scalars[i, 1], scalars[i, 2] = load, residual[0], math.sqrt(consistency)
+    scalars[i, 3] = max(cond[0], kin_cond[i])
     if parameters.shape[0]:
-        steerability_pose(frame_points, frame_forces, load, implement_cg[0], parameters, steer)
+        steerability_pose(frame_points[i], frame_forces[i], load, implement_cg[i, 0], parameters, steer[i])
     if point_att.shape[0]:
         square = 2 * cap_hinge_att.shape[1] + cap_cylinder_att.shape[1] == n
-        _capacity_pose(0, capacity, q, att_body, att_ref, cap_hinge_att, cap_cylinder_att, lift, lift_force, gravity,
-                       weight_att, weight_mass, member_att[:, :n_springs].copy(), member_force[:, :n_springs].copy(),
-                       point_att,
-                       column_scale, max_condition, np.ones(1, dtype=np.bool_), square, np.full(1, load), cg_point)
-    return (plain, q, phi, jac, kin_cond, point_xz, hinge_force, cylinders, contacts, implement_cg, frame_points,
-            frame_forces, scalars, steer, capacity[0])
+        _capacity_pose(0, capacity[i:i + 1], q[i:i + 1], att_body, att_ref, cap_hinge_att, cap_cylinder_att, lift,
+                       lift_force, gravity, weight_att, weight_mass, member_att[:, :n_springs].copy(),
+                       member_force[:, :n_springs].copy(), point_att, column_scale, max_condition,
+                       np.ones(1, dtype=np.bool_), square, np.full(1, load), cg_point)
+    plain[i] = True
 
 
 # ``live_pose``'s ``machine`` when no machine-level results are wanted (``MachineModel.program``'s types)

@@ -21,7 +21,7 @@ from .capacity import capacity_force, capacity_points, lift_cylinder, reference_
 from .kinematics import KinematicState
 from .model import Mechanism, Tractor
 from .results import BatchResult, Status, Result
-from .solver import Inputs, Solver
+from .solver import ArrayMap, Inputs, Solver
 
 _EMPTY = np.zeros(0)
 STEERABILITY_KEYS = kernels.STEERABILITY_COLUMNS   # front_axle_load, rear_axle_load, total_weight, wheelbase, ratio,
@@ -205,6 +205,25 @@ class MachineModel:
             return result, self.evaluate(result)
         return result, MachineResult(rows[0], rows[1], self.steerability_keys, self.capacity_keys)
 
+    def solve_series(self, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap
+                     ) -> tuple[BatchResult, MachineBatch]:
+        """A recorded series of poses as the live node solves them, with their machine-level results
+        (``Solver.solve_series``; replay): as ``solve_batch`` + ``evaluate_batch`` would give them."""
+        batch, steer, capacity, plain = self.solver.solve_series(cylinders, angles, pressures, self.program)
+        general = np.flatnonzero(~plain)
+        if general.size:
+            q = np.concatenate([batch.body_poses[b.name][general] for b in self.mech.moving_bodies], axis=1)
+            ok = (batch.status[general] < Status.INPUT) & np.isfinite(q).all(axis=1)
+            steer_rows, capacity_rows = self._rows(q, ok, batch.frame_load_points[general],
+                                                   batch.frame_load_forces[general], batch.implement_load[general],
+                                                   batch.implement_cg[general, 0])
+            if steer_rows is not None:
+                steer[general] = steer_rows
+            if capacity_rows is not None:
+                capacity[general] = capacity_rows
+        return batch, self._batch_of(steer if self.steerability_keys else None,
+                                     capacity if self.capacity_keys else None, len(batch))
+
     def evaluate(self, result: Result) -> MachineResult:
         """Machine-level results of one solved pose (a ``Result`` of ``self.solver``)."""
         state = result.state
@@ -238,9 +257,13 @@ class MachineModel:
                  implement_load: np.ndarray, implement_x: np.ndarray) -> MachineBatch:
         """``_rows`` of N poses as a :class:`MachineBatch` (a column per key)."""
         steer, capacity = self._rows(q, ok, frame_load_points, frame_load_forces, implement_load, implement_x)
+        return self._batch_of(steer, capacity, len(q))
+
+    def _batch_of(self, steer: np.ndarray | None, capacity: np.ndarray | None, size: int) -> MachineBatch:
+        """A :class:`MachineBatch` (a column per key) of rows (N, keys); None for a part not computed."""
         return MachineBatch({k: steer[:, j] for j, k in enumerate(self.steerability_keys)} if steer is not None else {},
                             {k: capacity[:, j] for j, k in enumerate(self.capacity_keys)} if capacity is not None
-                            else {}, len(q))
+                            else {}, size)
 
     def _rows(self, q: np.ndarray, ok: np.ndarray, frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
               implement_load: np.ndarray, implement_x: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:

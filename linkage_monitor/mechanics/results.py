@@ -190,6 +190,20 @@ class BatchResult:
     def __len__(self) -> int:
         return len(self.status)
 
+    def assign(self, index: np.ndarray, other: "BatchResult") -> None:
+        """Poses ``index`` (len(other),) replaced by the poses of ``other`` (the same solver's)."""
+        for name, value in vars(self).items():
+            theirs = getattr(other, name)
+            if isinstance(value, dict):
+                for key, column in value.items():
+                    if isinstance(column, np.ndarray):
+                        column[index] = theirs[key]
+            elif isinstance(value, np.ndarray):
+                value[index] = theirs
+            elif name == "messages":
+                for i, message in zip(index.tolist(), theirs):
+                    value[i] = message
+
     def result(self, i: int) -> Result:
         """Pose i as a :class:`Result` (its status may be an error: check ``status``/``message``)."""
         i = range(len(self))[i]   # IndexError out of range; a negative i counts from the end

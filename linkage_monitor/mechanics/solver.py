@@ -144,6 +144,62 @@ class Solver:
                                reach=reach)
         return batch
 
+    def solve_series(self, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap, machine: tuple
+                     ) -> tuple[BatchResult, np.ndarray, np.ndarray, np.ndarray]:
+        """A recorded series of N poses (arrays (N,)) solved as the live node solves them, each from the
+        one before (``kernels.live_series``, one compiled call); the poses it does not take (a bad
+        input, off the branch, a dead centre, a contact lifting off) are solved by the general path
+        (``solve_batch``'s, which words them). Same BatchResult as ``solve_batch``
+        (test_mechanics_fast_paths.py); with the machine-level rows of ``machine``
+        (``MachineModel.program``): steerability (N, S) and capacity (N, P + 1), and which poses
+        have them (N,) (the others: ``MachineModel.evaluate_batch``'s)."""
+        kin, mech = self.kin, self.mech
+        n_pose, arrays = self._arrays(cylinders, angles, pressures, {}, {})
+        s = self._input_matrix(arrays, n_pose, "inputs")
+        bad = np.array([bool(p) for p in self._input_problems(s, arrays)], dtype=bool)
+        s = kin.wrap_angles(np.where(bad[:, None], kin.reference_inputs(), s))
+        cap = np.full((n_pose, len(mech.cylinders)), np.nan)
+        rod = cap.copy()
+        for name, values in arrays["pressures"].items():
+            ps = self._sensors[name]
+            (cap if ps.chamber == "cap" else rod)[:, self._cylinder_index[ps.cylinder]] = values
+        layout = self.statics_layout(frozenset(self._sensors[n].cylinder for n in arrays["pressures"]))
+        measured = np.full_like(cap, np.nan)
+        for k, c in enumerate(mech.cylinders):
+            if layout.force_measured[k]:
+                measured[:, k] = _measured_force(c, cap[:, k], rod[:, k])
+        start = kin.reference
+        (plain, q, phi, jac, kin_cond, points, hinge_force, cylinder_values, contact_values, implement_cg,
+         frame_points, frame_forces, scalars, steer, capacity) = kernels.live_series(
+            s, np.ascontiguousarray(np.stack([measured, cap, rod], axis=1)), start.q[-1:], start.jac[-1:],
+            start.s[-1:], self._assembly_limit, self.dead_centre_cond, kin.program, layout.program,
+            self.outputs_program(layout), machine)
+        plain &= ~bad
+        names = self.names
+        body_q = q.reshape(n_pose, -1, 3)
+        batch = BatchResult(
+            points={n: points[:, k] for k, n in enumerate(names.points)},
+            body_poses={n: body_q[:, k] for k, n in enumerate(names.bodies)},
+            hinge_force={h: hinge_force[:, k] for k, (h, _, _) in enumerate(names.hinges)},
+            hinge_bodies={h.name: h.bodies for h in mech.hinges},
+            **{field: {n: cylinder_values[:, k, j] for k, n in enumerate(names.cylinders)}
+               for j, field in enumerate(("cylinder_length", "cylinder_force", "cap_pressure_predicted",
+                                          "cap_pressure_measured", "rod_pressure_measured"))},
+            contact_normal={n: contact_values[:, k, 0] for k, n in enumerate(names.contacts)},
+            contact_tangential={n: contact_values[:, k, 1] for k, n in enumerate(names.contacts)},
+            implement_load=scalars[:, 0], implement_cg=implement_cg, frame_load_names=list(self.frame_load_names),
+            frame_load_points=frame_points, frame_load_forces=frame_forces, residual=scalars[:, 1],
+            consistency_residual=scalars[:, 2], condition=scalars[:, 3], status=np.zeros(n_pose, dtype=int),
+            messages=[""] * n_pose)
+        general = np.flatnonzero(~plain)
+        if general.size:
+            def rows(group: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+                return {n: v[general] for n, v in group.items()}
+            other, _ = self._solve(None, rows(arrays["cylinders"]), rows(arrays["angles"]), rows(arrays["pressures"]),
+                                   {}, {})
+            batch.assign(general, other)
+        return batch, steer, capacity, plain
+
     # ---- internals --------------------------------------------------------------------------
     def _check_kinematics_observable(self) -> None:
         kin = self.kin

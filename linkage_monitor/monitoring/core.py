@@ -265,10 +265,13 @@ class Monitor:
         def column(kind: str) -> dict[str, np.ndarray]:
             return {n: np.array([getattr(d.inputs, kind)[n] for d in dues]) for n in getattr(dues[0].inputs, kind)}
 
-        batch = self.solver.solve_batch(cylinders=column("cylinders"), angles=column("angles"),
-                                        pressures=column("pressures"), rates=column("rates"),
-                                        accelerations=column("accelerations"))
-        machine = self.machine.evaluate_batch(batch)
+        rates, accelerations = column("rates"), column("accelerations")
+        if rates or accelerations:   # kinetostatics: the general path
+            batch = self.solver.solve_batch(cylinders=column("cylinders"), angles=column("angles"),
+                                            pressures=column("pressures"), rates=rates, accelerations=accelerations)
+            machine = self.machine.evaluate_batch(batch)
+        else:   # each pose from the one before, as the live path solves them
+            batch, machine = self.machine.solve_series(column("cylinders"), column("angles"), column("pressures"))
         results, machine_results = batch.results(), machine.results()
         for k, (i, due) in enumerate(segment):
             status = Status(int(batch.status[k]))
