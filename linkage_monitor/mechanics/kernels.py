@@ -742,18 +742,20 @@ def steerability_rows(points: np.ndarray, forces: np.ndarray, implement_load: np
 # ---- one live pose, end to end; a series of them -----------------------------------------------
 @njit(cache=True)
 def _pose_outputs(n_pose, n, m, outputs, machine):
-    """The output arrays of ``live_series`` for n_pose poses (see there), NaN where not written."""
+    """The output arrays of ``live_series`` for n_pose poses (see there): the rows of a pose that is not
+    plain are left as they are (the general path writes them), the implement cg and the capacities
+    NaN until written (no implement; a capacity that is not computed)."""
     (_, spring_stiffness, _, _, hinge_cols, _, _, contact_cols, _, _, per_cap_area, _, point_rows, _, frame_att, _,
      _, _, _) = outputs
     parameters, point_att = machine[0], machine[8]
     n_steer = N_STEERABILITY if parameters.shape[0] > 0 else 0
     n_capacity = point_att.shape[0] + 1 if point_att.shape[0] > 0 else 0
-    return (np.zeros(n_pose, dtype=np.bool_), np.full((n_pose, n), np.nan), np.full((n_pose, m), np.nan),
-            np.full((n_pose, m, n), np.nan), np.full(n_pose, np.nan), np.full((n_pose, point_rows.shape[0], 2), np.nan),
-            np.full((n_pose, hinge_cols.shape[0], 2), np.nan), np.full((n_pose, per_cap_area.shape[0], 5), np.nan),
-            np.full((n_pose, contact_cols.shape[0], 2), np.nan), np.full((n_pose, 2), np.nan),
-            np.full((n_pose, frame_att.shape[0], 2), np.nan), np.full((n_pose, frame_att.shape[0], 2), np.nan),
-            np.full((n_pose, 4), np.nan), np.full((n_pose, n_steer), np.nan), np.full((n_pose, n_capacity), np.nan))
+    return (np.zeros(n_pose, dtype=np.bool_), np.empty((n_pose, n)), np.empty((n_pose, m)), np.empty((n_pose, m, n)),
+            np.empty(n_pose), np.empty((n_pose, point_rows.shape[0], 2)), np.empty((n_pose, hinge_cols.shape[0], 2)),
+            np.empty((n_pose, per_cap_area.shape[0], 5)), np.empty((n_pose, contact_cols.shape[0], 2)),
+            np.full((n_pose, 2), np.nan), np.empty((n_pose, frame_att.shape[0], 2)),
+            np.empty((n_pose, frame_att.shape[0], 2)), np.empty((n_pose, 4)), np.empty((n_pose, n_steer)),
+            np.full((n_pose, n_capacity), np.nan))
 
 
 @njit(cache=True)
