@@ -23,7 +23,7 @@ from .solver import Inputs, Solver
 
 def warm_up() -> float:
     """Solve every preset once per path (single pose warm-started, small and large batches, with
-    rates, lift capacity); returns the seconds it took."""
+    rates, lift capacity, a recorded series); returns the seconds it took."""
     started = time.perf_counter()
     kernels.allow_threads(True)   # compile the thread-pool drivers too
     for name in preset_names():
@@ -40,6 +40,7 @@ def warm_up() -> float:
             batch = solver.solve_batch(**arrays, rates=rates, accelerations=rates)
             assert (batch.status < Status.INPUT).all(), f"{name}: the reference pose should solve"
             model.evaluate_batch(batch)
+            model.solve_series(arrays.get("cylinders", {}), arrays.get("angles", {}), arrays.get("pressures", {}))
         # poses out of reach: the continuation from the reference pose and the reach bisection
         far = {"cylinders": {n: 1.6 * v for n, v in ref.get("cylinders", {}).items()},
                "angles": {n: v + 2.0 for n, v in ref.get("angles", {}).items()},
