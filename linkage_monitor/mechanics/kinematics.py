@@ -240,6 +240,7 @@ class Kinematics:
             for t in np.linspace(0.1, 1.0, 10):
                 qr, _, _ = self.newton(qr, s_ref + t * (s[retry] - s_ref), max_iter=12)
             qr, phir, jacr = self.newton(qr, s[retry])
+            qr[:, 2::3] = wrap_angle(qr[:, 2::3])   # whole turns: the rotation nearest the reference pose's (0)
             q[retry], phi[retry], jac[retry] = qr, phir, jacr
             cond[retry] = [kernels.condition(j, self.column_scale) for j in jacr]
             still = retry[~(np.abs(phir).max(axis=1) <= limit)]
