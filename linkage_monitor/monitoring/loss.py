@@ -4,7 +4,9 @@ Two sources, because neither sees everything: the middleware's message-lost even
 the DDS reader knows it missed, e.g. best-effort gaps) and gaps in each publisher's
 publication sequence numbers as delivered to the callback (also samples pushed out of a full
 subscription queue before the executor took them). A gap counts once: the event's count is
-kept apart and both are reported.
+kept apart and both are reported. Not seen by either: samples of a publisher pushed out of the
+queue before the first one the node takes from it (that first sequence number may as well follow
+messages published before the node subscribed, which are no loss).
 """
 
 from __future__ import annotations
