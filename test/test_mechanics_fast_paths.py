@@ -9,7 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from linkage_monitor.mechanics import Inputs, Solver, load_mechanism
+from linkage_monitor.mechanics import Inputs, Mechanism, Solver, load_mechanism, load_preset
+from linkage_monitor.mechanics.machine import MachineModel
 from linkage_monitor.mechanics.results import Status
 from linkage_monitor.mechanics import kernels
 from test_mechanics_oracles import FIXTURES, virtual_work
@@ -102,22 +103,24 @@ def _same_result(a, b, where: str) -> None:
 
 
 PRESETS = ["belarus_1221", "damping_hitch", "drill_coulter", "ksu1_mower_adapter", "ttz1080_base_change"]
+MECHANISMS = PRESETS + [f"fixture:{f}" for f in ("arm_angle", "four_bar", "hitch", "spring_contact")]
 
 
-@pytest.mark.parametrize("name", PRESETS + [f"fixture:{f}" for f in ("arm_angle", "four_bar", "hitch",
-                                                                      "spring_contact")])
+def _mechanism(name: str) -> tuple[Mechanism, Solver, MachineModel]:
+    """A preset, or ``fixture:<file stem>`` of test/fixtures, with its solver and machine model."""
+    mech = load_mechanism(FIXTURES / f"{name[8:]}.yaml") if name.startswith("fixture:") else load_preset(name)
+    solver = Solver(mech)
+    return mech, solver, MachineModel(mech, solver)
+
+
+@pytest.mark.parametrize("name", MECHANISMS)
 def test_one_pose_path_gives_what_the_batch_path_gives(name: str) -> None:
     """MachineModel.solve takes a usual pose through one compiled call (kernels.live_pose, via
     Solver._solve_plain); the same inputs through the general batched path (solve_batch from the
     reference pose, then MachineModel.evaluate_batch) give the same Result and machine-level rows.
     Poses: a live sequence around the reference inputs (warm starts), pressures from 0.3 to 3
     times a reference value, angle readings wrapped by ±2π."""
-    from linkage_monitor.mechanics import load_preset
-    from linkage_monitor.mechanics.machine import MachineModel
-
-    mech = load_mechanism(FIXTURES / f"{name[8:]}.yaml") if name.startswith("fixture:") else load_preset(name)
-    solver = Solver(mech)
-    model = MachineModel(mech, solver)
+    mech, solver, model = _mechanism(name)
     kin = solver.kin
     s_ref, nc = kin.reference_inputs(), kin.cyl_att.shape[1]
     rng = np.random.default_rng(11)
@@ -152,20 +155,14 @@ def _same_batch(a, b, where: str) -> None:
             _same_result(a.result(i), b.result(i), f"{where} pose {i}")
 
 
-@pytest.mark.parametrize("name", PRESETS + [f"fixture:{f}" for f in ("arm_angle", "four_bar", "hitch",
-                                                                      "spring_contact")])
+@pytest.mark.parametrize("name", MECHANISMS)
 def test_series_path_gives_what_the_batch_path_gives(name: str) -> None:
     """MachineModel.solve_series (replay: a recording solved as the live node solves it, each pose
     from the one before, in one compiled call) gives what solve_batch + evaluate_batch give (every
     pose from the reference pose). The series: a slow stroke around the reference inputs with
     pressures from 0.3 to 3 times a reference value and angle readings wrapped by ±2π, and in it a
     NaN reading, inputs far out of reach and a jump back."""
-    from linkage_monitor.mechanics import load_preset
-    from linkage_monitor.mechanics.machine import MachineModel
-
-    mech = load_mechanism(FIXTURES / f"{name[8:]}.yaml") if name.startswith("fixture:") else load_preset(name)
-    solver = Solver(mech)
-    model = MachineModel(mech, solver)
+    mech, solver, model = _mechanism(name)
     kin = solver.kin
     s_ref, nc = kin.reference_inputs(), kin.cyl_att.shape[1]
     rng = np.random.default_rng(5)

@@ -173,8 +173,7 @@ class MachineModel:
         self._no_spring_force = np.zeros((1, 0))   # spring_force of a mechanism without springs (never indexed)
         lift = [c.name for c in mech.cylinders].index(cyl.name)
         weight_att, weight_mass = layout.mass_att[others], layout.mass[others]
-        self._capacity_args = (kin.hinge_att, all_cylinders, lift, self.capacity_force, mech.gravity, weight_att,
-                               weight_mass, layout.member_att[:, :layout.n_springs].copy(), point_att)
+        self._spring_att = layout.member_att[:, :layout.n_springs].copy()   # (2, n_springs): the springs' ends
         self.program = (self.program[0], np.ascontiguousarray(kin.hinge_att, dtype=np.int64), all_cylinders, lift,
                         float(self.capacity_force), float(mech.gravity), weight_att.astype(np.int64),
                         weight_mass.astype(float), point_att, self._cg_column)
@@ -244,12 +243,12 @@ class MachineModel:
         parallelogram: no lift capacity, not a negative load)."""
         kin = self.solver.kin
         q = np.ascontiguousarray(q, dtype=float)
-        hinge_att, cylinder_att, lift, force, gravity, weight_att, weight_mass, spring_att, point_att = self._capacity_args
+        _, hinge_att, cylinder_att, lift, force, gravity, weight_att, weight_mass, point_att, _ = self.program
         spring_force = self._layout.spring_forces(kin.positions(q)[0]) if self._layout.n_springs else \
             self._no_spring_force
         att_body, att_ref = kin.geometry[:2]
         return kernels.lift_capacity(q, att_body, att_ref, hinge_att, cylinder_att, lift, force, gravity, weight_att,
-                                     weight_mass, spring_att, spring_force, point_att, kin.column_scale,
+                                     weight_mass, self._spring_att, spring_force, point_att, kin.column_scale,
                                      self.solver.dead_centre_cond, np.ascontiguousarray(ok, dtype=np.bool_),
                                      np.ascontiguousarray(implement_load, dtype=float), self._cg_column)
 
