@@ -46,7 +46,7 @@ def main() -> int:
     joints = client.create_publisher(JointState, "joint_states", qos)
     pressure = client.create_publisher(FluidPressure, "pressure/lift_cap_pressure", qos)
     try:
-        end = time.monotonic() + 30.0
+        end = time.monotonic() + 300.0   # s: a node that compiles its kernels subscribes after
         while time.monotonic() < end and not (joints.get_subscription_count() and pressure.get_subscription_count()):
             rclpy.spin_once(client, timeout_sec=0.1)
         time.sleep(0.5)

@@ -61,6 +61,7 @@ OUTPUT_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)   # 
 HEARTBEAT_S = 1.0  # s, /diagnostics is repeated at least this often
 STOP_POLL_S = 0.1  # s, the spin loop looks this often whether a signal asked it to stop
 DRAIN_LIMIT = 200  # input messages worked off per executor callback (then timers and services run)
+KERNELS_SLOW_S = 5.0  # s, a start-up kernel load longer than this was a compile: said in the log
 
 # name: (default, description, read_only, (min, max) for doubles)
 PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
@@ -201,6 +202,16 @@ class LinkageMonitorNode(Node):
             self.rerun = (RerunView.to_file(description, p["rerun_path"]) if p["rerun"] == "save"
                           else RerunView.to_viewer(description))
 
+        # the kernels are loaded before the inputs are subscribed: a sensor sees this node once it
+        # can solve, and nothing waits in its queue while numba compiles (a cold cache, the first
+        # start after an install without `make`'s warm-up)
+        loading = time.monotonic()
+        self.monitor.load_kernels()
+        if (loaded := time.monotonic() - loading) > KERNELS_SLOW_S:
+            self.get_logger().warning(f"the physics kernels took {loaded:.0f} s to load: numba compiled them (its "
+                                      "on-disk cache beside linkage_monitor/mechanics/kernels.py was cold or not "
+                                      "writable); `python -m linkage_monitor.mechanics.warm` compiles them ahead "
+                                      "of the next start")
         self.input_qos = (qos_profile_sensor_data if p["sensor_qos"] == "sensor_data" else
                           QoSProfile(depth=int(p["reliable_queue_depth"]), reliability=ReliabilityPolicy.RELIABLE))
         self._inputs: list[tuple[Any, Callable[[bytes, dict], None]]] = []   # (subscription, its callback)
@@ -210,7 +221,6 @@ class LinkageMonitorNode(Node):
         self.create_timer(HEARTBEAT_S, self.on_heartbeat)
         self.add_on_set_parameters_callback(self.validate_parameters)
         self.add_post_set_parameters_callback(self.apply_parameters)
-        self.monitor.load_kernels()
         gc.freeze()   # what start-up built (modules, kernels, layouts) is left out of every later collection
         self.get_logger().info(f"monitoring '{description.name}': {config.topics.joint_states} + "
                                f"{', '.join(config.pressure_topics) or 'no pressures'}")
