@@ -192,3 +192,27 @@ def test_implement_mass_changed_at_runtime_applies_from_the_next_message(ros, tm
     offline = Solver(heavy).solve(Inputs(cylinders={"lift_cylinder": s}, angles={"lift_arm_angle": angle}))
     expected = MachineModel(heavy, Solver(heavy)).evaluate(offline).steerability["margin"]
     assert client.outputs_at("steerability", T0 + 1)[0].margin == pytest.approx(expected, rel=1e-9)
+
+
+def test_a_cold_kernel_cache_is_compiled_before_the_inputs_are_subscribed(ros, tmp_path, monkeypatch):
+    """A node whose numba cache is cold (a colcon install without the warm-up, a new cache
+    directory) compiles its kernels before it subscribes: a sensor that publishes as soon as it
+    sees the subscription is solved, not left waiting in the queue until its stamp is older than
+    stamp_tolerance (the default, 10 s; the compile takes longer here). The log says it compiled."""
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "numba_cache"))   # numba's cache, empty
+    proc = start_node({"mechanism": "belarus_1221", "record_dir": str(tmp_path / "bags"), "sensor_qos": "reliable"},
+                      tmp_path / "node.log")
+    client = MonitorClient()
+    try:
+        client.wait_for_node(timeout=600.0)
+        now = client.node.get_clock().now().nanoseconds
+        stroke, angle = _pose(0.60)
+        _send(client, now, stroke, angle, 9.0e6)
+        assert client.spin_until(lambda: bool(client.outputs_at("hitch_state", now + 1000)), 30), \
+            (tmp_path / "node.log").read_text()
+    finally:
+        client.close()
+        assert stop(proc) == 0
+    log = (tmp_path / "node.log").read_text()
+    assert "numba compiled them" in log, log
+    assert any((tmp_path / "numba_cache").rglob("*.nbc")), "the node should have compiled into NUMBA_CACHE_DIR"
