@@ -41,6 +41,9 @@ class Status(IntEnum):
         return self.name.lower()
 
 
+STATUS_LABELS: tuple[str, ...] = tuple(status.label for status in Status)   # index: the Status value (0, 1, ...)
+
+
 class HingeResult(NamedTuple):
     """Reaction at a hinge: force (N, global frame) on ``on_body`` from ``from_body``.
     (The small per-pose results are NamedTuples: immutable, and built in a fraction of a frozen
@@ -233,7 +236,7 @@ class BatchResult:
         scalars = zip(*(a[span].tolist() for a in (self.implement_load, self.residual, self.consistency_residual,
                                                     self.condition, self.status)))
         return [Result(names, points[j], poses[j], hinges[j], cylinders[j], contacts[j], load, cgs[j], load_points[j],
-                       load_forces[j], residual, consistency, condition, Status(int(status)).label, message)
+                       load_forces[j], residual, consistency, condition, STATUS_LABELS[int(status)], message)
                 for j, ((load, residual, consistency, condition, status), message)
                 in enumerate(zip(scalars, self.messages[span]))]
 

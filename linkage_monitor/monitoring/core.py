@@ -273,10 +273,9 @@ class Monitor:
         else:   # each pose from the one before, as the live path solves them
             batch, machine = self.machine.solve_series(column("cylinders"), column("angles"), column("pressures"))
         results, machine_results = batch.results(), machine.results()
-        for k, (i, due) in enumerate(segment):
-            status = Status(int(batch.status[k]))
-            steps[i] = (self._finish(due, results[k], machine_results[k]) if status.solved
-                        else self._failed(due, status, batch.messages[k]))
+        for k, ((i, due), status) in enumerate(zip(segment, batch.status.tolist())):
+            steps[i] = (self._finish(due, results[k], machine_results[k]) if status < Status.INPUT
+                        else self._failed(due, Status(status), batch.messages[k]))
         segments.append(Segment(np.array([i for i, _ in segment]), np.array([d.stamp_ns for d in dues], dtype=np.int64),
                                 batch, machine, self.mechanism))
 
