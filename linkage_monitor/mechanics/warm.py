@@ -12,6 +12,7 @@ import time
 from typing import Any
 
 import numpy as np
+from numba.core.registry import CPUDispatcher
 
 from . import kernels
 from .machine import MachineModel
@@ -19,6 +20,13 @@ from .presets import load_preset, preset_names
 from .errors import LinkageError
 from .results import Status
 from .solver import Inputs, Solver
+
+
+def compiled_kernels() -> int:
+    """How many kernel signatures this process has compiled (numba's cache misses) rather than
+    loaded from the on-disk cache: nonzero after a start on a cold or unwritable cache."""
+    return sum(sum(kernel.stats.cache_misses.values()) for kernel in vars(kernels).values()
+               if isinstance(kernel, CPUDispatcher))
 
 
 def warm_up() -> float:

@@ -43,6 +43,7 @@ from linkage_monitor.bag.reader import FLUID_PRESSURE, JOINT_STATE
 from linkage_monitor.bag.writer import BagError, BagWriter
 from linkage_monitor.mechanics import LinkageError, Mechanism, load_description
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
+from linkage_monitor.mechanics.warm import compiled_kernels
 from linkage_monitor.monitoring.config import CONFIG_TOPIC, OVERRIDE_KEYS, MonitorConfig, Topics
 from linkage_monitor.monitoring.core import Monitor, Step
 from linkage_monitor.monitoring.findings import Level
@@ -61,7 +62,6 @@ OUTPUT_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)   # 
 HEARTBEAT_S = 1.0  # s, /diagnostics is repeated at least this often
 STOP_POLL_S = 0.1  # s, the spin loop looks this often whether a signal asked it to stop
 DRAIN_LIMIT = 200  # input messages worked off per executor callback (then timers and services run)
-KERNELS_SLOW_S = 5.0  # s, a start-up kernel load longer than this was a compile: said in the log
 
 # name: (default, description, read_only, (min, max) for doubles)
 PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
@@ -205,13 +205,13 @@ class LinkageMonitorNode(Node):
         # the kernels are loaded before the inputs are subscribed: a sensor sees this node once it
         # can solve, and nothing waits in its queue while numba compiles (a cold cache, the first
         # start after an install without `make`'s warm-up)
-        loading = time.monotonic()
+        loading, compiled = time.monotonic(), compiled_kernels()
         self.monitor.load_kernels()
-        if (loaded := time.monotonic() - loading) > KERNELS_SLOW_S:
-            self.get_logger().warning(f"the physics kernels took {loaded:.0f} s to load: numba compiled them (its "
-                                      "on-disk cache beside linkage_monitor/mechanics/kernels.py was cold or not "
-                                      "writable); `python -m linkage_monitor.mechanics.warm` compiles them ahead "
-                                      "of the next start")
+        if compiled := compiled_kernels() - compiled:
+            self.get_logger().warning(
+                f"numba compiled {compiled} physics kernel(s) in {time.monotonic() - loading:.0f} s at this start: its "
+                "on-disk cache (beside linkage_monitor/mechanics/kernels.py, or NUMBA_CACHE_DIR) was cold or not "
+                "writable; `python -m linkage_monitor.mechanics.warm` compiles them ahead of the next start")
         self.input_qos = (qos_profile_sensor_data if p["sensor_qos"] == "sensor_data" else
                           QoSProfile(depth=int(p["reliable_queue_depth"]), reliability=ReliabilityPolicy.RELIABLE))
         self._inputs: list[tuple[Any, Callable[[bytes, dict], None]]] = []   # (subscription, its callback)
