@@ -36,6 +36,7 @@ from bench_solver import best_of, stroke_only  # noqa: E402
 from linkage_monitor.bag.reader import JointStateColumns, read_inputs  # noqa: E402
 from linkage_monitor.mechanics import Solver, Status, kernels, load_preset  # noqa: E402
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE  # noqa: E402
+from linkage_monitor.mechanics.results import angle_readings  # noqa: E402
 
 HINGES = ("P03", "P34", "P45", "P05", "P56", "P07", "P67")   # output columns, the preset's hinge order
 
@@ -161,6 +162,11 @@ def fusion_difference(bag: Path) -> None:
     fitted = lift_arm_fit(stroke, angle, geometry(mech), mech.measurements.angles[0].reference, fused_solver.kin.lc)
     print(f"{bag.name}: {len(stroke)} poses; the sensors' kinematic residual (least squares) median "
           f"{1e3 * np.nanmedian(fused.consistency_residual):.2f} mm, largest {1e3 * np.nanmax(fused.consistency_residual):.2f} mm")
+    # the fit's own check: readings that agree (the angle the closed loop gives at each stroke) return the stroke
+    agreeing = angle_readings(mech, closed_solver.solve_batch(cylinders={"lift_cylinder": stroke}))["lift_arm_angle"]
+    self_check = np.abs(lift_arm_fit(stroke, agreeing, geometry(mech), mech.measurements.angles[0].reference,
+                                     fused_solver.kin.lc) - stroke).max()
+    print(f"  (lift_arm_fit on agreeing readings returns the stroke to {self_check:.1g} m)")
     for label, s_closed in (("the stroke alone, loop closed", stroke), ("the best-fitting stroke, loop closed", fitted)):
         closed = closed_solver.solve_batch(cylinders={"lift_cylinder": s_closed}, pressures=gauge)
         ok = (fused.status < Status.INPUT) & (closed.status < Status.INPUT)
