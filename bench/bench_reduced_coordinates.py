@@ -34,7 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_solver import best_of, stroke_only  # noqa: E402
 
 from linkage_monitor.bag.reader import JointStateColumns, read_inputs  # noqa: E402
-from linkage_monitor.mechanics import Solver, Status, kernels, load_preset  # noqa: E402
+from linkage_monitor.mechanics import Solver, Status, kernels, load_mechanism, load_preset, preset_names  # noqa: E402
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE  # noqa: E402
 from linkage_monitor.mechanics.results import angle_readings  # noqa: E402
 
@@ -177,6 +177,51 @@ def fusion_difference(bag: Path) -> None:
               f"hinge's force, the hitch point P56 by up to {hitch:.2f} mm ({int(ok.sum())} poses)")
 
 
+def dyad_decomposition(mech) -> tuple[list[str], list[str], list[str]]:
+    """How far a chain of dyads places ``mech``'s bodies from its measured inputs (the reach of a
+    reduced-coordinate solver): (steps in order, redundant sensors, bodies left unplaced).
+
+    Rules, applied until none does: a body hinged to a placed body turned by an angle sensor on that
+    hinge, or by a measured cylinder from a placed body (law of cosines); two bodies hinged to each
+    other and each to a placed body (circle intersection, RRR). A sensor whose bodies are all placed
+    before it is used is redundant (fitted, not driving)."""
+    placed = {b.name for b in mech.bodies if b.ground}
+    hinges = [(h.name, *h.bodies) for h in mech.hinges]
+    drivers = ([(f"angle {a.name}", a.hinge, next(h for h in mech.hinges if h.name == a.hinge).bodies)
+                for a in mech.measurements.angles]   # (label, the sensor's hinge, its two bodies)
+               + [(f"cylinder {c.name}", None, (c.base.body, c.rod_end.body))
+                  for c in mech.cylinders if c.name in mech.measurements.cylinders])
+    unused: list[tuple[str, str | None, tuple[str, str]]] = list(drivers)
+    steps: list[str] = []
+
+    def pivot(body: str) -> str | None:   # a hinge of ``body`` to a placed body
+        return next((h for h, a, b in hinges if {a, b} - {body} <= placed and body in (a, b) and a != b), None)
+
+    progress = True
+    while progress:
+        progress = False
+        for driver in list(unused):
+            name, sensor_hinge, (a, b) = driver
+            body = b if a in placed and b not in placed else a if b in placed and a not in placed else None
+            hinge = sensor_hinge or (pivot(body) if body is not None else None)   # an angle turns its own hinge
+            if body is not None and hinge is not None:
+                placed.add(body)
+                unused.remove(driver)
+                steps.append(f"{body} about {hinge} by {name}")
+                progress = True
+        for h, x, y in hinges:
+            if x in placed or y in placed:
+                continue
+            px, py = pivot(x), pivot(y)
+            if px is not None and py is not None:
+                placed |= {x, y}
+                steps.append(f"RRR({x}, {y}) at {h}")
+                progress = True
+    left = [b.name for b in mech.bodies if b.name not in placed]
+    redundant = [name for name, *_ in unused] if not left else []
+    return steps, redundant, left
+
+
 def main() -> int:
     mech = stroke_only(load_preset("belarus_1221"))
     solver = Solver(mech)
@@ -231,6 +276,13 @@ def main() -> int:
           f"one {n_sys}x{n_sys} np.linalg.solve {t_np1 * 1e6:.2f} us: {t_one / t_np1:.2f}x (goal <= 1x)")
     print(f"ratios: dyads / general kernels {t_general / t_dyads:.1f}x faster; dyads vs numpy's batched solve "
           f"{t_np / t_dyads:.1f}x faster (goal >= 10x, >= 2 M poses/s)")
+    print("the reach of a dyad chain: how each shipped preset and test fixture decomposes from its measured inputs")
+    fixtures = Path(__file__).resolve().parents[1] / "test" / "fixtures"
+    for mechanism in [load_preset(name) for name in preset_names()] + [load_mechanism(f) for f in
+                                                                       sorted(fixtures.glob("*.yaml"))]:
+        steps, redundant, left = dyad_decomposition(mechanism)
+        print(f"  {mechanism.name:<20} {'; '.join(steps)}" + (f"; redundant: {', '.join(redundant)}" if redundant else "")
+              + (f"; NOT PLACED: {', '.join(left)}" if left else ""))
     print("what a dyad chain would have to decide (redundant sensors), on the bundled bag:")
     fusion_difference(Path(__file__).resolve().parents[1] / "bags" / "belarus_1221_lift_transport")
     return 0
