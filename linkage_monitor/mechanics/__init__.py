@@ -3,6 +3,10 @@
 SI units (m, rad, N, Pa, kg); frame x forward, z up, origin at the rear wheels' ground contact.
 """
 
+from .numba_cache import ensure_writable
+
+ensure_writable()   # before kernels.py defines the cached kernels: numba needs a writable cache directory
+
 from .errors import (AssemblyError, DeadCentreError, InputError, LinkageError, MechanismFileError,
                      UnobservableError)
 from .model import Mechanism

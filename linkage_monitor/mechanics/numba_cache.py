@@ -1,0 +1,62 @@
+"""Where numba keeps the compiled physics kernels (``kernels.py``, ``@njit(cache=True)``).
+
+numba looks for a writable directory, in this order: ``NUMBA_CACHE_DIR``, ``__pycache__`` beside
+``kernels.py`` (where ``make`` and a colcon install put the warm cache), the user's cache directory
+(``~/.cache/numba``). When none is writable — a read-only install run by a user without a writable
+home: a container, a service account — numba refuses to define the kernels at all (``RuntimeError:
+cannot cache function ... no locator available``) and the node could not start. ``ensure_writable``
+is called before the kernels are defined and then points numba at a per-user directory under the
+system's temporary directory (compiled at the first start, and again whenever that directory is
+cleared; the node's log says when it compiled).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import tempfile
+from pathlib import Path
+
+from numba.core import config
+
+try:
+    from numba.misc.appdirs import AppDirs   # the helper numba's own user-wide cache locator uses
+    USER_CACHE = Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)
+except ImportError:   # pragma: no cover - a numba without it: its documented default on Linux
+    USER_CACHE = Path.home() / ".cache" / "numba"
+
+IN_TREE = Path(__file__).with_name("__pycache__")   # beside kernels.py
+_log = logging.getLogger(__name__)
+
+
+def writable(directory: Path) -> bool:
+    """True when ``directory`` exists or can be made, and a file can be created in it (numba's own test)."""
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=directory).close()
+        return True
+    except OSError:
+        return False
+
+
+def ensure_writable(configured: str | None = None, in_tree: Path = IN_TREE, user_cache: Path = USER_CACHE,
+                    temporary: Path | None = None) -> Path | None:
+    """Leave numba's choice alone when one of its cache directories is writable (returns None);
+    otherwise set its cache directory to ``temporary`` (default: ``<tmp>/linkage_monitor-numba-<uid>``)
+    and return it. ``configured``: NUMBA_CACHE_DIR (default: numba's configuration).
+    Raises RuntimeError, saying what to do, when no directory at all can be written."""
+    # numba's config module sets CACHE_DIR from the environment at import (mypy does not see it)
+    configured = config.CACHE_DIR if configured is None else configured   # type: ignore[attr-defined]
+    candidates = ([Path(configured)] if configured else []) + [in_tree, user_cache]
+    if any(writable(directory) for directory in candidates):
+        return None
+    fallback = temporary or Path(tempfile.gettempdir()) / f"linkage_monitor-numba-{os.getuid()}"
+    if not writable(fallback):
+        raise RuntimeError(f"no writable directory for the compiled physics kernels: not "
+                           f"{', '.join(str(d) for d in [*candidates, fallback])}; set NUMBA_CACHE_DIR to a "
+                           "directory this user can write")
+    config.CACHE_DIR = str(fallback)   # type: ignore[attr-defined]  # read when a cached kernel is defined
+    _log.warning("numba cannot write its cache beside %s nor in %s: the physics kernels are cached in %s "
+                 "(compiled again whenever that directory is cleared; set NUMBA_CACHE_DIR to keep them)",
+                 in_tree.parent, user_cache, fallback)
+    return fallback
