@@ -9,6 +9,7 @@ As root every real directory is writable, so "unwritable" here is a path below a
 
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -56,5 +57,19 @@ def test_an_unwritable_numba_cache_dir_setting_is_passed_over_too(tmp_path, bloc
 
 def test_no_writable_directory_at_all_says_what_to_set(blocked, monkeypatch):
     monkeypatch.setattr(config, "CACHE_DIR", "")
+    monkeypatch.setattr(tempfile, "tempdir", str(blocked / "tmp"))   # the system's temporary directory too
     with pytest.raises(RuntimeError, match="set NUMBA_CACHE_DIR"):
         ensure_writable(in_tree=blocked / "a", user_cache=blocked / "b", temporary=blocked / "c")
+
+
+def test_a_fallback_directory_others_can_write_is_not_used(tmp_path, blocked, monkeypatch):
+    """numba loads its cache files with pickle: a directory another user could write (here one
+    made group- and world-writable) is passed over for a new private temporary directory."""
+    monkeypatch.setattr(config, "CACHE_DIR", "")
+    shared = tmp_path / "shared"
+    shared.mkdir()
+    shared.chmod(0o777)
+    chosen = ensure_writable(in_tree=blocked / "pycache", user_cache=blocked / "user", temporary=shared)
+    assert chosen is not None and chosen != shared and chosen.name.startswith("linkage_monitor-numba-")
+    assert chosen.stat().st_mode & 0o077 == 0 and config.CACHE_DIR == str(chosen)
+    chosen.rmdir()

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import logging
 import os
+import stat
 import tempfile
 from pathlib import Path
 
@@ -39,11 +40,22 @@ def writable(directory: Path) -> bool:
         return False
 
 
+def private(directory: Path) -> bool:
+    """True when ``directory`` is (or is made) a real directory of this user that no one else may
+    write to: numba's cache files are pickles, and a shared temporary directory is open to others."""
+    try:
+        directory.mkdir(mode=0o700, exist_ok=True)
+        info = directory.lstat()
+    except OSError:
+        return False
+    return stat.S_ISDIR(info.st_mode) and info.st_uid == os.getuid() and not info.st_mode & 0o022
+
+
 def ensure_writable(configured: str | None = None, in_tree: Path = IN_TREE, user_cache: Path = USER_CACHE,
                     temporary: Path | None = None) -> Path | None:
     """Leave numba's choice alone when one of its cache directories is writable (returns None);
-    otherwise set its cache directory to ``temporary`` (default: ``<tmp>/linkage_monitor-numba-<uid>``)
-    and return it. ``configured``: NUMBA_CACHE_DIR (default: numba's configuration).
+    otherwise set its cache directory to ``temporary`` (default: ``<tmp>/linkage_monitor-numba-<uid>``;
+    a new private temporary directory instead when that one is not this user's alone) and return it. ``configured``: NUMBA_CACHE_DIR (default: numba's configuration).
     Raises RuntimeError, saying what to do, when no directory at all can be written."""
     # numba's config module sets CACHE_DIR from the environment at import (mypy does not see it)
     configured = config.CACHE_DIR if configured is None else configured   # type: ignore[attr-defined]
@@ -51,10 +63,13 @@ def ensure_writable(configured: str | None = None, in_tree: Path = IN_TREE, user
     if any(writable(directory) for directory in candidates):
         return None
     fallback = temporary or Path(tempfile.gettempdir()) / f"linkage_monitor-numba-{os.getuid()}"
-    if not writable(fallback):
-        raise RuntimeError(f"no writable directory for the compiled physics kernels: not "
-                           f"{', '.join(str(d) for d in [*candidates, fallback])}; set NUMBA_CACHE_DIR to a "
-                           "directory this user can write")
+    if not (private(fallback) and writable(fallback)):
+        try:   # numba loads its cache files with pickle: never from a directory someone else can write
+            fallback = Path(tempfile.mkdtemp(prefix="linkage_monitor-numba-"))
+        except OSError as exc:
+            raise RuntimeError(f"no writable directory for the compiled physics kernels: not "
+                               f"{', '.join(str(d) for d in [*candidates, fallback])} ({exc.strerror}); set "
+                               "NUMBA_CACHE_DIR to a directory this user can write") from exc
     config.CACHE_DIR = str(fallback)   # type: ignore[attr-defined]  # read when a cached kernel is defined
     _log.warning("numba cannot write its cache beside %s nor in %s: the physics kernels are cached in %s "
                  "(compiled again whenever that directory is cleared; set NUMBA_CACHE_DIR to keep them)",
