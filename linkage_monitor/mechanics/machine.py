@@ -191,10 +191,7 @@ class MachineModel:
     # ---- batched (replay, capacity curve) and one pose (the node) ------------------------------
     def evaluate_batch(self, batch: BatchResult) -> MachineBatch:
         """Axle loads, steerability and lift capacity for every pose of ``batch`` (from ``self.solver``)."""
-        q = np.concatenate([batch.body_poses[b.name] for b in self.mech.moving_bodies], axis=1)
-        ok = (batch.status < Status.INPUT) & np.isfinite(q).all(axis=1)
-        return self._combine(q, ok, batch.frame_load_points, batch.frame_load_forces, batch.implement_load,
-                             batch.implement_cg[:, 0])
+        return self._batch_of(*self._batch_rows(batch, slice(None)), len(batch))
 
     def solve(self, inputs: Inputs, previous: Result | None = None) -> tuple[Result, MachineResult]:
         """One pose (``Solver.solve``, warm-started from ``previous``) with its machine-level results,
@@ -211,11 +208,7 @@ class MachineModel:
         batch, steer, capacity, plain = self.solver.solve_series(cylinders, angles, pressures, self.program)
         general = np.flatnonzero(~plain)
         if general.size:
-            q = np.concatenate([batch.body_poses[b.name][general] for b in self.mech.moving_bodies], axis=1)
-            ok = (batch.status[general] < Status.INPUT) & np.isfinite(q).all(axis=1)
-            steer_rows, capacity_rows = self._rows(q, ok, batch.frame_load_points[general],
-                                                   batch.frame_load_forces[general], batch.implement_load[general],
-                                                   batch.implement_cg[general, 0])
+            steer_rows, capacity_rows = self._batch_rows(batch, general)
             if steer_rows is not None:
                 steer[general] = steer_rows
             if capacity_rows is not None:
@@ -252,11 +245,13 @@ class MachineModel:
                                      self.solver.dead_centre_cond, np.ascontiguousarray(ok, dtype=np.bool_),
                                      np.ascontiguousarray(implement_load, dtype=float), self._cg_column)
 
-    def _combine(self, q: np.ndarray, ok: np.ndarray, frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
-                 implement_load: np.ndarray, implement_x: np.ndarray) -> MachineBatch:
-        """``_rows`` of N poses as a :class:`MachineBatch` (a column per key)."""
-        steer, capacity = self._rows(q, ok, frame_load_points, frame_load_forces, implement_load, implement_x)
-        return self._batch_of(steer, capacity, len(q))
+    def _batch_rows(self, batch: BatchResult, index: "slice | np.ndarray") -> tuple[np.ndarray | None,
+                                                                                  np.ndarray | None]:
+        """``_rows`` of the poses ``index`` of ``batch`` (failed ones NaN)."""
+        q = np.concatenate([batch.body_poses[b.name][index] for b in self.mech.moving_bodies], axis=1)
+        ok = (batch.status[index] < Status.INPUT) & np.isfinite(q).all(axis=1)
+        return self._rows(q, ok, batch.frame_load_points[index], batch.frame_load_forces[index],
+                          batch.implement_load[index], batch.implement_cg[index, 0])
 
     def _batch_of(self, steer: np.ndarray | None, capacity: np.ndarray | None, size: int) -> MachineBatch:
         """A :class:`MachineBatch` (a column per key) of rows (N, keys); None for a part not computed."""

@@ -41,6 +41,11 @@ class Status(IntEnum):
         return self.name.lower()
 
 
+# BatchResult's per-cylinder and per-contact fields, in the column order of Result.cylinder_values /
+# contact_values (the fields of CylinderResult and ContactResult)
+CYLINDER_FIELDS = ("cylinder_length", "cylinder_force", "cap_pressure_predicted", "cap_pressure_measured",
+                   "rod_pressure_measured")
+CONTACT_FIELDS = ("contact_normal", "contact_tangential")
 STATUS_LABELS: tuple[str, ...] = tuple(status.label for status in Status)   # index: the Status value (0, 1, ...)
 
 
@@ -228,9 +233,8 @@ class BatchResult:
 
         points, poses = stacked(self.points, names.points, 2), stacked(self.body_poses, names.bodies, 3)
         hinges = stacked(self.hinge_force, tuple(h for h, _, _ in names.hinges), 2)
-        cylinders = columns(self.cylinder_length, self.cylinder_force, self.cap_pressure_predicted,
-                            self.cap_pressure_measured, self.rod_pressure_measured, keys=names.cylinders)
-        contacts = columns(self.contact_normal, self.contact_tangential, keys=names.contacts)
+        cylinders = columns(*(getattr(self, field) for field in CYLINDER_FIELDS), keys=names.cylinders)
+        contacts = columns(*(getattr(self, field) for field in CONTACT_FIELDS), keys=names.contacts)
         cgs, load_points, load_forces = (a[span].copy() for a in (self.implement_cg, self.frame_load_points,
                                                                   self.frame_load_forces))
         scalars = zip(*(a[span].tolist() for a in (self.implement_load, self.residual, self.consistency_residual,
@@ -239,6 +243,29 @@ class BatchResult:
                        load_forces[j], residual, consistency, condition, STATUS_LABELS[int(status)], message)
                 for j, ((load, residual, consistency, condition, status), message)
                 in enumerate(zip(scalars, self.messages[span]))]
+
+    @classmethod
+    def from_stacked(cls, names: ResultNames, hinge_bodies: dict[str, tuple[str, str]], point_xz: np.ndarray,
+                     body_q: np.ndarray, hinge_force: np.ndarray, cylinder_values: np.ndarray,
+                     contact_values: np.ndarray, implement_load: np.ndarray, implement_cg: np.ndarray,
+                     frame_load_names: list[str], frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
+                     residual: np.ndarray, consistency_residual: np.ndarray, condition: np.ndarray) -> "BatchResult":
+        """N solved poses (status OK) from arrays stacked as :class:`Result`'s, with a first axis of
+        poses (``results`` the other way round); each column is a view of the stack."""
+        n_pose = len(residual)
+        return cls(
+            points={n: point_xz[:, k] for k, n in enumerate(names.points)},
+            body_poses={n: body_q[:, k] for k, n in enumerate(names.bodies)},
+            hinge_force={h: hinge_force[:, k] for k, (h, _, _) in enumerate(names.hinges)},
+            hinge_bodies=hinge_bodies,
+            **{field: {n: cylinder_values[:, k, j] for k, n in enumerate(names.cylinders)}
+               for j, field in enumerate(CYLINDER_FIELDS)},
+            **{field: {n: contact_values[:, k, j] for k, n in enumerate(names.contacts)}
+               for j, field in enumerate(CONTACT_FIELDS)},
+            implement_load=implement_load, implement_cg=implement_cg, frame_load_names=frame_load_names,
+            frame_load_points=frame_load_points, frame_load_forces=frame_load_forces, residual=residual,
+            consistency_residual=consistency_residual, condition=condition, status=np.zeros(n_pose, dtype=int),
+            messages=[""] * n_pose)
 
     @property
     def names(self) -> ResultNames:

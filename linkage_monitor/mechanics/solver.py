@@ -175,22 +175,10 @@ class Solver:
             start.s[-1:], self._assembly_limit, self.dead_centre_cond, kin.program, layout.program,
             self.outputs_program(layout), machine)
         plain &= ~bad
-        names = self.names
-        body_q = q.reshape(n_pose, -1, 3)
-        batch = BatchResult(
-            points={n: points[:, k] for k, n in enumerate(names.points)},
-            body_poses={n: body_q[:, k] for k, n in enumerate(names.bodies)},
-            hinge_force={h: hinge_force[:, k] for k, (h, _, _) in enumerate(names.hinges)},
-            hinge_bodies={h.name: h.bodies for h in mech.hinges},
-            **{field: {n: cylinder_values[:, k, j] for k, n in enumerate(names.cylinders)}
-               for j, field in enumerate(("cylinder_length", "cylinder_force", "cap_pressure_predicted",
-                                          "cap_pressure_measured", "rod_pressure_measured"))},
-            contact_normal={n: contact_values[:, k, 0] for k, n in enumerate(names.contacts)},
-            contact_tangential={n: contact_values[:, k, 1] for k, n in enumerate(names.contacts)},
-            implement_load=scalars[:, 0], implement_cg=implement_cg, frame_load_names=list(self.frame_load_names),
-            frame_load_points=frame_points, frame_load_forces=frame_forces, residual=scalars[:, 1],
-            consistency_residual=scalars[:, 2], condition=scalars[:, 3], status=np.zeros(n_pose, dtype=int),
-            messages=[""] * n_pose)
+        batch = BatchResult.from_stacked(
+            self.names, {h.name: h.bodies for h in mech.hinges}, points, q.reshape(n_pose, -1, 3), hinge_force,
+            cylinder_values, contact_values, scalars[:, 0], implement_cg, list(self.frame_load_names), frame_points,
+            frame_forces, scalars[:, 1], scalars[:, 2], scalars[:, 3])
         general = np.flatnonzero(~plain)
         if general.size:
             def rows(group: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
