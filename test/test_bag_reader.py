@@ -108,3 +108,26 @@ def test_errors_name_the_path_and_the_problem(tmp_path: Path) -> None:
         writer.write("/chatter", String(data="hello"), 1)
     with pytest.raises(BagError, match="strings.*no sensor_msgs/msg/JointState"):
         read_inputs(tmp_path / "strings")
+
+
+def test_a_message_that_does_not_decode_is_left_out_with_a_warning(tmp_path: Path, caplog) -> None:
+    """The node records an input's bytes as they came, a cut JointState too: the readers of decoded
+    messages leave it out and say so (file, size, topic, type); the raw reader yields it."""
+    from rclpy.serialization import serialize_message
+
+    from linkage_monitor.bag.reader import read_bag_raw
+    from linkage_monitor.ros.messages import header
+
+    good = [JointState(header=header(T0 + k), name=["lift_arm"], position=[0.1 * k]) for k in range(3)]
+    cut = serialize_message(good[1])[:30]
+    with BagWriter(tmp_path / "bag") as writer:
+        writer.write("/joint_states", good[0], T0, log_time_ns=T0)
+        writer.write("/joint_states", cut, T0 + 1, type_name="sensor_msgs/msg/JointState", log_time_ns=T0 + 1)
+        writer.write("/joint_states", good[2], T0 + 2, log_time_ns=T0 + 2)
+    with caplog.at_level("WARNING"):
+        columns = read_inputs(tmp_path / "bag")["/joint_states"]
+    assert isinstance(columns, JointStateColumns)
+    assert columns.position[:, 0].tolist() == [0.0, 0.2]
+    assert "a 30-byte message on /joint_states (log time 1700000000000000001 ns) does not decode as " \
+           "sensor_msgs/msg/JointState" in caplog.text and "left out" in caplog.text
+    assert [row[4] for row in read_bag_raw(tmp_path / "bag")][1] == cut

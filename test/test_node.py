@@ -125,6 +125,60 @@ def test_bad_input_gives_error_diagnostic_then_good_input_solves(node, bad, expe
     assert got.implement_load == pytest.approx(expected.implement_load, rel=1e-9)
 
 
+def test_bytes_that_are_not_the_input_type_are_an_error_recorded_as_they_came_and_replayed(node):
+    """A publisher's bytes that are not a JointState / FluidPressure (cut short): an ERROR on the
+    monitor's status naming the topic and the type, nothing published, the bytes in the bag as
+    they came (read back by rosbags), the next good input solved; the replay of the node's bag
+    reports the same two errors and copies the bytes on (it crashed on such a bag before)."""
+    from rclpy.serialization import serialize_message
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+    from sensor_msgs.msg import FluidPressure, JointState
+
+    from linkage_monitor.offline.replay import replay
+    from linkage_monitor.ros.messages import header
+    from support.ros_harness import node_bag
+
+    client, proc, tmp_path = node
+    s, angle = _pose(0.60)
+    good = T0 + 7_000_000_000
+    _send(client, good, s, angle, 9.0e6)
+    assert client.spin_until(lambda: client.outputs_at("hitch_state", good + 1000), 20)
+    cut_joints = serialize_message(JointState(header=header(good + 2000), name=JOINTS, position=[s, angle]))[:40]
+    cut_pressure = serialize_message(FluidPressure(header=header(good + 3000), fluid_pressure=9e6))[:20]
+    client.joint_pub.publish(cut_joints)
+    client.spin_until(lambda: False, 0.3)
+    client._pressure_pubs[PRESSURE_TOPIC].publish(cut_pressure)
+
+    def errors() -> list:
+        return [st for m in client.received["diagnostics"] for st in m.status if "cannot be read as" in st.message]
+    assert client.spin_until(lambda: len(errors()) >= 2, 20), "no diagnostic for the unreadable inputs"
+    joint_error, pressure_error = errors()[:2]
+    assert joint_error.level == b"\x02" and joint_error.name == "linkage_monitor: belarus_1221"
+    assert "input on /joint_states (40 bytes) cannot be read as sensor_msgs/msg/JointState" in joint_error.message
+    assert joint_error.message.endswith(": name: 2 strings cannot fit in the 40-byte message; recorded, not solved")
+    assert f"input on /{PRESSURE_TOPIC} (20 bytes) cannot be read as sensor_msgs/msg/FluidPressure" \
+        in pressure_error.message
+    later = good + 100_000_000
+    s2, angle2 = _pose(0.62)
+    _send(client, later, s2, angle2, 9.1e6)
+    assert client.spin_until(lambda: client.outputs_at("hitch_state", later + 1000), 20)
+    published = {stamp_ns(m.header) for m in client.received["hitch_state"]}
+    assert published == {good + 1000, later, later + 1000}, "something was published for the unreadable inputs"
+    assert stop(proc) == 0
+
+    bag = node_bag(tmp_path / "bags")
+    with AnyReader([bag], default_typestore=get_typestore(Stores.EMPTY)) as reader:
+        recorded = [raw for c, _, raw in reader.messages() if c.topic in ("/joint_states", f"/{PRESSURE_TOPIC}")]
+    assert cut_joints in recorded and cut_pressure in recorded and len(recorded) == 6
+    replayed = replay(bag, out_dir=tmp_path / "replayed", progress=None)
+    assert replayed.summary.kinds[("ERROR", "malformed_input")] == 2
+    assert replayed.summary.solved == 3
+    with AnyReader([tmp_path / "replayed"], default_typestore=get_typestore(Stores.EMPTY)) as reader:
+        copied = [raw for c, _, raw in reader.messages() if c.topic in ("/joint_states", f"/{PRESSURE_TOPIC}")]
+    assert copied == recorded
+
+
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
 
 

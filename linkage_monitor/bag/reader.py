@@ -1,7 +1,9 @@
 """Read rosbag2 MCAP bags (ours, `ros2 bag record -s mcap`, rosbags) back into rclpy messages.
 
-`read_bag` yields decoded messages one by one; `read_inputs` gathers the sensor topics the
-solver needs (JointState, FluidPressure) into numpy columns for the batched replay.
+`read_bag` yields decoded messages one by one (a message that does not decode as its type is
+left out with a warning in the log); `read_bag_raw` yields their bytes undecoded (the replay
+reads its inputs itself and reports an unreadable one as the node does); `read_inputs`
+gathers the sensor topics the solver needs (JointState, FluidPressure) into numpy columns.
 A bag whose writer was killed (no summary, possibly a truncated last record) is read up to
 its last complete record.
 """
@@ -25,9 +27,8 @@ from mcap.reader import NonSeekingReader, SeekingReader
 from rclpy.serialization import deserialize_message
 
 from linkage_monitor.bag.writer import BagError
+from linkage_monitor.ros.sensor_messages import FLUID_PRESSURE, JOINT_STATE
 
-JOINT_STATE = "sensor_msgs/msg/JointState"
-FLUID_PRESSURE = "sensor_msgs/msg/FluidPressure"
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
 _log = logging.getLogger(__name__)
 
@@ -103,10 +104,14 @@ def read_bag(path: str | os.PathLike[str], topics: Collection[str] | None = None
         yield topic, type_name, stamp, log_time, msg
 
 
-def read_bag_data(path: str | os.PathLike[str], topics: Collection[str] | None = None,
-                  types: Collection[str] | None = None) -> Iterator[tuple[str, str, int, int, Any, bytes]]:
-    """``read_bag``'s rows with each message's CDR bytes as recorded appended (to copy it on unchanged)."""
-    yield from _messages(path, topics=topics, types=types)
+def read_bag_raw(path: str | os.PathLike[str], topics: Collection[str] | None = None
+                 ) -> Iterator[tuple[str, str, int, int, bytes]]:
+    """(topic, type name `pkg/msg/Type`, publish_time, log_time (ns since the epoch), CDR bytes as
+    recorded) of every message (on ``topics``), undecoded, in ``read_bag``'s order."""
+    for file in mcap_files(path):
+        for schema, channel, message in _raw_messages(file, topics):
+            yield (channel.topic, schema.name if schema is not None else "", message.publish_time, message.log_time,
+                   message.data)
 
 
 def read_inputs(path: str | os.PathLike[str]) -> dict[str, JointStateColumns | PressureColumns]:
@@ -165,7 +170,15 @@ def _messages(path: str | os.PathLike[str], topics: Collection[str] | None,
             if channel.message_encoding != "cdr":
                 raise BagError(f"{file}: topic {channel.topic!r} is encoded as "
                                f"{channel.message_encoding!r}, only 'cdr' is supported")
-            msg: Any = deserialize_message(message.data, _message_class(type_name))
+            try:
+                msg: Any = deserialize_message(message.data, _message_class(type_name))
+            except BagError:
+                raise
+            except Exception as exc:  # noqa: BLE001 - e.g. an input the node recorded as it came, unreadable
+                _log.warning("%s: a %d-byte message on %s (log time %d ns) does not decode as %s (%s): left out",
+                             file, len(message.data), channel.topic, message.log_time, type_name,
+                             str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+                continue
             header = getattr(msg, "header", None)
             stamp = (header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
                      if header is not None else message.publish_time)

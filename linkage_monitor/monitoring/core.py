@@ -122,13 +122,26 @@ class PressureEvent:
 
 
 @dataclass(frozen=True)
+class UnreadableEvent:
+    """An input message whose bytes are not its type (``reason``: what is wrong, where); stamped
+    with its receive time (ns), the header being unreadable."""
+
+    topic: str
+    type_name: str
+    size: int
+    reason: str
+    receive_ns: int
+
+
+@dataclass(frozen=True)
 class ConfigEvent:
     """The configuration changed (runtime parameters); applies to the events after it."""
 
     config: MonitorConfig
 
 
-Event = Union[JointStateEvent, PressureEvent, ConfigEvent]
+InputEvent = Union[JointStateEvent, PressureEvent, UnreadableEvent]
+Event = Union[InputEvent, ConfigEvent]
 
 
 @dataclass(frozen=True)
@@ -216,7 +229,12 @@ class Monitor:
         """A FluidPressure arrived on ``topic``: accept, solve, finish."""
         return self.step(PressureEvent(topic, fluid_pressure, stamp_ns, receive_ns))
 
-    def step(self, event: JointStateEvent | PressureEvent) -> Step:
+    def on_unreadable(self, topic: str, type_name: str, size: int, reason: str, receive_ns: int) -> Step:
+        """An input on ``topic`` whose bytes cannot be read as ``type_name``: an ERROR step (the
+        last solved pose stays the warm start)."""
+        return self.step(UnreadableEvent(topic, type_name, size, reason, receive_ns))
+
+    def step(self, event: InputEvent) -> Step:
         """One input event end to end; never raises (an internal failure is an ERROR Step)."""
         try:
             due = self._accept(event)
@@ -280,9 +298,13 @@ class Monitor:
                                 batch, machine, self.mechanism))
 
     # ---- the stages both paths share -------------------------------------------------------------
-    def _accept(self, event: JointStateEvent | PressureEvent) -> _Due | Step:
+    def _accept(self, event: InputEvent) -> _Due | Step:
         """Take the event's values (or refuse it whole); the due solve, or the Step that ends here."""
         tracker = self.tracker
+        if isinstance(event, UnreadableEvent):
+            return Step(event.receive_ns, event.topic, (Finding(Code.MALFORMED_INPUT, (
+                f"input on {event.topic} ({event.size} bytes) cannot be read as {event.type_name}: {event.reason}; "
+                "recorded, not solved")),))
         try:
             if isinstance(event, JointStateEvent):
                 tracker.accept_joint_state(event.names, event.positions, event.velocities, event.stamp_ns,
@@ -302,11 +324,12 @@ class Monitor:
         return Step(due.stamp_ns, due.trigger, (Finding(code, f"{FAILURE_TEXT[code]}: {message}"),),
                     inputs=due.inputs)
 
-    def _internal_error(self, event: JointStateEvent | PressureEvent, exc: Exception) -> Step:
+    def _internal_error(self, event: InputEvent, exc: Exception) -> Step:
         self.warm = None
-        text = (f"internal error while processing {event.topic} (stamp {event.stamp_ns} ns): "
+        stamp = event.receive_ns if isinstance(event, UnreadableEvent) else event.stamp_ns
+        text = (f"internal error while processing {event.topic} (stamp {stamp} ns): "
                 f"{type(exc).__name__}: {exc}; the input was recorded, the monitor goes on")
-        return Step(event.stamp_ns, event.topic, (Finding(Code.INTERNAL_ERROR, text),))
+        return Step(stamp, event.topic, (Finding(Code.INTERNAL_ERROR, text),))
 
     def _finish(self, due: _Due, result: Result, machine: MachineResult) -> Step:
         """Findings and key-values of one solved pose with its machine-level results."""

@@ -22,14 +22,19 @@ from pathlib import Path
 from typing import Iterator, TextIO
 
 import yaml
+from rclpy.serialization import deserialize_message
+from std_msgs.msg import String
 from tqdm import tqdm
 
-from linkage_monitor.bag.reader import FLUID_PRESSURE, JOINT_STATE, read_bag, read_bag_data
+from linkage_monitor.bag.reader import read_bag, read_bag_raw
 from linkage_monitor.bag.writer import MECHANISM_TOPIC, BagError, BagWriter
 from linkage_monitor.mechanics import Mechanism, mechanism_from_text
 from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
-from linkage_monitor.monitoring.core import ConfigEvent, Event, JointStateEvent, Monitor, PressureEvent, Run, Step
+from linkage_monitor.monitoring.core import (ConfigEvent, Event, JointStateEvent, Monitor, PressureEvent, Run, Step,
+                                            UnreadableEvent)
 from linkage_monitor.monitoring.findings import Level
+from linkage_monitor.ros.cdr import CdrError
+from linkage_monitor.ros.sensor_messages import FLUID_PRESSURE, JOINT_STATE, read_fluid_pressure, read_joint_state
 
 STRING = "std_msgs/msg/String"
 RawInput = tuple[str, str, int, int, bytes]   # topic, type name, header stamp (ns), receive time (ns), CDR bytes
@@ -116,29 +121,42 @@ class Replayed:
 def _default_config(bag: Path, description: Mechanism) -> MonitorConfig:
     """The default configuration, with the default pressure topics the bag actually holds."""
     config = MonitorConfig.default(description.name, description)
-    held = {topic for topic, *_ in read_bag(bag, topics=list(config.pressure_topics))}
+    held = {topic for topic, *_ in read_bag_raw(bag, topics=list(config.pressure_topics))}
     return replace(config, pressure_topics={t: s for t, s in config.pressure_topics.items() if t in held})
 
 
 def _events(path: Path, config: MonitorConfig, raw: list[RawInput]) -> Iterator[Event]:
     """The bag's input and configuration events in recording order; inputs also appended to ``raw``
-    as (topic, type name, header stamp, receive time, CDR bytes as recorded)."""
+    as (topic, type name, header stamp, receive time, CDR bytes as recorded). The inputs are read
+    from their bytes as the node reads them (``ros.sensor_messages``); bytes that are not their
+    type (the node records them as they came) are an UnreadableEvent, as in the node."""
     wanted = [config.topics.joint_states, *config.pressure_topics, CONFIG_TOPIC]
     first_config = True
-    for topic, type_name, stamp, log_time, msg, data in read_bag_data(path, topics=wanted):
+    for topic, type_name, publish_time, log_time, data in read_bag_raw(path, topics=wanted):
+        event: Event
         if topic == CONFIG_TOPIC:
             if not first_config:
-                recorded = MonitorConfig.from_yaml(msg.data, source=f"{path} ({CONFIG_TOPIC})")
+                recorded = MonitorConfig.from_yaml(deserialize_message(data, String).data,
+                                                   source=f"{path} ({CONFIG_TOPIC})")
                 yield ConfigEvent(replace(config, overrides=recorded.overrides,
                                           staleness_limit_s=recorded.staleness_limit_s,
                                           stamp_tolerance_s=recorded.stamp_tolerance_s))
             first_config = False
-        elif type_name == JOINT_STATE and topic == config.topics.joint_states:
-            raw.append((topic, type_name, stamp, log_time, data))
-            yield JointStateEvent(topic, list(msg.name), list(msg.position), list(msg.velocity), stamp, log_time)
-        elif type_name == FLUID_PRESSURE and topic in config.pressure_topics:
-            raw.append((topic, type_name, stamp, log_time, data))
-            yield PressureEvent(topic, msg.fluid_pressure, stamp, log_time)
+            continue
+        try:
+            if type_name == JOINT_STATE and topic == config.topics.joint_states:
+                js = read_joint_state(data)
+                event = JointStateEvent(topic, js.names, js.position, js.velocity, js.stamp_ns, log_time)
+            elif type_name == FLUID_PRESSURE and topic in config.pressure_topics:
+                fp = read_fluid_pressure(data)
+                event = PressureEvent(topic, fp.fluid_pressure, fp.stamp_ns, log_time)
+            else:
+                continue
+            stamp = event.stamp_ns
+        except CdrError as exc:
+            event, stamp = UnreadableEvent(topic, type_name, len(data), str(exc), log_time), publish_time
+        raw.append((topic, type_name, stamp, log_time, data))
+        yield event
 
 
 def replay(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None, rrd: Path | None = None,
@@ -196,7 +214,6 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
     try:
         first = raw[0][3]
         writer.record_mechanism(yaml.safe_dump(dict(description.raw), sort_keys=False, allow_unicode=True), first)
-        from std_msgs.msg import String
         writer.write(CONFIG_TOPIC, String(data=config.to_yaml()), first, log_time_ns=first)
         gate, name, encoder = DiagnosticGate(), f"linkage_monitor: {description.name}", OutputEncoder()
         markers, marker_gate = LinkageMarkers(monitor.mechanism), DisplayGate(DEFAULT_RATE_HZ)

@@ -1,4 +1,4 @@
-"""Writing CDR: the serialized form in which ROS 2 messages travel and are recorded.
+"""Writing and reading CDR: the serialized form in which ROS 2 messages travel and are recorded.
 
 Plain little-endian CDR (XCDR1, encapsulation 0x0001), as rmw_fastrtps publishes and rosbag2
 records: every primitive is aligned to its own size, counted from the first byte after the
@@ -10,6 +10,10 @@ change between poses): the bytes are laid out once, and each message is a copy w
 stamp and float64 slots filled in (an array assignment), instead of building an rclpy
 message field by field and serializing it. What may vary in length (a status text) is
 appended after the fixed part with ``Writer``.
+
+``Reader`` takes the primitives back out of a payload, checked at every step (``CdrError``
+names what is cut off or malformed), for the few input messages the monitor reads itself
+(``ros.sensor_messages``).
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ import numpy as np
 
 ENCAPSULATION = b"\x00\x01\x00\x00"   # CDR little endian, no options
 _U32, _I32, _F64, _STAMP = struct.Struct("<I"), struct.Struct("<i"), struct.Struct("<d"), struct.Struct("<iI")
+_BIG_ENDIAN = struct.Struct(">I"), struct.Struct(">iI"), struct.Struct(">d")
 _NS = 1_000_000_000
 
 
@@ -96,6 +101,75 @@ class Writer:
             raise ValueError("the header must be the first field of a templated message")
         self.data += _STAMP.pack(0, 0)
         self.string(frame_id)
+
+
+class CdrError(ValueError):
+    """A payload that is not the CDR of the expected message: says what is wrong and where."""
+
+
+def is_xcdr1(data: bytes) -> bool:
+    """Whether ``data`` is XCDR1 (encapsulation 0x0000-0x0003: plain or parameter-list CDR, big or
+    little endian), what every ROS 2 middleware sends: the encodings ``Reader`` reads."""
+    return len(data) >= len(ENCAPSULATION) and data[0] == 0 and data[1] <= 3
+
+
+class Reader:
+    """Reads XCDR1 primitives from ``data`` in order, as rmw_fastrtps (Fast CDR) deserializes them:
+    encapsulation 0x0000-0x0003 (plain or parameter-list CDR, big endian when even), the last option
+    byte's two low bits = padding bytes at the end of the payload (not data), every primitive
+    aligned to its size from the payload start, bytes after the last field ignored."""
+
+    def __init__(self, data: bytes) -> None:
+        if len(data) < len(ENCAPSULATION):
+            raise CdrError(f"{len(data)}-byte message: shorter than the {len(ENCAPSULATION)}-byte CDR header")
+        if not is_xcdr1(data):
+            raise CdrError(f"not XCDR1: encapsulation {bytes(data[:2]).hex() or '(none)'}, expected 0000 to 0003")
+        self.order = "<" if data[1] & 1 else ">"
+        self._u32, self._stamp, self._f64 = (_U32, _STAMP, _F64) if self.order == "<" else _BIG_ENDIAN
+        self.data = memoryview(data)[:len(data) - (data[3] & 0x03)]
+        self.offset = len(ENCAPSULATION)
+
+    def _take(self, size: int, what: str, align: int) -> int:
+        """Skip the padding to ``align``, check that ``size`` bytes of ``what`` follow; their offset."""
+        start = self.offset + (-(self.offset - len(ENCAPSULATION)) % align)
+        if start + size > len(self.data):
+            raise CdrError(f"{what} at byte {start} runs past the end of the {len(self.data)}-byte message")
+        self.offset = start + size
+        return start
+
+    def uint32(self, what: str) -> int:
+        """A uint32 (a string length or sequence count)."""
+        return int(self._u32.unpack_from(self.data, self._take(4, what, 4))[0])
+
+    def time_ns(self, what: str = "stamp") -> int:
+        """A builtin_interfaces/Time (int32 sec, uint32 nanosec) as ns since the epoch."""
+        sec, nanosec = self._stamp.unpack_from(self.data, self._take(8, what, 4))
+        return int(sec) * _NS + int(nanosec)
+
+    def string(self, what: str) -> str:
+        """A string: its length counts the NUL (length 0: empty); cut at the first NUL, invalid UTF-8
+        replaced (as rclpy)."""
+        size = self.uint32(f"length of {what}")
+        start = self._take(size, what, 1)
+        return self.data[start:start + size].tobytes().split(b"\x00", 1)[0].decode("utf-8", "replace")
+
+    def strings(self, what: str) -> list[str]:
+        """A sequence<string>."""
+        count = self.uint32(f"count of {what}")
+        if 4 * count > len(self.data) - self.offset:   # a string takes at least its length
+            raise CdrError(f"{what}: {count} strings cannot fit in the {len(self.data)}-byte message")
+        return [self.string(f"{what}[{k}]") for k in range(count)]
+
+    def float64(self, what: str) -> float:
+        """A float64."""
+        return float(self._f64.unpack_from(self.data, self._take(8, what, 8))[0])
+
+    def float64s(self, what: str) -> tuple[float, ...]:
+        """A sequence<float64> (not aligned when it is empty, as Fast CDR)."""
+        count = self.uint32(f"count of {what}")
+        if not count:
+            return ()
+        return struct.unpack_from(f"{self.order}{count}d", self.data, self._take(8 * count, f"{what} ({count} values)", 8))
 
 
 def stamp_fields(stamp_ns: int) -> tuple[int, int]:

@@ -33,13 +33,11 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
-from linkage_monitor.bag.reader import FLUID_PRESSURE, JOINT_STATE
 from linkage_monitor.bag.writer import BagError, BagWriter
 from linkage_monitor.mechanics import LinkageError, Mechanism, load_description
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
@@ -54,7 +52,10 @@ from linkage_monitor.msg import HingeReactions, HitchState, Steerability
 from linkage_monitor.ros.diagnostics import DiagnosticGate, diagnostic_array
 from linkage_monitor.ros.markers import DEFAULT_RATE_HZ as DEFAULT_MARKER_RATE_HZ
 from linkage_monitor.ros.markers import MARKER_ARRAY, DisplayGate, LinkageMarkers
-from linkage_monitor.ros.messages import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputEncoder, stamp_ns
+from linkage_monitor.ros.cdr import CdrError
+from linkage_monitor.ros.messages import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputEncoder
+from linkage_monitor.ros.sensor_messages import (FLUID_PRESSURE, JOINT_STATE, FluidPressureReading, JointStateReading,
+                                                 read_fluid_pressure, read_joint_state)
 
 NODE_NAME = "linkage_monitor"
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -107,7 +108,6 @@ PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
                     "visualization_msgs/MarkerArray on linkage_markers (frame 'linkage'); 0: not at all", True,
                     (0.0, 1000.0)),
 }
-INPUT_TYPES = {JointState: JOINT_STATE, FluidPressure: FLUID_PRESSURE}
 SENSOR_QOS = ("sensor_data", "reliable")
 RERUN_MODES = ("off", "save", "connect")
 
@@ -283,38 +283,40 @@ class LinkageMonitorNode(Node):
 
     # ---- callbacks: record first, then the core; never raise -------------------------------------
     def on_joint_state(self, data: bytes, info: dict) -> None:
-        """Record the serialized JointState, solve, publish."""
+        """Record the serialized JointState, read it, solve, publish."""
         topic = self.monitor.config.topics.joint_states
-        self._guarded(topic, data, JointState, info, lambda msg, stamp, now: self.monitor.on_joint_state(
-            msg.name, msg.position, msg.velocity, stamp, now, topic))
+
+        def solve(msg: JointStateReading, now: int) -> Step:
+            return self.monitor.on_joint_state(msg.names, msg.position, msg.velocity, msg.stamp_ns, now, topic)
+        self._guarded(topic, data, info, JOINT_STATE, read_joint_state, solve)
 
     def on_pressure(self, topic: str, data: bytes, info: dict) -> None:
-        """Record the serialized FluidPressure, solve, publish."""
-        self._guarded(topic, data, FluidPressure, info,
-                      lambda msg, stamp, now: self.monitor.on_pressure(topic, msg.fluid_pressure, stamp, now))
+        """Record the serialized FluidPressure, read it, solve, publish."""
+        def solve(msg: FluidPressureReading, now: int) -> Step:
+            return self.monitor.on_pressure(topic, msg.fluid_pressure, msg.stamp_ns, now)
+        self._guarded(topic, data, info, FLUID_PRESSURE, read_fluid_pressure, solve)
 
-    def _guarded(self, topic: str, data: bytes, msg_type: type, info: dict,
-                 solve: Callable[[Any, int, int], Step]) -> None:
+    def _guarded(self, topic: str, data: bytes, info: dict, type_name: str, read: Callable[[bytes], Any],
+                 solve: Callable[[Any, int], Step]) -> None:
+        """Read the input from its CDR bytes (``ros.sensor_messages``), record the bytes as they came,
+        then solve and publish — or, for bytes that are not the topic's type, an ERROR saying why."""
         now = self._now()
         self.loss.on_message(topic, _publisher_id(info), info.get("publication_sequence_number"))
         msg: Any = None
         stamp, unreadable = now, ""
         try:
-            msg = deserialize_message(data, msg_type)
-            stamp = stamp_ns(msg.header)
-        except Exception as exc:  # noqa: BLE001 - bytes the middleware took but its type support cannot read
-            unreadable = f"{type(exc).__name__}: {exc}"
+            msg = read(data)
+            stamp = msg.stamp_ns
+        except CdrError as exc:   # bytes the middleware took that are not this type's CDR
+            unreadable = str(exc)
         try:
-            self._record(topic, data, stamp, now, self.input_qos, INPUT_TYPES[msg_type])
+            self._record(topic, data, stamp, now, self.input_qos, type_name)
         except Exception as exc:  # noqa: BLE001 - a recording fault must not stop the monitoring
             self._publish_status("recording", Level.ERROR, f"recording failed for {topic}: {type(exc).__name__}: "
                                  f"{exc}; solving and publishing go on", now)
-        if msg is None:
-            self._publish_status("internal", Level.ERROR, f"input on {topic} ({len(data)} bytes) cannot be "
-                                 f"deserialized as {INPUT_TYPES[msg_type]} ({unreadable}); recorded, not solved", now)
-            return
         try:
-            self._publish(solve(msg, stamp, now), now)
+            self._publish(solve(msg, now) if msg is not None else
+                          self.monitor.on_unreadable(topic, type_name, len(data), unreadable, now), now)
         except Exception as exc:  # noqa: BLE001 - the adapter boundary: report and go on
             self.get_logger().error(f"internal error on {topic}: {type(exc).__name__}: {exc}",
                                     throttle_duration_sec=1.0)

@@ -1,0 +1,136 @@
+"""The input messages read from their CDR bytes (ros.sensor_messages) are what rclpy reads.
+
+Oracle: rclpy's ``deserialize_message`` (Fast CDR through the C type support) of the same bytes.
+Valid messages (hypothesis: any names, values incl. NaN/inf, sequences of differing lengths,
+any stamp) are serialized by rclpy and must read back equal, floats bit for bit. Damaged
+messages (cut short, a byte overwritten, bytes inserted) must fare the same in both readers:
+both refuse, or both read the same values — our reader is no more lenient than the middleware
+and refuses nothing it reads.
+"""
+
+from __future__ import annotations
+
+import struct
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import FluidPressure, JointState
+
+from linkage_monitor.ros.cdr import CdrError
+from linkage_monitor.ros.sensor_messages import read_fluid_pressure, read_joint_state
+
+texts = st.text(max_size=12)
+floats = st.floats(allow_nan=True, allow_infinity=True)
+stamps = st.tuples(st.integers(-2**31, 2**31 - 1), st.integers(0, 2**32 - 1))
+
+
+def _bits(values: object) -> list[bytes]:
+    return [struct.pack("<d", v) for v in values]  # type: ignore[attr-defined]
+
+
+def _joint_state(frame: str, stamp: tuple[int, int], names: list[str], position: list[float],
+                 velocity: list[float], effort: list[float]) -> bytes:
+    msg = JointState(name=names, position=position, velocity=velocity, effort=effort)
+    msg.header.frame_id, (msg.header.stamp.sec, msg.header.stamp.nanosec) = frame, stamp
+    return serialize_message(msg)
+
+
+def _fluid_pressure(frame: str, stamp: tuple[int, int], pressure: float, variance: float) -> bytes:
+    msg = FluidPressure(fluid_pressure=pressure, variance=variance)
+    msg.header.frame_id, (msg.header.stamp.sec, msg.header.stamp.nanosec) = frame, stamp
+    return serialize_message(msg)
+
+
+def _rclpy_joint_state(data: bytes) -> tuple | None:
+    try:
+        m = deserialize_message(data, JointState)
+    except Exception:  # noqa: BLE001 - rclpy raises RMWError (or others) for bytes it cannot read
+        return None
+    return (m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec, list(m.name), _bits(m.position),
+            _bits(m.velocity))
+
+
+def _ours_joint_state(data: bytes) -> tuple | None:
+    try:
+        r = read_joint_state(data)
+    except CdrError:
+        return None
+    return r.stamp_ns, r.names, _bits(r.position), _bits(r.velocity)
+
+
+def _rclpy_fluid_pressure(data: bytes) -> tuple | None:
+    try:
+        m = deserialize_message(data, FluidPressure)
+    except Exception:  # noqa: BLE001
+        return None
+    return m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec, _bits([m.fluid_pressure])
+
+
+def _ours_fluid_pressure(data: bytes) -> tuple | None:
+    try:
+        r = read_fluid_pressure(data)
+    except CdrError:
+        return None
+    return r.stamp_ns, _bits([r.fluid_pressure])
+
+
+joint_states = st.builds(_joint_state, texts, stamps, st.lists(texts, max_size=5), st.lists(floats, max_size=5),
+                         st.lists(floats, max_size=5), st.lists(floats, max_size=3))
+fluid_pressures = st.builds(_fluid_pressure, texts, stamps, floats, floats)
+
+
+@settings(max_examples=400, deadline=None)
+@given(joint_states)
+def test_a_joint_state_reads_as_rclpy_reads_it(data):
+    expected = _rclpy_joint_state(data)
+    assert expected is not None
+    assert _ours_joint_state(data) == expected
+
+
+@settings(max_examples=200, deadline=None)
+@given(fluid_pressures)
+def test_a_fluid_pressure_reads_as_rclpy_reads_it(data):
+    expected = _rclpy_fluid_pressure(data)
+    assert expected is not None
+    assert _ours_fluid_pressure(data) == expected
+
+
+def _damaged(data: bytes, kind: int, at: int, value: int, extra: bytes) -> bytes:
+    at %= len(data) + 1
+    if kind == 0:
+        return data[:at]                                            # cut short
+    if kind == 1 and at < len(data):
+        return data[:at] + bytes([value]) + data[at + 1:]            # one byte overwritten
+    if kind == 2 and at + 4 <= len(data):
+        return data[:at] + struct.pack("<I", value * 0x01010101 if value % 3 else value) + data[at + 4:]  # a word
+    return data[:at] + extra + data[at:]                            # bytes inserted
+
+
+damage = st.tuples(st.integers(0, 3), st.integers(0, 400), st.integers(0, 255), st.binary(min_size=1, max_size=9))
+
+
+@settings(max_examples=1500, deadline=None)
+@given(joint_states, damage)
+def test_a_damaged_joint_state_fares_as_in_rclpy(data, how):
+    bad = _damaged(data, *how)
+    assert _ours_joint_state(bad) == _rclpy_joint_state(bad)
+
+
+@settings(max_examples=600, deadline=None)
+@given(fluid_pressures, damage)
+def test_a_damaged_fluid_pressure_fares_as_in_rclpy(data, how):
+    bad = _damaged(data, *how)
+    assert _ours_fluid_pressure(bad) == _rclpy_fluid_pressure(bad)
+
+
+@pytest.mark.parametrize("data, words", [
+    (b"", "0-byte message: shorter than the 4-byte CDR header"),
+    (b"\x00\x0c\x00\x00" + bytes(40), "encapsulation 000c"),
+    (_joint_state("base", (1, 2), ["lift_cylinder"], [0.6], [], [])[:30], "name: 1 strings cannot fit in the 30-byte message"),
+    (_joint_state("base", (1, 2), ["lift_cylinder"], [0.6], [], [])[:44], "name\\[0\\] at byte 32 runs past the end of the 44-byte message"),
+])
+def test_a_refusal_says_what_is_wrong(data, words):
+    with pytest.raises(CdrError, match=words):
+        read_joint_state(data)
