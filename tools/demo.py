@@ -20,10 +20,9 @@ from pathlib import Path
 import rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from linkage_monitor.bag.reader import FLUID_PRESSURE, JOINT_STATE, read_bag
 from linkage_monitor.mechanics import preset_names
 from linkage_monitor.msg import HingeReactions
-from linkage_monitor.ros.player import play, sensor_messages
+from linkage_monitor.ros.player import play, recorded_inputs
 from linkage_monitor.offline.compare import compare_bags
 from linkage_monitor.offline.replay import mechanism_in_bag, replay
 
@@ -46,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
     rrd = run_dir / "live.rrd"
     mech = mechanism_in_bag(args.bag)
     preset = mech.name if mech.name in preset_names() else None
-    messages = sensor_messages(args.bag)
+    messages = recorded_inputs(args.bag)
     print(f"demo: {len(messages)} sensor messages of '{mech.name}' from {args.bag}, played at {args.rate}x "
           f"through the live node (ROS_DOMAIN_ID={os.environ['ROS_DOMAIN_ID']})")
 
@@ -75,9 +74,11 @@ def main(argv: list[str] | None = None) -> int:
         rclpy.shutdown()
         node.send_signal(signal.SIGINT)
         node.wait(timeout=30)
-    heard = sum(1 for _ in read_bag(run_dir / "live", types=(JOINT_STATE, FLUID_PRESSURE)))
+    recorded = [row[4] for row in recorded_inputs(run_dir / "live")]
+    heard = len(recorded)
     lost = f" ({sent - heard} lost: more than the node can solve per second)" if heard < sent else ""
-    print(f"live node: {sent} inputs published, {heard} received and recorded by the node{lost}, "
+    same = " (byte for byte the bag's)" if recorded == [row[4] for row in messages] else ""
+    print(f"live node: {sent} inputs published, {heard} received and recorded by the node{same}{lost}, "
           f"{len(received)} HingeReactions published; its bag: {run_dir / 'live'}, its Rerun recording: {rrd}")
 
     summary = replay(run_dir / "live", out_dir=run_dir / "offline", rrd=run_dir / "offline.rrd",

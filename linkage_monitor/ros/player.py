@@ -1,7 +1,8 @@
 """Play the sensor messages of a bag onto live topics (`ros2 bag play` is not in the PyPI wheels).
 
 Publishes every sensor_msgs/JointState and sensor_msgs/FluidPressure of a rosbag2 MCAP bag on
-its recorded topic, in recording order, with its recorded header stamp, paced at `rate` times
+its recorded topic, in recording order, as the bytes that were recorded (as `ros2 bag play`
+does: a message the recording node could not read is played as it came, too), paced at `rate` times
 the recorded timing, and (as `ros2 bag play --clock`) the recorded time on /clock before each
 message, so a node with `use_sim_time` judges the recorded stamps against the recorded time.
 Reliable QoS with a deep history, so a node subscribed reliably loses nothing.
@@ -11,24 +12,38 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from builtin_interfaces.msg import Time
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
-from linkage_monitor.bag.reader import FLUID_PRESSURE, JOINT_STATE, message_class, read_bag
+from linkage_monitor.bag.reader import message_class, read_bag_raw
+from linkage_monitor.ros.cdr import CdrError
+from linkage_monitor.ros.sensor_messages import (FLUID_PRESSURE, JOINT_STATE, FluidPressureReading, JointStateReading,
+                                                 read_fluid_pressure, read_joint_state)
 
 PLAYER_QOS = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
 
 
-def sensor_messages(bag: Path) -> list[tuple[str, str, int, int, object]]:
-    """(topic, type, header stamp ns, log time ns, message) of every sensor message, in order."""
-    return list(read_bag(bag, types=(JOINT_STATE, FLUID_PRESSURE)))
+def recorded_inputs(bag: Path) -> list[tuple[str, str, int, int, bytes]]:
+    """(topic, type, header stamp ns, log time ns, CDR bytes as recorded) of every sensor message, in
+    order; the stamp of bytes that do not read as their type is the recorded publish time."""
+    readers: dict[str, Callable[[bytes], JointStateReading | FluidPressureReading]] = {
+        JOINT_STATE: read_joint_state, FLUID_PRESSURE: read_fluid_pressure}
+    rows = []
+    for topic, type_name, publish_time, log_time, data in read_bag_raw(bag):
+        if type_name in readers:
+            try:
+                stamp = readers[type_name](data).stamp_ns
+            except CdrError:
+                stamp = publish_time
+            rows.append((topic, type_name, stamp, log_time, data))
+    return rows
 
 
-def play(node: Node, messages: list[tuple[str, str, int, int, object]], rate: float = 1.0,
+def play(node: Node, messages: list[tuple[str, str, int, int, bytes]], rate: float = 1.0,
          wait_for_subscribers: float = 10.0, min_gap_s: float = 0.0) -> int:
     """Publish `messages` from `node` at `rate` × recorded speed; returns the number published.
 
@@ -51,11 +66,11 @@ def play(node: Node, messages: list[tuple[str, str, int, int, object]], rate: fl
         return 0
     t0_log, t0_wall = messages[0][3], time.monotonic()
     due = -min_gap_s
-    for topic, _, stamp, log_time, msg in messages:
+    for topic, _, stamp, log_time, data in messages:
         due = max((log_time - t0_log) * 1e-9 / rate, due + min_gap_s)
         delay = due - (time.monotonic() - t0_wall)
         if delay > 0:
             time.sleep(delay)
         clock.publish(Clock(clock=Time(sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000)))
-        publishers[topic].publish(msg)
+        publishers[topic].publish(data)
     return len(messages)
