@@ -98,3 +98,29 @@ def test_replay_cli_errors_name_the_bag(tmp_path, capsys):
     assert cli_main(["replay", str(tmp_path / "missing"), "--preset", "belarus_1221", "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "missing" in err[0]
+
+
+def test_a_damaged_configuration_change_is_one_line_naming_the_bag(tmp_path, capsys):
+    """A recorded configuration change whose bytes are not a String (a damaged bag) stops the replay
+    with exit 2 and one line naming the bag, the topic and the log time — not rclpy's traceback."""
+    import yaml
+    from std_msgs.msg import String
+
+    from linkage_monitor.bag.writer import BagWriter
+    from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
+    from linkage_monitor.ros.messages import header
+    from sensor_msgs.msg import JointState
+
+    mech = load_preset("belarus_1221")
+    config = MonitorConfig.default(mech.name, mech)
+    with BagWriter(tmp_path / "bag") as writer:
+        writer.record_mechanism(yaml.safe_dump(dict(mech.raw), sort_keys=False), T0)
+        writer.write(CONFIG_TOPIC, String(data=config.to_yaml()), T0, log_time_ns=T0)
+        writer.write("/joint_states", JointState(header=header(T0 + 1), name=["lift_cylinder"], position=[0.6]),
+                     T0 + 1, log_time_ns=T0 + 1)
+        writer.write(CONFIG_TOPIC, b"\x00\x01\x00\x00\xff\xff\xff\x7f", T0 + 2, type_name="std_msgs/msg/String",
+                     log_time_ns=T0 + 2)
+    assert cli_main(["replay", str(tmp_path / "bag"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert str(tmp_path / "bag") in err[0] and f"{CONFIG_TOPIC} (log time {T0 + 2} ns) does not decode" in err[0]

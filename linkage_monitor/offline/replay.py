@@ -136,8 +136,12 @@ def _events(path: Path, config: MonitorConfig, raw: list[RawInput]) -> Iterator[
         event: Event
         if topic == CONFIG_TOPIC:
             if not first_config:
-                recorded = MonitorConfig.from_yaml(deserialize_message(data, String).data,
-                                                   source=f"{path} ({CONFIG_TOPIC})")
+                try:
+                    text = deserialize_message(data, String).data
+                except Exception as exc:  # noqa: BLE001 - rclpy raises RMWError for bytes it cannot read
+                    raise BagError(f"bag {path}: a configuration change on {CONFIG_TOPIC} (log time {log_time} ns) "
+                                   f"does not decode as std_msgs/msg/String ({exc}): the bag is damaged") from None
+                recorded = MonitorConfig.from_yaml(text, source=f"{path} ({CONFIG_TOPIC})")
                 yield ConfigEvent(replace(config, overrides=recorded.overrides,
                                           staleness_limit_s=recorded.staleness_limit_s,
                                           stamp_tolerance_s=recorded.stamp_tolerance_s))
