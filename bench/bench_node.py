@@ -1,6 +1,11 @@
 """The live node under load, against a no-op rclpy relay (bench/node_load.py) measured in the same run.
 
-Usage: .venv/bin/python bench/bench_node.py [--quick] [--soak-minutes M] [--no-soak]
+Usage: .venv/bin/python bench/bench_node.py [--quick] [--repeats R] [--soak-minutes M] [--no-soak]
+
+Paired: the relay and the node run side by side (namespaces /relay and /monitor), and every rate
+step is measured R times for each, alternating which goes first, so that both see the same
+moments of this shared machine (whose speed drifts by tens of percent within minutes); the
+ratios are of the medians over the repeats, with the spread of the per-repeat ratios.
 
 Per input rate (JointState on `joint_states`, reliable QoS, depth 1000 here, 100 at the node;
 one FluidPressure first, staleness limit 1 h, so every JointState triggers one solve):
@@ -23,6 +28,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import psutil
@@ -33,7 +39,7 @@ from std_msgs.msg import String
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))
 from support.ros_env import isolate_ros_domain  # noqa: E402  (before any rclpy context)
-from support.ros_harness import LATCHED, start_node, stop  # noqa: E402
+from support.ros_harness import LATCHED, stop  # noqa: E402
 
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE  # noqa: E402
 from linkage_monitor.msg import HitchState  # noqa: E402
@@ -82,17 +88,19 @@ class StepResult:
 
 
 class Driver:
-    """This process: publishes the inputs and timestamps every HitchState on arrival."""
+    """This process: publishes the inputs of the target in namespace ``ns`` and timestamps every
+    HitchState on arrival."""
 
-    def __init__(self) -> None:
-        self.node = rclpy.create_node("bench_driver")
-        self.joint_pub = self.node.create_publisher(JointState, "joint_states", RELIABLE)
-        self.pressure_pub = self.node.create_publisher(FluidPressure, "pressure/lift_cap_pressure", RELIABLE)
+    def __init__(self, ns: str) -> None:
+        self.ns = ns
+        self.node = rclpy.create_node(f"bench_driver_{ns.strip('/')}")
+        self.joint_pub = self.node.create_publisher(JointState, f"{ns}/joint_states", RELIABLE)
+        self.pressure_pub = self.node.create_publisher(FluidPressure, f"{ns}/pressure/lift_cap_pressure", RELIABLE)
         self.arrivals: list[tuple[int, int]] = []   # (receive ns, stamp ns)
-        self.node.create_subscription(HitchState, "hitch_state",
+        self.node.create_subscription(HitchState, f"{ns}/hitch_state",
                                       lambda m: self.arrivals.append((time.time_ns(), stamp_ns(m.header))), RELIABLE)
         self.up: list = []
-        self.node.create_subscription(String, "mechanism_description", self.up.append, LATCHED)
+        self.node.create_subscription(String, f"{ns}/mechanism_description", self.up.append, LATCHED)
 
     def spin_for(self, seconds: float) -> None:
         end = time.monotonic() + seconds
@@ -102,7 +110,7 @@ class Driver:
     def wait_for_target(self, timeout: float = 60.0) -> None:
         end = time.monotonic() + timeout
         while not (self.up and self.joint_pub.get_subscription_count() > 0
-                   and self.node.count_publishers("hitch_state") > 0):
+                   and self.node.count_publishers(f"{self.ns}/hitch_state") > 0):
             if time.monotonic() > end:
                 raise RuntimeError("target process did not come up")
             rclpy.spin_once(self.node, timeout_sec=0.05)
@@ -132,21 +140,35 @@ class Driver:
                 count, last = len(self.arrivals), time.monotonic()
 
 
-def run_ladder(driver: Driver, pid: int, rates: list[float], seconds: float, label: str) -> list[StepResult]:
-    """Every rate in turn; stops after two unsustained steps in a row."""
+def run_step(driver: Driver, pid: int, rate: float, seconds: float, label: str) -> StepResult:
+    """One rate step of one target: drive, drain, measure its CPU and the latencies."""
     proc = psutil.Process(pid)
-    results: list[StepResult] = []
+    driver.arrivals.clear()
+    cpu0 = sum(proc.cpu_times()[:2])
+    sent = driver.drive(rate, seconds)
+    driver.drain()
+    cpu = sum(proc.cpu_times()[:2]) - cpu0
+    latency = np.array([(r - s) * 1e-6 for r, s in driver.arrivals])
+    step = StepResult(rate, sent, len(driver.arrivals), latency, 1e3 * cpu / max(1, len(driver.arrivals)))
+    print(step.line(label), flush=True)
+    return step
+
+
+def run_paired(targets: dict[str, tuple[Driver, int]], rates: list[float], seconds: float, repeats: int
+               ) -> dict[str, list[list[StepResult]]]:
+    """Every rate, ``repeats`` times for each target, alternating which goes first; per target the list
+    of rates, each with its repeats. Stops after two rates where the node kept up in no repeat."""
+    results: dict[str, list[list[StepResult]]] = {name: [] for name in targets}
+    names = list(targets)
     for rate in rates:
-        driver.arrivals.clear()
-        cpu0 = sum(proc.cpu_times()[:2])
-        sent = driver.drive(rate, seconds)
-        driver.drain()
-        cpu = sum(proc.cpu_times()[:2]) - cpu0
-        latency = np.array([(r - s) * 1e-6 for r, s in driver.arrivals])
-        step = StepResult(rate, sent, len(driver.arrivals), latency, 1e3 * cpu / max(1, len(driver.arrivals)))
-        print(step.line(label), flush=True)
-        results.append(step)
-        if len(results) >= 2 and not (results[-1].sustained or results[-2].sustained):
+        for name in names:
+            results[name].append([])
+        for rep in range(repeats):
+            for name in (names if rep % 2 == 0 else names[::-1]):
+                driver, pid = targets[name]
+                results[name][-1].append(run_step(driver, pid, rate, seconds, name))
+        node = results["node"]
+        if len(node) >= 2 and not any(s.sustained for s in node[-1] + node[-2]):
             break
     return results
 
@@ -166,30 +188,31 @@ def soak(driver: Driver, pid: int, minutes: float) -> None:
     print(f"  sent {sent} JointStates; RSS growth {(proc.memory_info().rss - rss0) / 2**20:+.1f} MiB", flush=True)
 
 
-def measure(target: str, params: dict, rates: list[float], seconds: float, soak_minutes: float,
-            workdir: Path) -> list[StepResult]:
-    """Start the target process, run the rate ladder (and the soak for the node), stop it."""
-    log = workdir / f"{target}.log"
-    if target == "node":
-        proc = start_node(params, log)
-    else:
-        proc = subprocess.Popen([sys.executable, str(Path(__file__).with_name("node_load.py"))],
-                                stdout=log.open("w"), stderr=subprocess.STDOUT, env=dict(os.environ))
-    driver = Driver()
-    try:
-        driver.wait_for_target()
-        results = run_ladder(driver, proc.pid, rates, seconds, target)
-        if soak_minutes > 0 and target == "node":
-            soak(driver, proc.pid, soak_minutes)
-    finally:
-        driver.node.destroy_node()
-        stop(proc)
-    return results
+def start_relay(ns: str, log: Path) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, str(Path(__file__).with_name("node_load.py")), "--ros-args",
+                             "-r", f"__ns:={ns}"], stdout=log.open("w"), stderr=subprocess.STDOUT, env=dict(os.environ))
+
+
+def start_monitor(ns: str, params: dict, log: Path) -> subprocess.Popen:
+    """The linkage_monitor node in namespace ``ns`` (the harness's start_node, with a namespace)."""
+    args = [sys.executable, "-m", "linkage_monitor.ros.node", "--ros-args", "-r", f"__ns:={ns}"]
+    for name, value in params.items():
+        args += ["-p", f"{name}:={value}"]
+    return subprocess.Popen(args, stdout=log.open("w"), stderr=subprocess.STDOUT, env=dict(os.environ))
+
+
+def _median(steps: list[StepResult], value: Callable[[StepResult], float]) -> float:
+    return float(np.median([value(s) for s in steps]))
+
+
+def _p(q: float) -> Callable[[StepResult], float]:
+    return lambda s: float(np.percentile(s.latency_ms, q)) if s.latency_ms.size else float("nan")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="fewer, shorter rate steps (about 1 min)")
+    parser.add_argument("--quick", action="store_true", help="fewer, shorter rate steps (about 2 min)")
+    parser.add_argument("--repeats", type=int, default=2, help="measurements per rate and target (default 2)")
     parser.add_argument("--soak-minutes", type=float, default=1.0, help="minutes at 1 kHz for the RSS check")
     parser.add_argument("--no-soak", action="store_true")
     args = parser.parse_args()
@@ -198,24 +221,45 @@ def main() -> None:
                                                               1000.0]
     seconds = 3.0 if args.quick else 6.0
     rclpy.init()
+    procs: list[subprocess.Popen] = []
     try:
         with tempfile.TemporaryDirectory() as tmp:
             work = Path(tmp)
-            floor = measure("relay", {}, rates, seconds, 0.0, work)
-            node = measure("node", {"mechanism": "belarus_1221", "sensor_qos": "reliable", "staleness_limit": 3600.0,
-                                    "record_dir": str(work / "bags")},
-                           rates, seconds, 0.0 if args.no_soak else args.soak_minutes, work)
+            procs.append(start_relay("/relay", work / "relay.log"))
+            procs.append(start_monitor("/monitor", {"mechanism": "belarus_1221", "sensor_qos": "reliable",
+                                                    "staleness_limit": 3600.0, "record_dir": str(work / "bags")},
+                                       work / "node.log"))
+            drivers = {"relay": Driver("/relay"), "node": Driver("/monitor")}
+            for driver in drivers.values():
+                driver.wait_for_target()
+            targets = {name: (drivers[name], proc.pid) for name, proc in zip(("relay", "node"), procs)}
+            results = run_paired(targets, rates, seconds, args.repeats)
+            if not args.no_soak and args.soak_minutes > 0:
+                soak(drivers["node"], procs[1].pid, args.soak_minutes)
+            for driver in drivers.values():
+                driver.node.destroy_node()
     finally:
+        for proc in procs:
+            stop(proc)
         rclpy.shutdown()
-    best = max((s.rate for s in node if s.sustained), default=0.0)
-    best_floor = max((s.rate for s in floor if s.sustained), default=0.0)
-    print(f"highest sustained rate (zero loss, no queue building up): node {best:.0f} Hz, relay {best_floor:.0f} Hz (rates tried: "
-          f"{', '.join(f'{r:g}' for r in rates)} Hz, {seconds:g} s each)")
-    for n, f in zip(node, floor):
-        if n.latency_ms.size and f.latency_ms.size:
-            ratios = [np.percentile(n.latency_ms, q) / np.percentile(f.latency_ms, q) for q in (50, 99)]
-            print(f"{n.rate:>6.0f} Hz: latency node/relay p50 x{ratios[0]:.1f}, p99 x{ratios[1]:.1f}; "
-                  f"CPU node/relay x{n.cpu_ms / f.cpu_ms:.1f}")
+    relay, node = results["relay"], results["node"]
+
+    def best(steps: list[list[StepResult]]) -> float:
+        return max((rs[0].rate for rs in steps if all(s.sustained for s in rs)), default=0.0)
+    print(f"highest sustained rate (zero loss, no queue building up, in every repeat): node {best(node):.0f} Hz, "
+          f"relay {best(relay):.0f} Hz (rates tried: {', '.join(f'{r:g}' for r in rates)} Hz, {seconds:g} s each, "
+          f"{args.repeats} repeats per target, interleaved)")
+    print("node / relay, ratio of the medians over the repeats [range of the per-repeat ratios]:")
+    for n, f in zip(node, relay):
+        if not all(s.latency_ms.size for s in n + f):
+            continue
+        parts = []
+        for label, value in (("CPU", lambda s: s.cpu_ms), ("latency p50", _p(50)), ("p99", _p(99))):
+            paired = [value(a) / value(b) for a, b in zip(n, f)]
+            parts.append(f"{label} x{_median(n, value) / _median(f, value):.2f} [{min(paired):.2f}-{max(paired):.2f}]")
+        print(f"{n[0].rate:>6.0f} Hz: " + ", ".join(parts))
+    cpu = [_median(n, lambda s: s.cpu_ms) / _median(f, lambda s: s.cpu_ms) for n, f in zip(node, relay)]
+    print(f"CPU per message node / relay over the rates: {min(cpu):.2f}-{max(cpu):.2f}x (goal <= 1.5x)")
 
 
 if __name__ == "__main__":
