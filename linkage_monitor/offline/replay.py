@@ -157,8 +157,9 @@ def _events(path: Path, config: MonitorConfig, raw: list[RawInput]) -> Iterator[
             else:
                 continue
             stamp = event.stamp_ns
-        except CdrError as exc:
-            event, stamp = UnreadableEvent(topic, type_name, len(data), str(exc), log_time), publish_time
+        except Exception as exc:  # noqa: BLE001 - CdrError: bytes that are not their type's CDR (as in the node)
+            reason = str(exc) if isinstance(exc, CdrError) else f"{type(exc).__name__}: {exc}"
+            event, stamp = UnreadableEvent(topic, type_name, len(data), reason, log_time), publish_time
         raw.append((topic, type_name, stamp, log_time, data))
         yield event
 

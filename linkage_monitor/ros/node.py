@@ -307,8 +307,8 @@ class LinkageMonitorNode(Node):
         try:
             msg = read(data)
             stamp = msg.stamp_ns
-        except CdrError as exc:   # bytes the middleware took that are not this type's CDR
-            unreadable = str(exc)
+        except Exception as exc:  # noqa: BLE001 - CdrError: bytes the middleware took that are not this type's CDR
+            unreadable = str(exc) if isinstance(exc, CdrError) else f"{type(exc).__name__}: {exc}"
         try:
             self._record(topic, data, stamp, now, self.input_qos, type_name)
         except Exception as exc:  # noqa: BLE001 - a recording fault must not stop the monitoring
