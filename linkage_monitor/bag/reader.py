@@ -27,6 +27,7 @@ from mcap.reader import NonSeekingReader, SeekingReader
 from rclpy.serialization import deserialize_message
 
 from linkage_monitor.bag.writer import BagError
+from linkage_monitor.ros.cdr import stamp_ns
 from linkage_monitor.ros.sensor_messages import FLUID_PRESSURE, JOINT_STATE
 
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -100,8 +101,7 @@ def read_bag(path: str | os.PathLike[str], topics: Collection[str] | None = None
     topics: only these topics; types: only these `pkg/msg/Type`s (default: all; others are
     skipped before they are decoded).
     """
-    for topic, type_name, stamp, log_time, msg, _ in _messages(path, topics=topics, types=types):
-        yield topic, type_name, stamp, log_time, msg
+    yield from _messages(path, topics=topics, types=types)
 
 
 def read_bag_raw(path: str | os.PathLike[str], topics: Collection[str] | None = None
@@ -121,8 +121,7 @@ def read_inputs(path: str | os.PathLike[str]) -> dict[str, JointStateColumns | P
     """
     rows: dict[str, list[tuple[int, int, Any]]] = {}
     kinds: dict[str, str] = {}
-    for topic, type_name, stamp, log_time, msg, _ in _messages(
-            path, topics=None, types=(JOINT_STATE, FLUID_PRESSURE)):
+    for topic, type_name, stamp, log_time, msg in _messages(path, topics=None, types=(JOINT_STATE, FLUID_PRESSURE)):
         rows.setdefault(topic, []).append((stamp, log_time, msg))
         kinds[topic] = type_name
     if not rows:
@@ -161,7 +160,7 @@ def _files_from_metadata(directory: Path) -> list[Path]:
 
 
 def _messages(path: str | os.PathLike[str], topics: Collection[str] | None,
-              types: Collection[str] | None) -> Iterator[tuple[str, str, int, int, Any, bytes]]:
+              types: Collection[str] | None) -> Iterator[tuple[str, str, int, int, Any]]:
     for file in mcap_files(path):
         for schema, channel, message in _raw_messages(file, topics):
             type_name = schema.name if schema is not None else ""
@@ -170,19 +169,17 @@ def _messages(path: str | os.PathLike[str], topics: Collection[str] | None,
             if channel.message_encoding != "cdr":
                 raise BagError(f"{file}: topic {channel.topic!r} is encoded as "
                                f"{channel.message_encoding!r}, only 'cdr' is supported")
+            msg_class = _message_class(type_name)   # BagError when the type's package is not installed
             try:
-                msg: Any = deserialize_message(message.data, _message_class(type_name))
-            except BagError:
-                raise
+                msg: Any = deserialize_message(message.data, msg_class)
             except Exception as exc:  # noqa: BLE001 - e.g. an input the node recorded as it came, unreadable
                 _log.warning("%s: a %d-byte message on %s (log time %d ns) does not decode as %s (%s): left out",
                              file, len(message.data), channel.topic, message.log_time, type_name,
                              str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
                 continue
             header = getattr(msg, "header", None)
-            stamp = (header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
-                     if header is not None else message.publish_time)
-            yield channel.topic, type_name, stamp, message.log_time, msg, message.data
+            stamp = stamp_ns(header) if header is not None else message.publish_time
+            yield channel.topic, type_name, stamp, message.log_time, msg
 
 
 def _raw_messages(file: Path, topics: Collection[str] | None) -> Iterator[tuple[Any, Any, Any]]:

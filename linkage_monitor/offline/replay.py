@@ -34,7 +34,7 @@ from linkage_monitor.monitoring.core import (ConfigEvent, Event, JointStateEvent
                                             UnreadableEvent)
 from linkage_monitor.monitoring.findings import Level
 from linkage_monitor.ros.cdr import CdrError
-from linkage_monitor.ros.sensor_messages import FLUID_PRESSURE, JOINT_STATE, read_fluid_pressure, read_joint_state
+from linkage_monitor.ros.sensor_messages import FLUID_PRESSURE, JOINT_STATE, JointStateReading, read_input
 
 STRING = "std_msgs/msg/String"
 RawInput = tuple[str, str, int, int, bytes]   # topic, type name, header stamp (ns), receive time (ns), CDR bytes
@@ -147,19 +147,17 @@ def _events(path: Path, config: MonitorConfig, raw: list[RawInput]) -> Iterator[
                                           stamp_tolerance_s=recorded.stamp_tolerance_s))
             first_config = False
             continue
+        if not ((type_name == JOINT_STATE and topic == config.topics.joint_states)
+                or (type_name == FLUID_PRESSURE and topic in config.pressure_topics)):
+            continue
         try:
-            if type_name == JOINT_STATE and topic == config.topics.joint_states:
-                js = read_joint_state(data)
-                event = JointStateEvent(topic, js.names, js.position, js.velocity, js.stamp_ns, log_time)
-            elif type_name == FLUID_PRESSURE and topic in config.pressure_topics:
-                fp = read_fluid_pressure(data)
-                event = PressureEvent(topic, fp.fluid_pressure, fp.stamp_ns, log_time)
-            else:
-                continue
-            stamp = event.stamp_ns
-        except Exception as exc:  # noqa: BLE001 - CdrError: bytes that are not their type's CDR (as in the node)
-            reason = str(exc) if isinstance(exc, CdrError) else f"{type(exc).__name__}: {exc}"
-            event, stamp = UnreadableEvent(topic, type_name, len(data), reason, log_time), publish_time
+            reading = read_input(type_name, data)
+            event = (JointStateEvent(topic, reading.names, reading.position, reading.velocity, reading.stamp_ns, log_time)
+                     if isinstance(reading, JointStateReading) else
+                     PressureEvent(topic, reading.fluid_pressure, reading.stamp_ns, log_time))
+            stamp = reading.stamp_ns
+        except CdrError as exc:   # bytes that are not their type's CDR: as in the node
+            event, stamp = UnreadableEvent(topic, type_name, len(data), str(exc), log_time), publish_time
         raw.append((topic, type_name, stamp, log_time, data))
         yield event
 

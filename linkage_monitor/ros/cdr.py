@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
-from typing import Callable, Hashable
+from typing import Any, Callable, Hashable
 
 import numpy as np
 
@@ -144,7 +144,7 @@ class Reader:
     def time_ns(self, what: str = "stamp") -> int:
         """A builtin_interfaces/Time (int32 sec, uint32 nanosec) as ns since the epoch."""
         sec, nanosec = self._stamp.unpack_from(self.data, self._take(8, what, 4))
-        return int(sec) * _NS + int(nanosec)
+        return int(sec) * _NS + int(nanosec)   # as stamp_ns of a decoded header
 
     def string(self, what: str) -> str:
         """A string: its length counts the NUL (length 0: empty); cut at the first NUL, invalid UTF-8
@@ -175,6 +175,12 @@ class Reader:
 def stamp_fields(stamp_ns: int) -> tuple[int, int]:
     """builtin_interfaces/Time (sec, nanosec) of a stamp in ns since the epoch (sec rounds down)."""
     return stamp_ns // _NS, stamp_ns % _NS
+
+
+def stamp_ns(msg_header: Any) -> int:
+    """The stamp of a std_msgs/Header (an rclpy or rosbags message) in ns since the epoch: the
+    inverse of ``stamp_fields``."""
+    return int(msg_header.stamp.sec) * _NS + int(msg_header.stamp.nanosec)
 
 
 @dataclass(frozen=True)

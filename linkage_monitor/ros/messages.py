@@ -25,7 +25,7 @@ from linkage_monitor.monitoring.core import Monitor, Step
 from linkage_monitor.monitoring.findings import Code, Level
 from linkage_monitor.msg import HingeReactions, HitchState, Steerability
 
-from .cdr import Template, Writer
+from .cdr import Template, Writer, stamp_ns  # noqa: F401 - stamp_ns: part of this module's interface
 
 FRAME_ID = "base_footprint"  # REP 105 frame at the ground below the tractor: x forward, z up
 HINGE_REACTIONS, HITCH_STATE, STEERABILITY = ("linkage_monitor/msg/HingeReactions", "linkage_monitor/msg/HitchState",
@@ -54,11 +54,6 @@ def header(stamp_ns: int) -> Header:
     """A std_msgs/Header with the given stamp (ns since the epoch) and FRAME_ID."""
     return Header(stamp=Time(sec=int(stamp_ns // 1_000_000_000), nanosec=int(stamp_ns % 1_000_000_000)),
                   frame_id=FRAME_ID)
-
-
-def stamp_ns(msg_header: Header) -> int:
-    """The stamp of a std_msgs/Header in ns since the epoch."""
-    return int(msg_header.stamp.sec) * 1_000_000_000 + int(msg_header.stamp.nanosec)
 
 
 def hinge_status(step: Step, result: Result, overdetermined: bool) -> tuple[int, str]:

@@ -55,7 +55,7 @@ from linkage_monitor.ros.markers import MARKER_ARRAY, DisplayGate, LinkageMarker
 from linkage_monitor.ros.cdr import CdrError
 from linkage_monitor.ros.messages import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputEncoder
 from linkage_monitor.ros.sensor_messages import (FLUID_PRESSURE, JOINT_STATE, FluidPressureReading, JointStateReading,
-                                                 read_fluid_pressure, read_joint_state)
+                                                 read_input)
 
 NODE_NAME = "linkage_monitor"
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -288,16 +288,15 @@ class LinkageMonitorNode(Node):
 
         def solve(msg: JointStateReading, now: int) -> Step:
             return self.monitor.on_joint_state(msg.names, msg.position, msg.velocity, msg.stamp_ns, now, topic)
-        self._guarded(topic, data, info, JOINT_STATE, read_joint_state, solve)
+        self._guarded(topic, data, info, JOINT_STATE, solve)
 
     def on_pressure(self, topic: str, data: bytes, info: dict) -> None:
         """Record the serialized FluidPressure, read it, solve, publish."""
         def solve(msg: FluidPressureReading, now: int) -> Step:
             return self.monitor.on_pressure(topic, msg.fluid_pressure, msg.stamp_ns, now)
-        self._guarded(topic, data, info, FLUID_PRESSURE, read_fluid_pressure, solve)
+        self._guarded(topic, data, info, FLUID_PRESSURE, solve)
 
-    def _guarded(self, topic: str, data: bytes, info: dict, type_name: str, read: Callable[[bytes], Any],
-                 solve: Callable[[Any, int], Step]) -> None:
+    def _guarded(self, topic: str, data: bytes, info: dict, type_name: str, solve: Callable[[Any, int], Step]) -> None:
         """Read the input from its CDR bytes (``ros.sensor_messages``), record the bytes as they came,
         then solve and publish — or, for bytes that are not the topic's type, an ERROR saying why."""
         now = self._now()
@@ -305,10 +304,10 @@ class LinkageMonitorNode(Node):
         msg: Any = None
         stamp, unreadable = now, ""
         try:
-            msg = read(data)
+            msg = read_input(type_name, data)
             stamp = msg.stamp_ns
-        except Exception as exc:  # noqa: BLE001 - CdrError: bytes the middleware took that are not this type's CDR
-            unreadable = str(exc) if isinstance(exc, CdrError) else f"{type(exc).__name__}: {exc}"
+        except CdrError as exc:   # bytes the middleware took that are not this type's CDR
+            unreadable = str(exc)
         try:
             self._record(topic, data, stamp, now, self.input_qos, type_name)
         except Exception as exc:  # noqa: BLE001 - a recording fault must not stop the monitoring

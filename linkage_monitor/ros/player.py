@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from builtin_interfaces.msg import Time
 from rclpy.node import Node
@@ -21,8 +21,7 @@ from rosgraph_msgs.msg import Clock
 
 from linkage_monitor.bag.reader import message_class, read_bag_raw
 from linkage_monitor.ros.cdr import CdrError
-from linkage_monitor.ros.sensor_messages import (FLUID_PRESSURE, JOINT_STATE, FluidPressureReading, JointStateReading,
-                                                 read_fluid_pressure, read_joint_state)
+from linkage_monitor.ros.sensor_messages import FLUID_PRESSURE, JOINT_STATE, read_input
 
 PLAYER_QOS = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -30,13 +29,11 @@ PLAYER_QOS = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
 def recorded_inputs(bag: Path) -> list[tuple[str, str, int, int, bytes]]:
     """(topic, type, header stamp ns, log time ns, CDR bytes as recorded) of every sensor message, in
     order; the stamp of bytes that do not read as their type is the recorded publish time."""
-    readers: dict[str, Callable[[bytes], JointStateReading | FluidPressureReading]] = {
-        JOINT_STATE: read_joint_state, FLUID_PRESSURE: read_fluid_pressure}
     rows = []
     for topic, type_name, publish_time, log_time, data in read_bag_raw(bag):
-        if type_name in readers:
+        if type_name in (JOINT_STATE, FLUID_PRESSURE):
             try:
-                stamp = readers[type_name](data).stamp_ns
+                stamp = read_input(type_name, data).stamp_ns
             except CdrError:
                 stamp = publish_time
             rows.append((topic, type_name, stamp, log_time, data))

@@ -12,12 +12,12 @@ CDR of its type raises ``CdrError`` naming the field and the byte. The rare XCDR
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import Any, Callable, NamedTuple
 
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
-from .cdr import CdrError, Reader, is_xcdr1
+from .cdr import CdrError, Reader, is_xcdr1, stamp_ns
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 FLUID_PRESSURE = "sensor_msgs/msg/FluidPressure"
@@ -44,7 +44,7 @@ def read_joint_state(data: bytes) -> JointStateReading:
     """The JointState in ``data`` (its CDR bytes); CdrError if they are not one."""
     if len(data) >= 4 and not is_xcdr1(data):
         msg = _rclpy(data, JointState)
-        return JointStateReading(_stamp_ns(msg), list(msg.name), tuple(msg.position), tuple(msg.velocity))
+        return JointStateReading(stamp_ns(msg.header), list(msg.name), tuple(msg.position), tuple(msg.velocity))
     r = Reader(data)
     stamp = r.time_ns("header.stamp")
     r.string("header.frame_id")
@@ -58,7 +58,7 @@ def read_fluid_pressure(data: bytes) -> FluidPressureReading:
     """The FluidPressure in ``data`` (its CDR bytes); CdrError if they are not one."""
     if len(data) >= 4 and not is_xcdr1(data):
         msg = _rclpy(data, FluidPressure)
-        return FluidPressureReading(_stamp_ns(msg), float(msg.fluid_pressure))
+        return FluidPressureReading(stamp_ns(msg.header), float(msg.fluid_pressure))
     r = Reader(data)
     stamp = r.time_ns("header.stamp")
     r.string("header.frame_id")
@@ -76,5 +76,17 @@ def _rclpy(data: bytes, msg_type: type) -> Any:
                        f"(encapsulation {bytes(data[:2]).hex() or '(none)'})") from None
 
 
-def _stamp_ns(msg: Any) -> int:
-    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+def read_input(type_name: str, data: bytes) -> JointStateReading | FluidPressureReading:
+    """The input message of type ``type_name`` (JOINT_STATE or FLUID_PRESSURE) in ``data``; CdrError
+    for bytes that do not read as it, whatever the reason (an unexpected one named by its type)."""
+    read = _READERS[type_name]
+    try:
+        return read(data)
+    except CdrError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - bytes that break the reader otherwise: the input's fault all the same
+        raise CdrError(f"{type(exc).__name__}: {exc}") from exc
+
+
+_READERS: dict[str, Callable[[bytes], JointStateReading | FluidPressureReading]] = {
+    JOINT_STATE: read_joint_state, FLUID_PRESSURE: read_fluid_pressure}
