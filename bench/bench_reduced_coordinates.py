@@ -16,7 +16,7 @@ alone, and numpy's batched 15x15 solve, are timed in the same run as baselines.
 
 What this prototype does not do (the general solver does): any mechanism from its YAML (an
 Assur-group decomposition of the schema's bodies, hinges and cylinders would be needed),
-redundant sensors in least squares, contacts, springs, kinetostatics, exact condition numbers
+redundant sensors (fitted over the closed loop: `lift_arm_fit` here shows the rule), contacts, springs, kinetostatics, exact condition numbers
 for the dead-centre verdict (here only the dyads' own denominators), lift capacity.
 """
 
@@ -143,11 +143,12 @@ def lift_arm_fit(stroke_m: np.ndarray, angle_m: np.ndarray, g: np.ndarray, refer
 
 
 def fusion_difference(bag: Path) -> None:
-    """What the redundant sensors' fusion is worth on a recording, on the same poses and pressures:
-    the package's least squares over stroke + lift-arm angle (all 15 coordinates, loop closure and
-    sensors weighted alike) against (a) the stroke alone with the loop closed exactly (a dyad chain
-    driven by the stroke) and (b) the loop closed exactly at the stroke that best fits both sensors
-    (``lift_arm_fit``: what a dyad chain with a fit over its one coordinate would give)."""
+    """The redundant sensors' fusion on a recording, on the same poses and pressures: the package's
+    fit of stroke + lift-arm angle (all 15 coordinates, every hinge closed, the sensors in least
+    squares: ``kernels.closed_step``) against (a) the stroke alone with the loop closed exactly (a
+    dyad chain driven by the stroke) and (b) the loop closed exactly at the stroke that best fits
+    both sensors (``lift_arm_fit``: what a dyad chain fitting its one coordinate gives) — (b) is the
+    same rule computed another way, so it should agree to rounding."""
     columns = read_inputs(bag)
     joints = next(c for c in columns.values() if isinstance(c, JointStateColumns))
     pressure = next(c for c in columns.values() if not isinstance(c, JointStateColumns))
@@ -160,7 +161,7 @@ def fusion_difference(bag: Path) -> None:
     fused = fused_solver.solve_batch(cylinders={"lift_cylinder": stroke}, angles={"lift_arm_angle": angle},
                                      pressures=gauge)
     fitted = lift_arm_fit(stroke, angle, geometry(mech), mech.measurements.angles[0].reference, fused_solver.kin.lc)
-    print(f"{bag.name}: {len(stroke)} poses; the sensors' kinematic residual (least squares) median "
+    print(f"{bag.name}: {len(stroke)} poses; the sensors' misfit (kinematic residual) median "
           f"{1e3 * np.nanmedian(fused.consistency_residual):.2f} mm, largest {1e3 * np.nanmax(fused.consistency_residual):.2f} mm")
     # the fit's own check: readings that agree (the angle the closed loop gives at each stroke) return the stroke
     agreeing = angle_readings(mech, closed_solver.solve_batch(cylinders={"lift_cylinder": stroke}))["lift_arm_angle"]
@@ -173,8 +174,8 @@ def fusion_difference(bag: Path) -> None:
         share = max(float((np.hypot(*(fused.hinge_force[h][ok] - closed.hinge_force[h][ok]).T)
                            / np.hypot(*fused.hinge_force[h][ok].T)).max()) for h in HINGES)
         hitch = 1e3 * float(np.hypot(*(fused.points["P56"][ok] - closed.points["P56"][ok]).T).max())
-        print(f"  least squares (the package) against {label}: hinge forces differ by up to {share:.2%} of the "
-              f"hinge's force, the hitch point P56 by up to {hitch:.2f} mm ({int(ok.sum())} poses)")
+        print(f"  the package's fit against {label}: hinge forces differ by up to {share:.2g} of the "
+              f"hinge's force, the hitch point P56 by up to {hitch:.2g} mm ({int(ok.sum())} poses)")
 
 
 def dyad_decomposition(mech) -> tuple[list[str], list[str], list[str]]:

@@ -191,6 +191,55 @@ def solve_linear(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return lu_solve(lu, piv, b)
 
 
+@njit(cache=True)
+def closed_step(jac: np.ndarray, rhs: np.ndarray, drive_rows: np.ndarray, fit_rows: np.ndarray,
+                n_hard: int) -> np.ndarray:
+    """x with jac·x = rhs for the loop closure: the linkage closed, the measured inputs fitted.
+
+    Square (as many inputs as degrees of freedom): solved. More rows than columns (redundant
+    sensors): the hinge rows ``drive_rows[:n_hard]`` hold exactly and the input rows in least
+    squares. The k = n − n_hard inputs ``drive_rows[n_hard:]`` close the square system M
+    (``drive_rows``); their misfit y is the reduced coordinate: x = M⁻¹(rhs_M + E·y), E the unit
+    columns of those rows, the ``fit_rows``' misfit c + B·y with c = J_R·M⁻¹rhs_M − rhs_R and
+    B = J_R·M⁻¹E, and y minimises |y|² + |c + B·y|²: (I + BᵀB)·y = −Bᵀc. Without ``drive_rows``
+    (no square subsystem closes the pose) every row in least squares (normal equations). NaN where
+    singular.
+    """
+    m, n = jac.shape
+    if m == n or drive_rows.shape[0] == 0:
+        return solve_linear(jac, rhs)
+    a = np.empty((n, n))
+    b = np.empty(n)
+    for i in range(n):
+        a[i] = jac[drive_rows[i]]
+        b[i] = rhs[drive_rows[i]]
+    lu, piv, _, singular = lu_factor(a)
+    if singular:
+        return np.full(n, np.nan)
+    x = lu_solve(lu, piv, b)
+    k = n - n_hard
+    g = np.empty((n, k))
+    e = np.zeros(n)
+    for j in range(k):
+        e[n_hard + j] = 1.0
+        g[:, j] = lu_solve(lu, piv, e)
+        e[n_hard + j] = 0.0
+    n_fit = fit_rows.shape[0]
+    c = np.empty(n_fit)
+    bm = np.empty((n_fit, k))
+    for r in range(n_fit):
+        row = jac[fit_rows[r]]
+        c[r] = row @ x - rhs[fit_rows[r]]
+        bm[r] = row @ g
+    h = bm.T @ bm
+    for j in range(k):
+        h[j, j] += 1.0
+    lu_h, piv_h, _, singular_h = lu_factor(h)
+    if singular_h:
+        return np.full(n, np.nan)
+    return x + g @ lu_solve(lu_h, piv_h, -(bm.T @ c))
+
+
 # ---- positions and loop closure --------------------------------------------------------------------
 @njit(cache=True)
 def positions(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -306,26 +355,45 @@ def _max_abs(v: np.ndarray) -> float:
 @njit(cache=True)
 def newton(q0: np.ndarray, s: np.ndarray, max_iter: int, att_body: np.ndarray, att_ref: np.ndarray,
            hinge_att: np.ndarray, cyl_att: np.ndarray, angle_body: np.ndarray, angle_reference: np.ndarray,
-           lc: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Newton / Gauss-Newton from q0: (q, Φ, ∂Φ/∂q), both at the returned q.
+           lc: float, drive_rows: np.ndarray, fit_rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Newton / Gauss-Newton from q0: (q, Φ, ∂Φ/∂q), both at the returned q; each step a
+    ``closed_step`` (redundant sensors: hinges closed, inputs fitted in least squares).
 
     Stops when |Φ| ≤ 1e-13·lc, or before a step that is not finite (singular) or, overdetermined,
-    not above 1e-13·lc (the least-squares residual need not reach 0).
+    not above 1e-13·lc (the fitted inputs' residual need not reach 0).
     """
     tol = 1e-13 * lc
+    n_hard = 2 * hinge_att.shape[1]
     q = q0.copy()
     phi, jac = residual_jacobian(q, s, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc)
     m, n = jac.shape
     for _ in range(max_iter):
         if _max_abs(phi) <= tol:
             break
-        dq = solve_linear(jac, -phi)
+        dq = closed_step(jac, -phi, drive_rows, fit_rows, n_hard)
         step = _max_abs(dq)
         if not math.isfinite(step) or (m > n and not step > tol):
             break
         q += dq
         phi, jac = residual_jacobian(q, s, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc)
     return q, phi, jac
+
+
+@njit(cache=True)
+def assembled(phi: np.ndarray, n_hard: int, lc: float, limit: float) -> bool:
+    """Whether a pose's loop-closure residual Φ (m,) is an assembled linkage: the hinge rows
+    ``phi[:n_hard]`` closed (≤ 1e-9·lc) and every row within ``limit`` (m; the inputs' misfit when
+    sensors are redundant)."""
+    return _max_abs(phi[:n_hard]) <= 1e-9 * lc and _max_abs(phi) <= limit
+
+
+@njit(cache=True)
+def assembled_batch(phi: np.ndarray, n_hard: int, lc: float, limit: float) -> np.ndarray:
+    """``assembled`` for N poses Φ (N, m): (N,) bool."""
+    out = np.empty(phi.shape[0], dtype=np.bool_)
+    for i in range(phi.shape[0]):
+        out[i] = assembled(phi[i], n_hard, lc, limit)
+    return out
 
 
 @njit(cache=True)
@@ -359,7 +427,7 @@ def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, jac_out: np.
                     on_branch: np.ndarray, q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray,
                     s: np.ndarray, max_iter: int, att_body: np.ndarray, att_ref: np.ndarray, hinge_att: np.ndarray,
                     cyl_att: np.ndarray, angle_body: np.ndarray, angle_reference: np.ndarray, lc: float,
-                    column_scale: np.ndarray, loop_rows: np.ndarray, loop_cols: np.ndarray, loop_ptr: np.ndarray,
+                    drive_rows: np.ndarray, fit_rows: np.ndarray, column_scale: np.ndarray, loop_rows: np.ndarray, loop_cols: np.ndarray, loop_ptr: np.ndarray,
                     ref_branch: np.ndarray) -> None:
     """Pose i of ``solve_poses``, written into the output arrays."""
     m = jac_start.shape[1]
@@ -370,8 +438,9 @@ def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, jac_out: np.
     for j in range(n_in):
         ds = s[i, j] - s_start[0, j]
         shift[r0 + j] = ds if j < nc else lc * ds
-    q0 = q_start[0] + solve_linear(jac_start[0], shift)
-    q, phi, jac = newton(q0, s[i], max_iter, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc)
+    q0 = q_start[0] + closed_step(jac_start[0], shift, drive_rows, fit_rows, 2 * hinge_att.shape[1])
+    q, phi, jac = newton(q0, s[i], max_iter, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc,
+                         drive_rows, fit_rows)
     for b in range(q.shape[0] // 3):   # a rotation that Newton took by whole turns: the equivalent nearest the start
         q[3 * b + 2] = q_start[0, 3 * b + 2] + _wrap(q[3 * b + 2] - q_start[0, 3 * b + 2])
     q_out[i], phi_out[i], jac_out[i] = q, phi, jac
@@ -392,11 +461,12 @@ def _kinematic_outputs(s: np.ndarray, jac_start: np.ndarray) -> tuple[np.ndarray
 def solve_poses(q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray, s: np.ndarray, max_iter: int,
                 *mechanism: object) -> tuple[np.ndarray, ...]:
     """Assemble N poses for inputs s (N, n_inputs): Newton from the tangent prediction off one solved
-    pose (q_start (1, n), its Jacobian (1, m, n) and inputs (1, n_inputs)) — J·dq = E·(s − s_start),
-    E the input rows' unit / lc entries — then the condition number and the assembly branch.
+    pose (q_start (1, n), its Jacobian (1, m, n) and inputs (1, n_inputs)) — J·dq = E·(s − s_start)
+    as a ``closed_step``, E the input rows' unit / lc entries — then the condition number and the
+    assembly branch.
 
     ``mechanism``: att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc,
-    column_scale, loop_rows, loop_cols, loop_ptr, ref_branch (``Kinematics.program``). Returns q
+    drive_rows, fit_rows, column_scale, loop_rows, loop_cols, loop_ptr, ref_branch (``Kinematics.program``). Returns q
     (N, n), Φ (N, m), ∂Φ/∂q (N, m, n), condition (N,), on_branch (N,): False where a loop is in the
     opposite assembly of ``ref_branch`` (a loop at a dead centre, sign 0, counts as on it). Large
     batches run on every core (``allow_threads``).
@@ -422,7 +492,7 @@ def _kinematics_parallel(n_pose, *args):
 @njit(cache=True)
 def newton_batch(q0: np.ndarray, s: np.ndarray, max_iter: int, att_body: np.ndarray, att_ref: np.ndarray,
                  hinge_att: np.ndarray, cyl_att: np.ndarray, angle_body: np.ndarray, angle_reference: np.ndarray,
-                 lc: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 lc: float, drive_rows: np.ndarray, fit_rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``newton`` for N poses q0 (N, n), s (N, n_inputs): q, Φ, ∂Φ/∂q stacked."""
     n_pose, n = q0.shape
     m = 2 * hinge_att.shape[1] + cyl_att.shape[1] + angle_body.shape[1]
@@ -431,7 +501,7 @@ def newton_batch(q0: np.ndarray, s: np.ndarray, max_iter: int, att_body: np.ndar
     jac_out = np.empty((n_pose, m, n))
     for i in range(n_pose):
         q_out[i], phi_out[i], jac_out[i] = newton(q0[i], s[i], max_iter, att_body, att_ref, hinge_att, cyl_att,
-                                                  angle_body, angle_reference, lc)
+                                                  angle_body, angle_reference, lc, drive_rows, fit_rows)
     return q_out, phi_out, jac_out
 
 
@@ -816,8 +886,8 @@ def live_series(s, pressure_forces, q_start, jac_start, s_start, limit, max_cond
 def _live_pose_at(i, out, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kinematics, statics,
                   outputs, machine):
     """Pose i of ``live_series``, written into its rows of ``out`` (``_pose_outputs``)."""
-    (att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc, column_scale, loop_rows, loop_cols,
-     loop_ptr, ref_branch) = kinematics
+    (att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc, drive_rows, fit_rows, column_scale,
+     loop_rows, loop_cols, loop_ptr, ref_branch) = kinematics
     (n_unknowns, spring_stiffness, spring_free_length, spring_preload, hinge_cols, force_measured, cylinder_cols,
      contact_cols, implement_col, implement_weight, per_cap_area, friction, point_rows, cg_att, frame_att,
      frame_hinge_index, frame_hinge_sign, frame_member_index, frame_member_sign) = outputs
@@ -832,8 +902,8 @@ def _live_pose_at(i, out, s, pressure_forces, q_start, jac_start, s_start, limit
     on_branch = np.empty(1, dtype=np.bool_)
     _kinematic_pose(0, q[i:i + 1], phi[i:i + 1], jac[i:i + 1], kin_cond[i:i + 1], on_branch, q_start, jac_start,
                     s_start, s[i:i + 1], 25, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc,
-                    column_scale, loop_rows, loop_cols, loop_ptr, ref_branch)
-    if not (on_branch[0] and _max_abs(phi[i]) <= limit and kin_cond[i] <= max_condition):
+                    drive_rows, fit_rows, column_scale, loop_rows, loop_cols, loop_ptr, ref_branch)
+    if not (on_branch[0] and assembled(phi[i], 2 * hinge_att.shape[1], lc, limit) and kin_cond[i] <= max_condition):
         return
     p1, _ = positions(q[i], att_body, att_ref)
     p = p1.reshape((1, p1.shape[0], 2))

@@ -3,7 +3,9 @@
 Coordinates: (x, z, θ) per moving body: (x, z) the position (m) of the body's origin (the
 centroid of its points in the reference pose), θ its rotation from the reference pose (rad,
 from +x towards +z). Constraints (rows, all in metres): hinge coincidence (2 per hinge),
-measured cylinder lengths, measured relative angles (scaled by the length scale ``lc``).
+measured cylinder lengths, measured relative angles (scaled by the length scale ``lc``). The
+hinges always close; sensors beyond the degrees of freedom (redundant) are fitted in least squares
+over the closed linkage's poses (loop closure hard, sensors soft: ``kernels.closed_step``).
 Every function works on a stack of N poses; the per-pose work runs in compiled code
 (:mod:`.kernels`) over the index arrays built here once.
 """
@@ -86,6 +88,7 @@ class Kinematics:
         self._s_ref = np.concatenate([np.hypot(*(p[0, self.cyl_att[1]] - p[0, self.cyl_att[0]]).T),
                                       self.angle_reference])
         phi_ref, jac_ref = self.residual_jacobian(self.q_ref[None], self._s_ref[None])
+        self.drive_rows, self.fit_rows = self._driving_system(jac_ref[0])
         self._loops = self._loop_blocks(jac_ref[0])
         rows = [r for r, _ in self._loops]
         self._loop_arrays = (np.concatenate(rows or [np.zeros(0, dtype=int)]).astype(np.int64),
@@ -121,10 +124,12 @@ class Kinematics:
 
     @property
     def program(self) -> tuple:
-        """``geometry`` with what ``kernels.solve_poses`` also takes: the column scale, the loops'
-        index arrays and the reference assembly branch (``kernels.live_pose``'s ``kinematics``)."""
+        """``geometry`` with what ``kernels.solve_poses`` also takes: the driving and fitted rows
+        (``_driving_system``), the column scale, the loops' index arrays and the reference assembly
+        branch (``kernels.live_pose``'s ``kinematics``)."""
         if self._program is None:
-            self._program = (*self.geometry, self.column_scale, *self._loop_arrays, self._ref_branch)
+            self._program = (*self.geometry, self.drive_rows, self.fit_rows, self.column_scale, *self._loop_arrays,
+                             self._ref_branch)
         return self._program
 
     def _padded(self, q: np.ndarray) -> np.ndarray:
@@ -151,14 +156,21 @@ class Kinematics:
 
     # ---- solving --------------------------------------------------------------------------
     def newton(self, q: np.ndarray, s: np.ndarray, max_iter: int = 25) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Newton / Gauss-Newton iterations from q (N, n) (``kernels.newton``).
+        """Newton / Gauss-Newton iterations from q (N, n) (``kernels.newton``): redundant sensors
+        fitted in least squares with every hinge closed.
 
         Returns q, its residual Φ (N, m) and Jacobian (N, m, n), both evaluated at the returned q.
         A pose stops when |Φ| ≤ 1e-13·lc, or before a step that is not finite (singular) or,
-        overdetermined, below 1e-13·lc (the least-squares residual need not reach 0).
+        overdetermined, below 1e-13·lc (the fitted inputs' residual need not reach 0).
         """
         return kernels.newton_batch(np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(s, dtype=float),
-                                    max_iter, *self.geometry)
+                                    max_iter, *(*self.geometry, self.drive_rows, self.fit_rows))
+
+    def assembled(self, phi: np.ndarray, limit: float) -> np.ndarray:
+        """(N,) whether each pose's residual Φ (N, m) is an assembled linkage: hinges closed to
+        1e-9·lc, every row within ``limit`` m (``kernels.assembled``)."""
+        return kernels.assembled_batch(np.ascontiguousarray(phi, dtype=float), 2 * self.hinge_att.shape[1], self.lc,
+                                       limit)
 
     def reachable_fraction(self, s: np.ndarray, steps: int = 30) -> np.ndarray:
         """Largest t in [0, 1] (N,) such that inputs s_ref + t·(s − s_ref) still assemble (bisection)."""
@@ -175,14 +187,12 @@ class Kinematics:
             q_lo[ok] = q[ok]
         return lo
 
-    # ---- assembly branch: one sign per loop ------------------------------------------------------
-    def _loop_blocks(self, jac_ref: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-        """(rows, columns) of each loop of the linkage: the diagonal blocks of the block-triangular
-        form of the square driving system (hinge rows + as many input rows, cylinders first, as
-        close the degrees of freedom), found from its structure (a maximum matching of rows to
-        columns, then the strongly connected components of the matched graph). A chain of dyads
-        gives one block per dyad; the sign of each block's determinant is that loop's assembly
-        branch (the sign of one global determinant would miss two loops flipping together)."""
+    def _driving_system(self, jac_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rows (n,) of the square system that closes the linkage — every hinge row, then as many
+        input rows (cylinders, then angles, in order) as close the degrees of freedom — and the
+        remaining input rows (redundant sensors, fitted in least squares: ``kernels.closed_step``).
+        Both empty when no such square system exists at the reference pose (hinge rows that are
+        not independent): then every row is fitted in least squares."""
         nh2 = 2 * self.hinge_att.shape[1]
         rows = list(range(nh2))
         for r in range(nh2, self.m):          # input rows in order (cylinders, then angles), while they add rank
@@ -191,6 +201,20 @@ class Kinematics:
             if np.linalg.matrix_rank(jac_ref[rows + [r]]) == len(rows) + 1:
                 rows.append(r)
         if len(rows) != self.n or np.linalg.matrix_rank(jac_ref[rows]) < self.n:
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        fit = [r for r in range(self.m) if r not in rows]
+        return np.array(rows, dtype=np.int64), np.array(fit, dtype=np.int64)
+
+    # ---- assembly branch: one sign per loop ------------------------------------------------------
+    def _loop_blocks(self, jac_ref: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(rows, columns) of each loop of the linkage: the diagonal blocks of the block-triangular
+        form of the square driving system (hinge rows + as many input rows, cylinders first, as
+        close the degrees of freedom), found from its structure (a maximum matching of rows to
+        columns, then the strongly connected components of the matched graph). A chain of dyads
+        gives one block per dyad; the sign of each block's determinant is that loop's assembly
+        branch (the sign of one global determinant would miss two loops flipping together)."""
+        rows = self.drive_rows.tolist()
+        if not rows:
             return []                         # not closable by a square subsystem: no branch to keep
         # the structural non-zeros: those of the Jacobian at a pose in general position (jittered)
         q = self.q_ref + 0.1 * np.random.default_rng(0).standard_normal(self.n)
@@ -232,7 +256,7 @@ class Kinematics:
         start = self._reference if previous is None else previous
         q, phi, jac, cond, on_branch = self.continue_from(start, s)
         limit = 1e-9 * self.lc if self.m == self.n else consistency_tol
-        retry = np.flatnonzero(~on_branch | ~(np.abs(phi).max(axis=1) <= limit))
+        retry = np.flatnonzero(~on_branch | ~self.assembled(phi, limit))
         still = np.zeros(0, dtype=int)
         if retry.size:  # continuation from the reference pose along a straight input path
             s_ref = self._s_ref
@@ -243,8 +267,9 @@ class Kinematics:
             qr[:, 2::3] = wrap_angle(qr[:, 2::3])   # whole turns: the rotation nearest the reference pose's (0)
             q[retry], phi[retry], jac[retry] = qr, phir, jacr
             cond[retry] = [kernels.condition(j, self.column_scale) for j in jacr]
-            still = retry[~(np.abs(phir).max(axis=1) <= limit)]
-            off = retry[~self.on_branch(jacr) & (np.abs(phir).max(axis=1) <= limit)]
+            closed = self.assembled(phir, limit)
+            still = retry[~closed]
+            off = retry[~self.on_branch(jacr) & closed]
         status = np.zeros(n_pose, dtype=int)
         messages = [""] * n_pose
         if retry.size:
@@ -257,7 +282,7 @@ class Kinematics:
             fraction = self.reachable_fraction(s[still])
             for i, t in zip(still, fraction):
                 status[i], messages[i] = Status.ASSEMBLY, self.reach_message(s[i], t)
-        for i in np.flatnonzero(~(np.abs(phi).max(axis=1) <= limit) & (status == Status.OK)):
+        for i in np.flatnonzero(~self.assembled(phi, limit) & (status == Status.OK)):
             status[i] = Status.ASSEMBLY
             messages[i] = self.assembly_message(phi[i], s[i])
         for i in np.flatnonzero((status == Status.OK) & ~(cond <= dead_centre_cond)):
@@ -347,11 +372,14 @@ class Kinematics:
         return as_xz(v), as_xz(-w * w * relc)
 
     def _solve_linear(self, jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-        """x (N, n) with jac·x = rhs (N, m), least squares (normal equations) when overdetermined."""
-        if self.m != self.n:
-            jt = np.swapaxes(jac, 1, 2)
-            jac, rhs = jt @ jac, (jt @ rhs[..., None])[..., 0]
-        return np.linalg.solve(jac, rhs[..., None])[..., 0]
+        """x (N, n) with jac·x = rhs (N, m); overdetermined: the hinge rows exactly and the inputs in
+        least squares (``kernels.closed_step``, as the positions are fitted)."""
+        if self.m == self.n:
+            return np.linalg.solve(jac, rhs[..., None])[..., 0]
+        n_hard = 2 * self.hinge_att.shape[1]
+        return np.array([kernels.closed_step(j, r, self.drive_rows, self.fit_rows, n_hard)
+                         for j, r in zip(np.ascontiguousarray(jac, dtype=float), np.ascontiguousarray(rhs, dtype=float))]
+                        ).reshape(rhs.shape[0], self.n)
 
 
 def wrap_angle(a: np.ndarray) -> np.ndarray:

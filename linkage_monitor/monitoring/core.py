@@ -27,9 +27,10 @@ from .config import MonitorConfig
 from .findings import Code, Finding, Level, fmt
 from .inputs import InputTracker, Refused
 
-# Redundant measurements (e.g. stroke and lift-arm angle) never agree exactly: up to
-# CONSISTENCY_WARN_M of loop-closure residual is sensor noise, above it a WARN, above
-# ASSEMBLY_LIMIT_M the pose cannot be assembled from the inputs (ERROR).
+# Redundant measurements (e.g. stroke and lift-arm angle) never agree exactly: the solver closes
+# every hinge and fits the sensors in least squares; up to CONSISTENCY_WARN_M of their misfit
+# (the kinematic residual) is sensor noise, above it a WARN, above ASSEMBLY_LIMIT_M the pose
+# cannot be assembled from the inputs (ERROR).
 CONSISTENCY_WARN_M = 1e-3
 ASSEMBLY_LIMIT_M = 20e-3
 # With more measured forces than needed (e.g. two cylinder pressures), equilibrium is met in

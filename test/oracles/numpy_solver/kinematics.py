@@ -86,6 +86,8 @@ class Kinematics:
         p, _ = self._complex_positions(self._padded(self.q_ref[None]), self._constraint_arrays)
         self._s_ref = np.concatenate([np.abs(p[0, self.cyl_att[1]] - p[0, self.cyl_att[0]]), self.angle_reference])
         phi_ref, jac_ref = self.residual_jacobian(self.q_ref[None], self._s_ref[None])
+        # redundant sensors: the hinge rows hold exactly (constraints of the least squares) when independent
+        self._n_hard = 2 * nh if nh and np.linalg.matrix_rank(jac_ref[0, :2 * nh]) == 2 * nh else 0
         _, ref_cond = self._branch_and_condition(jac_ref)
         self._loops = self._loop_blocks(jac_ref[0])
         self._ref_branch = self.branch(jac_ref)[0]   # the assembly branch (one sign per loop) every pose keeps
@@ -341,7 +343,7 @@ class Kinematics:
         q, phi, jac = self.newton(self.predict(start, s), s)
         _, cond = self._branch_and_condition(jac)
         limit = 1e-9 * self.lc if self.m == self.n else consistency_tol
-        retry = np.flatnonzero(~self.on_branch(jac) | ~(np.abs(phi).max(axis=1) <= limit))
+        retry = np.flatnonzero(~self.on_branch(jac) | ~self._assembled(phi, limit))
         still = np.zeros(0, dtype=int)
         if retry.size:  # continuation from the reference pose along a straight input path
             s_ref = self._s_ref
@@ -351,8 +353,9 @@ class Kinematics:
             qr, phir, jacr = self.newton(qr, s[retry])
             q[retry], phi[retry], jac[retry] = qr, phir, jacr
             cond[retry] = self._branch_and_condition(jacr)[1]
-            still = retry[~(np.abs(phir).max(axis=1) <= limit)]
-            off = retry[~self.on_branch(jacr) & (np.abs(phir).max(axis=1) <= limit)]
+            closed = self._assembled(phir, limit)
+            still = retry[~closed]
+            off = retry[~self.on_branch(jacr) & closed]
         status = np.zeros(n_pose, dtype=int)
         messages = [""] * n_pose
         if retry.size:
@@ -365,7 +368,7 @@ class Kinematics:
             reach = self.reachable_fraction(s[still])
             for i, t in zip(still, reach):
                 status[i], messages[i] = Status.ASSEMBLY, self.reach_message(s[i], t)
-        for i in np.flatnonzero(~(np.abs(phi).max(axis=1) <= limit) & (status == Status.OK)):
+        for i in np.flatnonzero(~self._assembled(phi, limit) & (status == Status.OK)):
             status[i] = Status.ASSEMBLY
             messages[i] = self.assembly_message(phi[i], s[i])
         for i in np.flatnonzero((status == Status.OK) & ~(cond <= dead_centre_cond)):
@@ -435,12 +438,26 @@ class Kinematics:
         return as_xz(v), as_xz(-w * w * relc)
 
     def _solve_linear(self, jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-        """x (N, n) with jac·x = rhs (N, m), least squares (normal equations) when overdetermined;
+        """x (N, n) with jac·x = rhs (N, m); overdetermined: the hinge rows C exactly and the input
+        rows A in least squares — the KKT system [AᵀA Cᵀ; C 0]·[x; λ] = [Aᵀb; d] (Lagrange
+        multipliers λ), or every row in least squares when the hinge rows are not independent;
         jac (N, m, n), or (1, m, n) shared by all N right-hand sides."""
         if self.m == self.n:
             return solve_square(jac, rhs)
-        jt = np.swapaxes(jac, 1, 2)
-        return solve_square(jt @ jac, (jt @ rhs[..., None])[..., 0])
+        h = self._n_hard
+        c, a = jac[:, :h], jac[:, h:]
+        at = np.swapaxes(a, 1, 2)
+        kkt = np.zeros((jac.shape[0], self.n + h, self.n + h))
+        kkt[:, :self.n, :self.n] = at @ a
+        kkt[:, :self.n, self.n:] = np.swapaxes(c, 1, 2)
+        kkt[:, self.n:, :self.n] = c
+        rhs_kkt = np.concatenate([(at @ rhs[:, h:, None])[..., 0], rhs[:, :h]], axis=1)
+        return solve_square(kkt, rhs_kkt)[:, :self.n]
+
+    def _assembled(self, phi: np.ndarray, limit: float) -> np.ndarray:
+        """(N,) hinges closed to 1e-9·lc and every row of Φ (N, m) within ``limit`` m."""
+        return (np.abs(phi[:, :2 * self.hinge_att.shape[1]]).max(axis=1, initial=0.0) <= 1e-9 * self.lc) & (
+            np.abs(phi).max(axis=1) <= limit)
 
 
 def wrap_angle(a: np.ndarray) -> np.ndarray:
