@@ -74,10 +74,14 @@ def assert_batches_equal(got: BatchResult, expected: BatchResult) -> None:
 
 
 def _tie_free(message: str) -> str:
-    """The message without the name of the most-open constraint: a least-squares pose can leave two
-    rows open by the same amount (a hinge gap and a cylinder length, equal to 0.1 mm) and round-off
-    decides which is named; the amount is still compared."""
-    return re.sub(r"at best .*? is off by", "at best (a constraint) is off by", message)
+    """The message without what round-off decides: the name of the most-open constraint (a pose can
+    leave two rows open by the same amount, a hinge gap and a cylinder length equal to 0.1 mm; the
+    amount is still compared), and the figure of a dead centre's condition number — at an exact
+    dead centre (the arm fixture's cylinder at 2.0 m) it is that of a singular matrix, 1e7 or 1e16
+    depending on where Newton stopped within 1e-13 m (the verdict, the inputs and the limit are
+    still compared)."""
+    message = re.sub(r"at best .*? is off by", "at best (a constraint) is off by", message)
+    return re.sub(r"condition number \S+ >", "condition number (above the limit) >", message)
 
 
 def _close(got: np.ndarray, expected: np.ndarray, what: str, rel: float = REL) -> None:

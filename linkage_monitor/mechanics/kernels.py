@@ -342,6 +342,75 @@ def residual_jacobian(q: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_re
     return phi, jac
 
 
+# ---- the pose in closed form: a chain of dyads (chain.py) -----------------------------------------
+@njit(cache=True)
+def _point(q: np.ndarray, a: int, att_body: np.ndarray, att_ref: np.ndarray) -> tuple[float, float]:
+    """Position (m) of attachment ``a`` in pose q (its body already placed)."""
+    b = att_body[a]
+    if b < 0:
+        return att_ref[a, 0], att_ref[a, 1]
+    c, s = math.cos(q[3 * b + 2]), math.sin(q[3 * b + 2])
+    return (q[3 * b] + c * att_ref[a, 0] - s * att_ref[a, 1],
+            q[3 * b + 1] + s * att_ref[a, 0] + c * att_ref[a, 1])
+
+
+@njit(cache=True)
+def _circles(ax: float, az: float, ra: float, bx: float, bz: float, rb: float,
+             side: float) -> tuple[float, float, bool]:
+    """The point at ``ra`` from a and ``rb`` from b on ``side`` (sign of cross(b − a, p − a)); False
+    when the circles do not meet (out of reach)."""
+    dx, dz = bx - ax, bz - az
+    d = math.sqrt(dx * dx + dz * dz)
+    if not d > 0.0:
+        return math.nan, math.nan, False
+    along = (ra * ra - rb * rb + d * d) / (2.0 * d)
+    h2 = ra * ra - along * along
+    if not h2 >= 0.0:
+        return math.nan, math.nan, False
+    h = math.sqrt(h2) * side
+    return ax + (along * dx - h * dz) / d, az + (along * dz + h * dx) / d, True
+
+
+@njit(cache=True)
+def _place(q: np.ndarray, body: int, theta: float, px: float, pz: float, a_body: int, att_ref: np.ndarray) -> None:
+    """Body ``body`` at rotation θ with its attachment ``a_body`` at (px, pz): its (x, z, θ) into q."""
+    c, s = math.cos(theta), math.sin(theta)
+    q[3 * body] = px - (c * att_ref[a_body, 0] - s * att_ref[a_body, 1])
+    q[3 * body + 1] = pz - (s * att_ref[a_body, 0] + c * att_ref[a_body, 1])
+    q[3 * body + 2] = theta
+
+
+@njit(cache=True)
+def chain_pose(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray, chain_int: np.ndarray,
+               chain_float: np.ndarray) -> tuple[np.ndarray, bool]:
+    """The pose q (n,) of a chain of dyads (``chain.decompose``) for inputs s (cylinder lengths m,
+    angles rad), each circle intersection on its reference side; False when a step is out of reach."""
+    q = np.zeros(n)
+    for k in range(chain_int.shape[0]):
+        row, f = chain_int[k], chain_float[k]
+        if row[0] == 0:     # ANGLE: θ_B = θ_P + sign·(s − reference), about the hinge point
+            parent = att_body[row[2]]
+            theta_p = q[3 * parent + 2] if parent >= 0 else 0.0
+            px, pz = _point(q, row[2], att_body, att_ref)
+            _place(q, row[1], theta_p + row[5] * (s[row[4]] - f[0]), px, pz, row[3], att_ref)
+        elif row[0] == 1:   # CYLINDER: the end on B at ρ from the pivot and s from the other end
+            px, pz = _point(q, row[2], att_body, att_ref)
+            ox, oz = _point(q, row[5], att_body, att_ref)
+            ex, ez, ok = _circles(px, pz, f[2], ox, oz, s[row[6]], f[0])
+            if not ok:
+                return q, False
+            _place(q, row[1], math.atan2(ez - pz, ex - px) - f[1], px, pz, row[3], att_ref)
+        else:               # RRR: the joint at ρ1 from B1's pivot and ρ2 from B2's
+            p1x, p1z = _point(q, row[2], att_body, att_ref)
+            p2x, p2z = _point(q, row[6], att_body, att_ref)
+            hx, hz, ok = _circles(p1x, p1z, f[2], p2x, p2z, f[4], f[0])
+            if not ok:
+                return q, False
+            _place(q, row[1], math.atan2(hz - p1z, hx - p1x) - f[1], p1x, p1z, row[3], att_ref)
+            _place(q, row[5], math.atan2(hz - p2z, hx - p2x) - f[3], p2x, p2z, row[7], att_ref)
+    return q, True
+
+
 @njit(cache=True)
 def _max_abs(v: np.ndarray) -> float:
     """Largest |v_i|; NaN if any entry is NaN."""
@@ -427,18 +496,21 @@ def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, jac_out: np.
                     on_branch: np.ndarray, q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray,
                     s: np.ndarray, max_iter: int, att_body: np.ndarray, att_ref: np.ndarray, hinge_att: np.ndarray,
                     cyl_att: np.ndarray, angle_body: np.ndarray, angle_reference: np.ndarray, lc: float,
-                    drive_rows: np.ndarray, fit_rows: np.ndarray, column_scale: np.ndarray, loop_rows: np.ndarray, loop_cols: np.ndarray, loop_ptr: np.ndarray,
+                    drive_rows: np.ndarray, fit_rows: np.ndarray, chain_int: np.ndarray, chain_float: np.ndarray,
+                    column_scale: np.ndarray, loop_rows: np.ndarray, loop_cols: np.ndarray, loop_ptr: np.ndarray,
                     ref_branch: np.ndarray) -> None:
     """Pose i of ``solve_poses``, written into the output arrays."""
-    m = jac_start.shape[1]
+    m, n = jac_start.shape[1], jac_start.shape[2]
     n_in = s.shape[1]
     nc = cyl_att.shape[1]
-    r0 = m - n_in
-    shift = np.zeros(m)
-    for j in range(n_in):
-        ds = s[i, j] - s_start[0, j]
-        shift[r0 + j] = ds if j < nc else lc * ds
-    q0 = q_start[0] + closed_step(jac_start[0], shift, drive_rows, fit_rows, 2 * hinge_att.shape[1])
+    q0, closed = chain_pose(s[i], n, att_body, att_ref, chain_int, chain_float)
+    if not closed:   # no chain, or a step out of reach: the tangent prediction
+        r0 = m - n_in
+        shift = np.zeros(m)
+        for j in range(n_in):
+            ds = s[i, j] - s_start[0, j]
+            shift[r0 + j] = ds if j < nc else lc * ds
+        q0 = q_start[0] + closed_step(jac_start[0], shift, drive_rows, fit_rows, 2 * hinge_att.shape[1])
     q, phi, jac = newton(q0, s[i], max_iter, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc,
                          drive_rows, fit_rows)
     for b in range(q.shape[0] // 3):   # a rotation that Newton took by whole turns: the equivalent nearest the start
@@ -466,7 +538,7 @@ def solve_poses(q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray,
     assembly branch.
 
     ``mechanism``: att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc,
-    drive_rows, fit_rows, column_scale, loop_rows, loop_cols, loop_ptr, ref_branch (``Kinematics.program``). Returns q
+    drive_rows, fit_rows, chain_int, chain_float, column_scale, loop_rows, loop_cols, loop_ptr, ref_branch (``Kinematics.program``). Returns q
     (N, n), Φ (N, m), ∂Φ/∂q (N, m, n), condition (N,), on_branch (N,): False where a loop is in the
     opposite assembly of ``ref_branch`` (a loop at a dead centre, sign 0, counts as on it). Large
     batches run on every core (``allow_threads``).
@@ -886,8 +958,8 @@ def live_series(s, pressure_forces, q_start, jac_start, s_start, limit, max_cond
 def _live_pose_at(i, out, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kinematics, statics,
                   outputs, machine):
     """Pose i of ``live_series``, written into its rows of ``out`` (``_pose_outputs``)."""
-    (att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc, drive_rows, fit_rows, column_scale,
-     loop_rows, loop_cols, loop_ptr, ref_branch) = kinematics
+    (att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc, drive_rows, fit_rows, chain_int,
+     chain_float, column_scale, loop_rows, loop_cols, loop_ptr, ref_branch) = kinematics
     (n_unknowns, spring_stiffness, spring_free_length, spring_preload, hinge_cols, force_measured, cylinder_cols,
      contact_cols, implement_col, implement_weight, per_cap_area, friction, point_rows, cg_att, frame_att,
      frame_hinge_index, frame_hinge_sign, frame_member_index, frame_member_sign) = outputs
@@ -902,7 +974,8 @@ def _live_pose_at(i, out, s, pressure_forces, q_start, jac_start, s_start, limit
     on_branch = np.empty(1, dtype=np.bool_)
     _kinematic_pose(0, q[i:i + 1], phi[i:i + 1], jac[i:i + 1], kin_cond[i:i + 1], on_branch, q_start, jac_start,
                     s_start, s[i:i + 1], 25, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc,
-                    drive_rows, fit_rows, column_scale, loop_rows, loop_cols, loop_ptr, ref_branch)
+                    drive_rows, fit_rows, chain_int, chain_float, column_scale, loop_rows, loop_cols, loop_ptr,
+                    ref_branch)
     if not (on_branch[0] and assembled(phi[i], 2 * hinge_att.shape[1], lc, limit) and kin_cond[i] <= max_condition):
         return
     p1, _ = positions(q[i], att_body, att_ref)

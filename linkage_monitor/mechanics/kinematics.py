@@ -18,7 +18,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components, maximum_bipartite_matching
 
-from . import kernels
+from . import chain, kernels
 from .model import Mechanism
 from .results import Status
 
@@ -89,6 +89,9 @@ class Kinematics:
                                       self.angle_reference])
         phi_ref, jac_ref = self.residual_jacobian(self.q_ref[None], self._s_ref[None])
         self.drive_rows, self.fit_rows = self._driving_system(jac_ref[0])
+        p_ref, _ = self.positions(self.q_ref[None])
+        self.chain_int, self.chain_float, self.chain_steps = chain.decompose(
+            mech, self.body_index, self.hinge_att, self.cyl_att, np.array(self._att_ref).reshape(-1, 2), p_ref[0])
         self._loops = self._loop_blocks(jac_ref[0])
         rows = [r for r, _ in self._loops]
         self._loop_arrays = (np.concatenate(rows or [np.zeros(0, dtype=int)]).astype(np.int64),
@@ -125,11 +128,11 @@ class Kinematics:
     @property
     def program(self) -> tuple:
         """``geometry`` with what ``kernels.solve_poses`` also takes: the driving and fitted rows
-        (``_driving_system``), the column scale, the loops' index arrays and the reference assembly
+        (``_driving_system``), the chain of dyads (``chain.decompose``), the column scale, the loops' index arrays and the reference assembly
         branch (``kernels.live_pose``'s ``kinematics``)."""
         if self._program is None:
-            self._program = (*self.geometry, self.drive_rows, self.fit_rows, self.column_scale, *self._loop_arrays,
-                             self._ref_branch)
+            self._program = (*self.geometry, self.drive_rows, self.fit_rows, self.chain_int, self.chain_float,
+                             self.column_scale, *self._loop_arrays, self._ref_branch)
         return self._program
 
     def _padded(self, q: np.ndarray) -> np.ndarray:

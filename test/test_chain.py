@@ -1,0 +1,71 @@
+"""The closed-form pose of a chain of dyads (mechanics/chain.py, kernels.chain_pose).
+
+Oracles: the loop-closure equations themselves (``kernels.residual_jacobian``: every hinge gap and
+every driving input's row zero at the chain's pose), the assembly branch of the general solver
+(the sign of each loop's block of the constraint Jacobian, ``Kinematics.branch``), and the pose the
+general solver finds by Newton from the reference pose (``Kinematics.newton``, no chain involved).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from linkage_monitor.mechanics import Solver, kernels, load_mechanism, load_preset, preset_names
+from linkage_monitor.mechanics.chain import ANGLE, CYLINDER, RRR
+from test_mechanics_oracles import FIXTURES
+
+MECHANISMS = [load_preset(name) for name in preset_names()] + [load_mechanism(f) for f in sorted(FIXTURES.glob("*.yaml"))]
+KINEMATICS = {m.name: Solver(m).kin for m in MECHANISMS}
+
+
+@pytest.mark.parametrize("name", list(KINEMATICS))
+def test_every_shipped_mechanism_is_a_chain_driven_by_as_many_inputs_as_it_has_degrees_of_freedom(name: str) -> None:
+    kin = KINEMATICS[name]
+    kinds = kin.chain_int[:, 0]
+    placed = [b for row in kin.chain_int for b in ((row[1], row[5]) if row[0] == RRR else (row[1],))]
+    assert sorted(placed) == list(range(kin.n // 3)), kin.chain_steps   # every moving body once
+    _, jac = kin.residual_jacobian(kin.q_ref[None], kin.reference_inputs()[None])
+    hinge_rows = 2 * kin.hinge_att.shape[1]
+    dof = kin.n - np.linalg.matrix_rank(jac[0, :hinge_rows])
+    assert np.count_nonzero((kinds == ANGLE) | (kinds == CYLINDER)) == dof
+
+
+def _inputs(kin, stretch: float, turn: float) -> np.ndarray:
+    """Inputs near the reference pose: lengths × stretch, angles + turn (rad)."""
+    s = kin.reference_inputs().copy()
+    nc = kin.cyl_att.shape[1]
+    s[:nc] *= stretch
+    s[nc:] += turn
+    return s
+
+
+@settings(max_examples=40, deadline=None)
+@given(name=st.sampled_from(list(KINEMATICS)), stretch=st.floats(0.95, 1.05), turn=st.floats(-0.15, 0.15))
+def test_the_chain_pose_closes_every_hinge_and_meets_its_driving_inputs_on_the_reference_branch(
+        name: str, stretch: float, turn: float) -> None:
+    kin = KINEMATICS[name]
+    s = _inputs(kin, stretch, turn)
+    q, ok = kernels.chain_pose(s, kin.n, *kin.geometry[:2], kin.chain_int, kin.chain_float)
+    newton_q, newton_phi, _ = kin.newton(kin.q_ref[None], s[None])   # the general solver, from the reference pose
+    if not ok:   # out of reach: then the general solver cannot close these inputs either
+        assert not np.abs(newton_phi).max() < 1e-9
+        return
+    phi, jac = kin.residual_jacobian(q[None], s[None])
+    driving = [r for r in kin.drive_rows if r >= 2 * kin.hinge_att.shape[1]]
+    assert np.abs(phi[0, :2 * kin.hinge_att.shape[1]]).max() < 1e-12   # m
+    assert np.abs(phi[0, driving]).max(initial=0.0) < 1e-12
+    assert kin.on_branch(jac)[0]
+    if kin.m == kin.n and np.abs(newton_phi).max() < 1e-12 and kin.on_branch(kin.residual_jacobian(newton_q, s[None])[1])[0]:
+        wrapped = newton_q[0].copy()
+        wrapped[2::3] = q[2::3] + np.remainder(wrapped[2::3] - q[2::3] + np.pi, 2 * np.pi) - np.pi
+        np.testing.assert_allclose(q, wrapped, atol=1e-9)
+
+
+def test_a_cylinder_beyond_reach_is_reported_not_placed() -> None:
+    kin = KINEMATICS["belarus_1221"]
+    s = kin.reference_inputs() * np.array([3.0, 1.0])   # the lift cylinder three times its length
+    _, ok = kernels.chain_pose(s, kin.n, *kin.geometry[:2], kin.chain_int, kin.chain_float)
+    assert not ok
