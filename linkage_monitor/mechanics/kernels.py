@@ -515,7 +515,9 @@ def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, jac_out: np.
                          drive_rows, fit_rows)
     for b in range(q.shape[0] // 3):   # a rotation that Newton took by whole turns: the equivalent nearest the start
         q[3 * b + 2] = q_start[0, 3 * b + 2] + _wrap(q[3 * b + 2] - q_start[0, 3 * b + 2])
-    q_out[i], phi_out[i], jac_out[i] = q, phi, jac
+    q_out[i], phi_out[i] = q, phi
+    if i == s.shape[0] - 1:   # the last pose's Jacobian: where the next solve continues (not N of them: memory)
+        jac_out[0] = jac
     cond[i] = condition(jac, column_scale)
     signs = loop_signs(jac, loop_rows, loop_cols, loop_ptr)
     on_branch[i] = True
@@ -526,7 +528,7 @@ def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, jac_out: np.
 
 def _kinematic_outputs(s: np.ndarray, jac_start: np.ndarray) -> tuple[np.ndarray, ...]:
     n_pose, (m, n) = s.shape[0], jac_start.shape[1:]
-    return (np.empty((n_pose, n)), np.empty((n_pose, m)), np.empty((n_pose, m, n)), np.empty(n_pose),
+    return (np.empty((n_pose, n)), np.empty((n_pose, m)), np.empty((1, m, n)), np.empty(n_pose),
             np.empty(n_pose, dtype=np.bool_))
 
 
@@ -538,9 +540,10 @@ def solve_poses(q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray,
     assembly branch.
 
     ``mechanism``: att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc,
-    drive_rows, fit_rows, chain_int, chain_float, column_scale, loop_rows, loop_cols, loop_ptr, ref_branch (``Kinematics.program``). Returns q
-    (N, n), Φ (N, m), ∂Φ/∂q (N, m, n), condition (N,), on_branch (N,): False where a loop is in the
-    opposite assembly of ``ref_branch`` (a loop at a dead centre, sign 0, counts as on it). Large
+    drive_rows, fit_rows, chain_int, chain_float, column_scale, loop_rows, loop_cols, loop_ptr,
+    ref_branch (``Kinematics.program``). Returns q (N, n), Φ (N, m), ∂Φ/∂q at the last pose (1, m, n)
+    (where the next solve continues; N of them would be 1.9 kB per pose for belarus_1221), condition
+    (N,), on_branch (N,): False where a loop is in the opposite assembly of ``ref_branch`` (a loop at a dead centre, sign 0, counts as on it). Large
     batches run on every core (``allow_threads``).
     """
     out = _kinematic_outputs(s, jac_start)
@@ -884,7 +887,8 @@ def steerability_rows(points: np.ndarray, forces: np.ndarray, implement_load: np
 # ---- one live pose, end to end; a series of them -----------------------------------------------
 @njit(cache=True)
 def _pose_outputs(n_pose, n, m, outputs, machine):
-    """The output arrays of ``live_series`` for n_pose poses (see there): the rows of a pose that is not
+    """The output arrays of ``live_series`` for n_pose poses (see there; the Jacobian two slots, not
+    n_pose): the rows of a pose that is not
     plain are left as they are (the general path writes them), the implement cg and the capacities
     NaN until written (no implement; a capacity that is not computed)."""
     (_, spring_stiffness, _, _, hinge_cols, _, _, contact_cols, _, _, per_cap_area, _, point_rows, _, frame_att, _,
@@ -892,7 +896,7 @@ def _pose_outputs(n_pose, n, m, outputs, machine):
     parameters, point_att = machine[0], machine[8]
     n_steer = N_STEERABILITY if parameters.shape[0] > 0 else 0
     n_capacity = point_att.shape[0] + 1 if point_att.shape[0] > 0 else 0
-    return (np.zeros(n_pose, dtype=np.bool_), np.empty((n_pose, n)), np.empty((n_pose, m)), np.empty((n_pose, m, n)),
+    return (np.zeros(n_pose, dtype=np.bool_), np.empty((n_pose, n)), np.empty((n_pose, m)), np.empty((2, m, n)),
             np.empty(n_pose), np.empty((n_pose, point_rows.shape[0], 2)), np.empty((n_pose, hinge_cols.shape[0], 2)),
             np.empty((n_pose, per_cap_area.shape[0], 5)), np.empty((n_pose, contact_cols.shape[0], 2)),
             np.full((n_pose, 2), np.nan), np.empty((n_pose, frame_att.shape[0], 2)),
@@ -912,7 +916,7 @@ def live_pose(s, pressure_forces, q_start, jac_start, s_start, limit, max_condit
     out = _pose_outputs(1, q_start.shape[1], jac_start.shape[1], outputs, machine)
     _live_pose_at(0, out, s, pressure_forces.reshape((1,) + pressure_forces.shape), q_start, jac_start, s_start,
                   limit, max_condition, kinematics, statics, outputs, machine)
-    return (out[0][0], out[1], out[2], out[3], out[4], out[5][0], out[6][0], out[7][0], out[8][0], out[9][0],
+    return (out[0][0], out[1], out[2], out[3][0:1], out[4], out[5][0], out[6][0], out[7][0], out[8][0], out[9][0],
             out[10][0], out[11][0], out[12][0], out[13][0], out[14][0])
 
 
@@ -931,7 +935,8 @@ def live_series(s, pressure_forces, q_start, jac_start, s_start, limit, max_cond
     Each pose, from the per-pose kernels above: loop closure (``_kinematic_pose``), equilibrium with
     the measured cylinder forces (``_statics_pose``), the arrays of a ``Result``, lift capacity
     (``_capacity_pose``) and steerability (``steerability_pose``). Returns (plain (N,), q (N, n), Φ
-    (N, m), ∂Φ/∂q (N, m, n), kinematic condition (N,), point_xz, hinge_force, cylinder_values,
+    (N, m), ∂Φ/∂q (2, m, n) — [0] the last pose's, [1] the last plain pose's (each pose continues from
+    it; not N of them: 1.9 kB per pose for belarus_1221) —, kinematic condition (N,), point_xz, hinge_force, cylinder_values,
     contact_values (N, rows, fields), implement_cg (N, 2), frame_load_points, frame_load_forces (N, F,
     2), [implement_load, residual, consistency residual, condition] (N, 4), steerability rows,
     capacity rows) in ``Result``'s and ``MachineResult``'s layouts. ``plain[i]`` is False when pose i
@@ -947,10 +952,11 @@ def live_series(s, pressure_forces, q_start, jac_start, s_start, limit, max_cond
             _live_pose_at(i, out, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kinematics,
                           statics, outputs, machine)
         else:
-            _live_pose_at(i, out, s, pressure_forces, out[1][last:last + 1], out[3][last:last + 1],
+            _live_pose_at(i, out, s, pressure_forces, out[1][last:last + 1], out[3][1:2],
                           s[last:last + 1], limit, max_condition, kinematics, statics, outputs, machine)
         if out[0][i]:
             last = i
+            out[3][1] = out[3][0]
     return out
 
 
@@ -972,7 +978,7 @@ def _live_pose_at(i, out, s, pressure_forces, q_start, jac_start, s_start, limit
     n_springs, n_cylinders = spring_stiffness.shape[0], per_cap_area.shape[0]
     n_members = n_springs + n_cylinders
     on_branch = np.empty(1, dtype=np.bool_)
-    _kinematic_pose(0, q[i:i + 1], phi[i:i + 1], jac[i:i + 1], kin_cond[i:i + 1], on_branch, q_start, jac_start,
+    _kinematic_pose(0, q[i:i + 1], phi[i:i + 1], jac[0:1], kin_cond[i:i + 1], on_branch, q_start, jac_start,
                     s_start, s[i:i + 1], 25, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc,
                     drive_rows, fit_rows, chain_int, chain_float, column_scale, loop_rows, loop_cols, loop_ptr,
                     ref_branch)

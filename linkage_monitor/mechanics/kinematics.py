@@ -26,8 +26,9 @@ from .results import Status
 
 @dataclass
 class KinematicState:
-    """Solved poses for inputs s (N, n_inputs): q (N, n), constraint residual phi (N, m) m and
-    Jacobian jac (N, m, n) at q, status (N,), messages, condition (N,)."""
+    """Solved poses for inputs s (N, n_inputs): q (N, n), constraint residual phi (N, m) m,
+    the Jacobian at the last pose jac (1, m, n) (where a solve continues from these), status (N,),
+    messages, condition (N,)."""
 
     s: np.ndarray
     q: np.ndarray
@@ -268,7 +269,9 @@ class Kinematics:
                 qr, _, _ = self.newton(qr, s_ref + t * (s[retry] - s_ref), max_iter=12)
             qr, phir, jacr = self.newton(qr, s[retry])
             qr[:, 2::3] = wrap_angle(qr[:, 2::3])   # whole turns: the rotation nearest the reference pose's (0)
-            q[retry], phi[retry], jac[retry] = qr, phir, jacr
+            q[retry], phi[retry] = qr, phir
+            if retry[-1] == n_pose - 1:
+                jac = jacr[-1:]
             cond[retry] = [kernels.condition(j, self.column_scale) for j in jacr]
             closed = self.assembled(phir, limit)
             still = retry[~closed]
@@ -304,7 +307,8 @@ class Kinematics:
 
     def continue_from(self, start: KinematicState, s: np.ndarray) -> tuple[np.ndarray, ...]:
         """``kernels.solve_poses`` from the last pose of ``start`` for inputs s (N, n_inputs): q, Φ,
-        ∂Φ/∂q, condition number and whether each pose is on the reference assembly branch."""
+        ∂Φ/∂q at the last pose (1, m, n), condition number and whether each pose is on the reference
+        assembly branch."""
         return kernels.solve_poses(start.q[-1:], start.jac[-1:], start.s[-1:], np.ascontiguousarray(s, dtype=float),
                                    25, *self.program)
 
