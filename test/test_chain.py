@@ -17,7 +17,8 @@ from linkage_monitor.mechanics import Solver, kernels, load_mechanism, load_pres
 from linkage_monitor.mechanics.chain import ANGLE, CYLINDER, RRR
 from test_mechanics_oracles import FIXTURES
 
-MECHANISMS = [load_preset(name) for name in preset_names()] + [load_mechanism(f) for f in sorted(FIXTURES.glob("*.yaml"))]
+MECHANISMS = ([load_preset(name) for name in preset_names()]
+              + [load_mechanism(f) for f in sorted(FIXTURES.glob("*.yaml"))])
 KINEMATICS = {m.name: Solver(m).kin for m in MECHANISMS}
 
 
@@ -58,7 +59,8 @@ def test_the_chain_pose_closes_every_hinge_and_meets_its_driving_inputs_on_the_r
     assert np.abs(phi[0, :2 * kin.hinge_att.shape[1]]).max() < 1e-12   # m
     assert np.abs(phi[0, driving]).max(initial=0.0) < 1e-12
     assert kin.on_branch(jac)[0]
-    if kin.m == kin.n and np.abs(newton_phi).max() < 1e-12 and kin.on_branch(kin.residual_jacobian(newton_q, s[None])[1])[0]:
+    newton_on_branch = kin.on_branch(kin.residual_jacobian(newton_q, s[None])[1])[0]
+    if kin.m == kin.n and np.abs(newton_phi).max() < 1e-12 and newton_on_branch:
         wrapped = newton_q[0].copy()
         wrapped[2::3] = q[2::3] + np.remainder(wrapped[2::3] - q[2::3] + np.pi, 2 * np.pi) - np.pi
         np.testing.assert_allclose(q, wrapped, atol=1e-9)

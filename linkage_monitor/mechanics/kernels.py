@@ -543,8 +543,8 @@ def solve_poses(q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray,
     drive_rows, fit_rows, chain_int, chain_float, column_scale, loop_rows, loop_cols, loop_ptr,
     ref_branch (``Kinematics.program``). Returns q (N, n), Φ (N, m), ∂Φ/∂q at the last pose (1, m, n)
     (where the next solve continues; N of them would be 1.9 kB per pose for belarus_1221), condition
-    (N,), on_branch (N,): False where a loop is in the opposite assembly of ``ref_branch`` (a loop at a dead centre, sign 0, counts as on it). Large
-    batches run on every core (``allow_threads``).
+    (N,), on_branch (N,): False where a loop is in the opposite assembly of ``ref_branch`` (a loop
+    at a dead centre, sign 0, counts as on it). Large batches run on every core (``allow_threads``).
     """
     out = _kinematic_outputs(s, jac_start)
     driver: Any = _kinematics_parallel if _parallel(s.shape[0]) else _kinematics_serial
@@ -936,8 +936,8 @@ def live_series(s, pressure_forces, q_start, jac_start, s_start, limit, max_cond
     the measured cylinder forces (``_statics_pose``), the arrays of a ``Result``, lift capacity
     (``_capacity_pose``) and steerability (``steerability_pose``). Returns (plain (N,), q (N, n), Φ
     (N, m), ∂Φ/∂q (2, m, n) — [0] the last pose's, [1] the last plain pose's (each pose continues from
-    it; not N of them: 1.9 kB per pose for belarus_1221) —, kinematic condition (N,), point_xz, hinge_force, cylinder_values,
-    contact_values (N, rows, fields), implement_cg (N, 2), frame_load_points, frame_load_forces (N, F,
+    it; not N of them: 1.9 kB per pose for belarus_1221) —, kinematic condition (N,), point_xz,
+    hinge_force, cylinder_values, contact_values (N, rows, fields), implement_cg (N, 2), frame_load_points, frame_load_forces (N, F,
     2), [implement_load, residual, consistency residual, condition] (N, 4), steerability rows,
     capacity rows) in ``Result``'s and ``MachineResult``'s layouts. ``plain[i]`` is False when pose i
     is not the usual one — off the reference branch, not assembled to ``limit``, at a dead centre, a

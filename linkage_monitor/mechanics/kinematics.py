@@ -129,8 +129,8 @@ class Kinematics:
     @property
     def program(self) -> tuple:
         """``geometry`` with what ``kernels.solve_poses`` also takes: the driving and fitted rows
-        (``_driving_system``), the chain of dyads (``chain.decompose``), the column scale, the loops' index arrays and the reference assembly
-        branch (``kernels.live_pose``'s ``kinematics``)."""
+        (``_driving_system``), the chain of dyads (``chain.decompose``), the column scale, the loops'
+        index arrays and the reference assembly branch (``kernels.live_pose``'s ``kinematics``)."""
         if self._program is None:
             self._program = (*self.geometry, self.drive_rows, self.fit_rows, self.chain_int, self.chain_float,
                              self.column_scale, *self._loop_arrays, self._ref_branch)
