@@ -22,7 +22,6 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "bench"))
 
 
 def _nbytes(value: object) -> int:
@@ -40,8 +39,8 @@ def _nbytes(value: object) -> int:
 
 def measure(call: str, n: int) -> None:
     """One call on n poses in this process: prints 'peak_bytes result_bytes'."""
-    from bench_solver import stroke_only
     from linkage_monitor.mechanics import Solver, load_preset
+    from linkage_monitor.mechanics.capacity import stroke_mechanism
     from linkage_monitor.mechanics.machine import MachineModel
     from linkage_monitor.mechanics.results import angle_readings
 
@@ -51,7 +50,7 @@ def measure(call: str, n: int) -> None:
     stroke0 = solver.kin.reference_inputs()[0]
     stroke = stroke0 * (1.0 + 0.02 * np.sin(np.linspace(0.0, 60.0, n)))
     grid = np.linspace(stroke.min(), stroke.max(), 2000)
-    closed = Solver(stroke_only(mech)).solve_batch(cylinders={"lift_cylinder": grid})
+    closed = Solver(stroke_mechanism(mech)).solve_batch(cylinders={"lift_cylinder": grid})
     angle = (np.interp(stroke, grid, angle_readings(mech, closed)["lift_arm_angle"])
              + np.random.default_rng(0).normal(0.0, 0.002, n))
     pressure = np.full(n, 9e6)

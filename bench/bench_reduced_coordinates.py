@@ -178,51 +178,6 @@ def fusion_difference(bag: Path) -> None:
               f"hinge's force, the hitch point P56 by up to {hitch:.2g} mm ({int(ok.sum())} poses)")
 
 
-def dyad_decomposition(mech) -> tuple[list[str], list[str], list[str]]:
-    """How far a chain of dyads places ``mech``'s bodies from its measured inputs (the reach of a
-    reduced-coordinate solver): (steps in order, redundant sensors, bodies left unplaced).
-
-    Rules, applied until none does: a body hinged to a placed body turned by an angle sensor on that
-    hinge, or by a measured cylinder from a placed body (law of cosines); two bodies hinged to each
-    other and each to a placed body (circle intersection, RRR). A sensor whose bodies are all placed
-    before it is used is redundant (fitted, not driving)."""
-    placed = {b.name for b in mech.bodies if b.ground}
-    hinges = [(h.name, *h.bodies) for h in mech.hinges]
-    drivers = ([(f"angle {a.name}", a.hinge, next(h for h in mech.hinges if h.name == a.hinge).bodies)
-                for a in mech.measurements.angles]   # (label, the sensor's hinge, its two bodies)
-               + [(f"cylinder {c.name}", None, (c.base.body, c.rod_end.body))
-                  for c in mech.cylinders if c.name in mech.measurements.cylinders])
-    unused: list[tuple[str, str | None, tuple[str, str]]] = list(drivers)
-    steps: list[str] = []
-
-    def pivot(body: str) -> str | None:   # a hinge of ``body`` to a placed body
-        return next((h for h, a, b in hinges if {a, b} - {body} <= placed and body in (a, b) and a != b), None)
-
-    progress = True
-    while progress:
-        progress = False
-        for driver in list(unused):
-            name, sensor_hinge, (a, b) = driver
-            body = b if a in placed and b not in placed else a if b in placed and a not in placed else None
-            hinge = sensor_hinge or (pivot(body) if body is not None else None)   # an angle turns its own hinge
-            if body is not None and hinge is not None:
-                placed.add(body)
-                unused.remove(driver)
-                steps.append(f"{body} about {hinge} by {name}")
-                progress = True
-        for h, x, y in hinges:
-            if x in placed or y in placed:
-                continue
-            px, py = pivot(x), pivot(y)
-            if px is not None and py is not None:
-                placed |= {x, y}
-                steps.append(f"RRR({x}, {y}) at {h}")
-                progress = True
-    left = [b.name for b in mech.bodies if b.name not in placed]
-    redundant = [name for name, *_ in unused] if not left else []
-    return steps, redundant, left
-
-
 def main() -> int:
     mech = stroke_only(load_preset("belarus_1221"))
     solver = Solver(mech)
@@ -281,10 +236,11 @@ def main() -> int:
     fixtures = Path(__file__).resolve().parents[1] / "test" / "fixtures"
     for mechanism in [load_preset(name) for name in preset_names()] + [load_mechanism(f) for f in
                                                                        sorted(fixtures.glob("*.yaml"))]:
-        steps, redundant, left = dyad_decomposition(mechanism)
-        print(f"  {mechanism.name:<20} {'; '.join(steps)}" + (f"; redundant: {', '.join(redundant)}" if redundant else "")
-              + (f"; NOT PLACED: {', '.join(left)}" if left else ""))
-    print("what a dyad chain would have to decide (redundant sensors), on the bundled bag:")
+        kin = Solver(mechanism).kin   # the package's own decomposition (mechanics/chain.py)
+        redundant = [kin.row_names[r] for r in kin.fit_rows]
+        print(f"  {mechanism.name:<20} {'; '.join(kin.chain_steps) or 'NOT A CHAIN'}"
+              + (f"; redundant: {', '.join(redundant)}" if redundant else ""))
+    print("redundant sensors on the bundled bag (the package's fit against a dyad chain's):")
     fusion_difference(Path(__file__).resolve().parents[1] / "bags" / "belarus_1221_lift_transport")
     return 0
 

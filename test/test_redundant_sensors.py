@@ -19,7 +19,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from linkage_monitor.mechanics import Solver, kernels, load_preset, mechanism_from_dict
+from linkage_monitor.mechanics import Solver, kernels, load_preset
+from linkage_monitor.mechanics.capacity import stroke_mechanism
 from linkage_monitor.cli.simulate import NOISE_ANGLE, NOISE_LENGTH, NOISE_PRESSURE
 from linkage_monitor.mechanics.results import Status, angle_readings
 from linkage_monitor.monitoring.config import MonitorConfig
@@ -50,15 +51,8 @@ def test_closed_step_is_the_constrained_least_squares_of_numpys_kkt_system(n: in
     np.testing.assert_allclose(c @ x, d, atol=1e-10)
 
 
-def _stroke_only(mech):
-    raw = dict(mech.raw)
-    raw["measurements"] = {**raw["measurements"], "angles": []}
-    raw["reference_inputs"] = {k: v for k, v in (raw.get("reference_inputs") or {}).items() if k != "angles"}
-    return mechanism_from_dict(raw, file=mech.file)
-
-
 MECH = load_preset("belarus_1221")
-FUSED, CLOSED = Solver(MECH, consistency_tol=20e-3), Solver(_stroke_only(MECH))
+FUSED, CLOSED = Solver(MECH, consistency_tol=20e-3), Solver(stroke_mechanism(MECH))
 STROKE_REF, ANGLE_REF = FUSED.kin.reference_inputs()
 
 
