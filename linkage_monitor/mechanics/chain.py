@@ -22,7 +22,8 @@ from the body origin in the reference pose):
   pivot and ρ2 from B2's.
 
 A mechanism that does not decompose this way (a class-III group, an unmeasured degree of freedom)
-has an empty chain and Newton starts from the tangent prediction, as before.
+has an empty chain (``chain_pose`` then places nothing and says so) and Newton starts from the
+tangent prediction, as before (test fixture: triad.yaml).
 """
 
 from __future__ import annotations

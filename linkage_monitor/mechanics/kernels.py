@@ -384,8 +384,11 @@ def _place(q: np.ndarray, body: int, theta: float, px: float, pz: float, a_body:
 def chain_pose(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray, chain_int: np.ndarray,
                chain_float: np.ndarray) -> tuple[np.ndarray, bool]:
     """The pose q (n,) of a chain of dyads (``chain.decompose``) for inputs s (cylinder lengths m,
-    angles rad), each circle intersection on its reference side; False when a step is out of reach."""
+    angles rad), each circle intersection on its reference side; False when a step is out of reach
+    or there is no chain (a mechanism that does not decompose: nothing placed)."""
     q = np.zeros(n)
+    if chain_int.shape[0] == 0:
+        return q, n == 0
     for k in range(chain_int.shape[0]):
         row, f = chain_int[k], chain_float[k]
         if row[0] == 0:     # ANGLE: θ_B = θ_P + sign·(s − reference), about the hinge point
