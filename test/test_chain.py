@@ -83,3 +83,31 @@ def test_a_class_three_group_has_no_chain_and_places_nothing() -> None:
     assert kin.chain_int.shape[0] == 0 and kin.chain_steps == []
     _, ok = kernels.chain_pose(kin.reference_inputs(), kin.n, *kin.geometry[:2], kin.chain_int, kin.chain_float)
     assert not ok
+
+
+REDUNDANT = [name for name in CHAINS if KINEMATICS[name].m > KINEMATICS[name].n]
+
+
+@settings(max_examples=40, deadline=None)
+@given(name=st.sampled_from(REDUNDANT), stretch=st.floats(0.95, 1.05), misread=st.floats(-0.03, 0.03))
+def test_the_fit_along_the_chain_finds_the_closed_pose_newton_finds_over_all_coordinates(
+        name: str, stretch: float, misread: float) -> None:
+    """Redundant sensors that disagree (angles off by ``misread`` rad): ``kernels.chain_fit`` (Gauss-
+    Newton over the chain's driving inputs, derivatives by differences) and ``Kinematics.newton``
+    (Gauss-Newton over every coordinate, hinges held by ``closed_step``) reach the same pose."""
+    kin = KINEMATICS[name]
+    s = _inputs(kin, stretch, 0.0)
+    q_chain, ok = kernels.chain_pose(s, kin.n, *kin.geometry[:2], kin.chain_int, kin.chain_float)
+    assert ok
+    nc = kin.cyl_att.shape[1]
+    angle_rows = kin.residual_jacobian(q_chain[None], s[None])[0][0, 2 * kin.hinge_att.shape[1] + nc:]
+    readings = s.copy()
+    readings[nc:] = s[nc:] + angle_rows / kin.lc + misread   # the angles the strokes' pose shows, misread
+    (att_body, att_ref, _, cyl_att, angle_body, angle_reference, lc) = kin.geometry
+    q, closed, converged = kernels.chain_fit(readings, kin.n, att_body, att_ref, cyl_att, angle_body, angle_reference,
+                                             lc, kin.chain_int, kin.chain_float, 25)
+    assert closed and converged
+    newton_q, _, _ = kin.newton(q_chain[None], readings[None])
+    phi, _ = kin.residual_jacobian(q[None], readings[None])
+    assert np.abs(phi[0, :2 * kin.hinge_att.shape[1]]).max() < 1e-12   # m: every hinge closed
+    np.testing.assert_allclose(q, newton_q[0], atol=1e-10)

@@ -303,6 +303,21 @@ def _add_length_row(jac: np.ndarray, row: int, att: int, sign: float, ux: float,
 
 
 @njit(cache=True)
+def _input_residuals(q: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray, cyl_att: np.ndarray,
+                     angle_body: np.ndarray, angle_reference: np.ndarray, lc: float, out: np.ndarray) -> None:
+    """The input rows of Φ (``residual_jacobian``'s, m) at pose q into out (n_inputs,): cylinder k
+    |P(rod end) − P(base)| − s_k, angle k lc·wrap(θ(bodies[1]) − θ(bodies[0]) + reference − s)."""
+    nc = cyl_att.shape[1]
+    for k in range(nc):
+        bx, bz = _point(q, cyl_att[0, k], att_body, att_ref)
+        rx, rz = _point(q, cyl_att[1, k], att_body, att_ref)
+        out[k] = math.sqrt((rx - bx) * (rx - bx) + (rz - bz) * (rz - bz)) - s[k]
+    for k in range(angle_body.shape[1]):
+        out[nc + k] = lc * _wrap(_theta(q, angle_body[1, k]) - _theta(q, angle_body[0, k]) + angle_reference[k]
+                                 - s[nc + k])
+
+
+@njit(cache=True)
 def residual_jacobian(q: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray,
                       hinge_att: np.ndarray, cyl_att: np.ndarray, angle_body: np.ndarray,
                       angle_reference: np.ndarray, lc: float) -> tuple[np.ndarray, np.ndarray]:
@@ -323,18 +338,17 @@ def residual_jacobian(q: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_re
         phi[2 * h + 1] = p[a, 1] - p[b, 1]
         _add_point_rows(jac, 2 * h, a, 1.0, att_body, rel)
         _add_point_rows(jac, 2 * h, b, -1.0, att_body, rel)
+    _input_residuals(q, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc, phi[2 * nh:])
     for k in range(nc):
         base, rod = cyl_att[0, k], cyl_att[1, k]
         dx, dz = p[rod, 0] - p[base, 0], p[rod, 1] - p[base, 1]
         length = math.sqrt(dx * dx + dz * dz)
         r = 2 * nh + k
-        phi[r] = length - s[k]
         _add_length_row(jac, r, rod, 1.0, dx / length, dz / length, att_body, rel)
         _add_length_row(jac, r, base, -1.0, dx / length, dz / length, att_body, rel)
     for k in range(na):
         b0, b1 = angle_body[0, k], angle_body[1, k]
         r = 2 * nh + nc + k
-        phi[r] = lc * _wrap(_theta(q, b1) - _theta(q, b0) + angle_reference[k] - s[nc + k])
         if b1 >= 0:
             jac[r, 3 * b1 + 2] += lc
         if b0 >= 0:
@@ -412,6 +426,71 @@ def chain_pose(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray,
             _place(q, row[1], math.atan2(hz - p1z, hx - p1x) - f[1], p1x, p1z, row[3], att_ref)
             _place(q, row[5], math.atan2(hz - p2z, hx - p2x) - f[3], p2x, p2z, row[7], att_ref)
     return q, True
+
+
+@njit(cache=True)
+def chain_fit(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray, cyl_att: np.ndarray,
+              angle_body: np.ndarray, angle_reference: np.ndarray, lc: float, chain_int: np.ndarray,
+              chain_float: np.ndarray, max_iter: int) -> tuple[np.ndarray, bool, bool]:
+    """Redundant sensors in the chain's own coordinates: the closed pose whose inputs are nearest the
+    readings s — the least squares ``closed_step``'s Gauss-Newton solves over all coordinates (every
+    input row of Φ squared, angle rows × lc) — found over the chain's driving inputs σ alone: the
+    chain's pose at σ (``chain_pose``) closes every hinge, so Σ Φ_input(σ)² is minimised by
+    Gauss-Newton on σ, its derivative by central differences (h = 1e-6·lc for a length, 1e-6 rad
+    for an angle). Stops when a step is ≤ 1e-13·lc (``newton``'s tolerance).
+
+    Returns (q, closed: every chain step within reach, converged). Not converged (a step out of
+    reach on the way, no convergence in ``max_iter``): Newton in all coordinates takes over from q.
+    """
+    n_in = s.shape[0]
+    nc = cyl_att.shape[1]
+    drivers = np.empty(chain_int.shape[0], dtype=np.int64)   # the input column of each ANGLE / CYLINDER step
+    d = 0
+    for k in range(chain_int.shape[0]):
+        if chain_int[k, 0] == 0:
+            drivers[d] = chain_int[k, 4]
+            d += 1
+        elif chain_int[k, 0] == 1:
+            drivers[d] = chain_int[k, 6]
+            d += 1
+    sigma = s.copy()
+    r, r_plus, r_minus = np.empty(n_in), np.empty(n_in), np.empty(n_in)
+    slope = np.empty((n_in, d))
+    tol = 1e-13 * lc
+    q, closed = chain_pose(sigma, n, att_body, att_ref, chain_int, chain_float)
+    for _ in range(max_iter):
+        if not closed:
+            return q, False, False
+        _input_residuals(q, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc, r)
+        for j in range(d):
+            c = drivers[j]
+            h = 1e-6 * lc if c < nc else 1e-6
+            at = sigma[c]
+            sigma[c] = at + h
+            q_plus, ok_plus = chain_pose(sigma, n, att_body, att_ref, chain_int, chain_float)
+            sigma[c] = at - h
+            q_minus, ok_minus = chain_pose(sigma, n, att_body, att_ref, chain_int, chain_float)
+            sigma[c] = at
+            if not (ok_plus and ok_minus):
+                return q, True, False
+            _input_residuals(q_plus, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc, r_plus)
+            _input_residuals(q_minus, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc, r_minus)
+            for i in range(n_in):
+                slope[i, j] = (r_plus[i] - r_minus[i]) / (2.0 * h)
+        step = solve_linear(slope, -r)   # Gauss-Newton: the normal equations (slope has n_in ≥ d rows)
+        size = 0.0
+        for j in range(d):
+            v = abs(step[j]) * (1.0 if drivers[j] < nc else lc)
+            if not v <= size:
+                size = v
+        if not math.isfinite(size):
+            return q, True, False
+        for j in range(d):
+            sigma[drivers[j]] += step[j]
+        q, closed = chain_pose(sigma, n, att_body, att_ref, chain_int, chain_float)
+        if size <= tol:
+            return q, closed, closed
+    return q, closed, False
 
 
 @njit(cache=True)
@@ -506,7 +585,12 @@ def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, jac_out: np.
     m, n = jac_start.shape[1], jac_start.shape[2]
     n_in = s.shape[1]
     nc = cyl_att.shape[1]
-    q0, closed = chain_pose(s[i], n, att_body, att_ref, chain_int, chain_float)
+    converged = False
+    if m > n:   # redundant sensors: fitted along the chain's closed poses
+        q0, closed, converged = chain_fit(s[i], n, att_body, att_ref, cyl_att, angle_body, angle_reference, lc,
+                                          chain_int, chain_float, max_iter)
+    else:
+        q0, closed = chain_pose(s[i], n, att_body, att_ref, chain_int, chain_float)
     if not closed:   # no chain, or a step out of reach: the tangent prediction
         r0 = m - n_in
         shift = np.zeros(m)
@@ -514,8 +598,12 @@ def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, jac_out: np.
             ds = s[i, j] - s_start[0, j]
             shift[r0 + j] = ds if j < nc else lc * ds
         q0 = q_start[0] + closed_step(jac_start[0], shift, drive_rows, fit_rows, 2 * hinge_att.shape[1])
-    q, phi, jac = newton(q0, s[i], max_iter, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc,
-                         drive_rows, fit_rows)
+    if converged:
+        q = q0
+        phi, jac = residual_jacobian(q, s[i], att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc)
+    else:
+        q, phi, jac = newton(q0, s[i], max_iter, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference,
+                             lc, drive_rows, fit_rows)
     for b in range(q.shape[0] // 3):   # a rotation that Newton took by whole turns: the equivalent nearest the start
         q[3 * b + 2] = q_start[0, 3 * b + 2] + _wrap(q[3 * b + 2] - q_start[0, 3 * b + 2])
     q_out[i], phi_out[i] = q, phi
