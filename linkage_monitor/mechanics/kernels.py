@@ -864,11 +864,12 @@ def _capacity_points(i, out, q, att_body, att_ref, hinge_att, cyl_att, lift, for
     nh, nc = hinge_att.shape[1], cyl_att.shape[1]
     _, jac = residual_jacobian(q[i], np.zeros(nc), att_body, att_ref, hinge_att, cyl_att,
                                np.zeros((2, 0), dtype=np.int64), np.zeros(0), 1.0)
-    if not condition(jac, column_scale) <= max_condition:
+    lu, piv, cond = factor_and_condition(jac * column_scale)   # square: ``condition``'s, and its LU for δq
+    if not cond <= max_condition:
         return
     e = np.zeros(n)
     e[2 * nh + lift] = 1.0
-    dq = solve_linear(jac, e)
+    dq = lu_solve(lu, piv, e) * column_scale   # (J·diag(scale))·(δq / scale) = e
     p, rel = positions(q[i], att_body, att_ref)
     work = force
     for k in range(weight_att.shape[0]):
