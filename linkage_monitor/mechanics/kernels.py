@@ -403,6 +403,13 @@ def chain_pose(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray,
     q = np.zeros(n)
     if chain_int.shape[0] == 0:
         return q, n == 0
+    return q, _place_chain(q, s, att_body, att_ref, chain_int, chain_float)
+
+
+@njit(cache=True)
+def _place_chain(q: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray, chain_int: np.ndarray,
+                 chain_float: np.ndarray) -> bool:
+    """``chain_pose`` into q (every body the chain places is written); False when a step is out of reach."""
     for k in range(chain_int.shape[0]):
         row, f = chain_int[k], chain_float[k]
         if row[0] == 0:     # ANGLE: θ_B = θ_P + sign·(s − reference), about the hinge point
@@ -415,17 +422,17 @@ def chain_pose(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray,
             ox, oz = _point(q, row[5], att_body, att_ref)
             ex, ez, ok = _circles(px, pz, f[2], ox, oz, s[row[6]], f[0])
             if not ok:
-                return q, False
+                return False
             _place(q, row[1], math.atan2(ez - pz, ex - px) - f[1], px, pz, row[3], att_ref)
         else:               # RRR: the joint at ρ1 from B1's pivot and ρ2 from B2's
             p1x, p1z = _point(q, row[2], att_body, att_ref)
             p2x, p2z = _point(q, row[6], att_body, att_ref)
             hx, hz, ok = _circles(p1x, p1z, f[2], p2x, p2z, f[4], f[0])
             if not ok:
-                return q, False
+                return False
             _place(q, row[1], math.atan2(hz - p1z, hx - p1x) - f[1], p1x, p1z, row[3], att_ref)
             _place(q, row[5], math.atan2(hz - p2z, hx - p2x) - f[3], p2x, p2z, row[7], att_ref)
-    return q, True
+    return True
 
 
 @njit(cache=True)
@@ -437,7 +444,8 @@ def chain_fit(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray, 
     input row of Φ squared, angle rows × lc) — found over the chain's driving inputs σ alone: the
     chain's pose at σ (``chain_pose``) closes every hinge, so Σ Φ_input(σ)² is minimised by
     Gauss-Newton on σ, its derivative by central differences (h = 1e-6·lc for a length, 1e-6 rad
-    for an angle). Stops when a step is ≤ 1e-13·lc (``newton``'s tolerance).
+    for an angle). Stops when every input row is ≤ 1e-13·lc (the readings agree) or a step is
+    (``newton``'s tolerance).
 
     Returns (q, closed: every chain step within reach, converged). Not converged (a step out of
     reach on the way, no convergence in ``max_iter``): Newton in all coordinates takes over from q.
@@ -453,23 +461,29 @@ def chain_fit(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray, 
         elif chain_int[k, 0] == 1:
             drivers[d] = chain_int[k, 6]
             d += 1
+    q, q_plus, q_minus = np.zeros(n), np.zeros(n), np.zeros(n)
+    if d == 0:
+        return q, n == 0, False
     sigma = s.copy()
     r, r_plus, r_minus = np.empty(n_in), np.empty(n_in), np.empty(n_in)
     slope = np.empty((n_in, d))
+    normal = np.empty((d, d + 1))   # [slopeᵀ·slope | −slopeᵀ·r]
     tol = 1e-13 * lc
-    q, closed = chain_pose(sigma, n, att_body, att_ref, chain_int, chain_float)
+    closed = _place_chain(q, sigma, att_body, att_ref, chain_int, chain_float)
     for _ in range(max_iter):
         if not closed:
             return q, False, False
         _input_residuals(q, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc, r)
+        if _max_abs(r) <= tol:   # the readings agree (``newton``'s first test)
+            return q, True, True
         for j in range(d):
             c = drivers[j]
             h = 1e-6 * lc if c < nc else 1e-6
             at = sigma[c]
             sigma[c] = at + h
-            q_plus, ok_plus = chain_pose(sigma, n, att_body, att_ref, chain_int, chain_float)
+            ok_plus = _place_chain(q_plus, sigma, att_body, att_ref, chain_int, chain_float)
             sigma[c] = at - h
-            q_minus, ok_minus = chain_pose(sigma, n, att_body, att_ref, chain_int, chain_float)
+            ok_minus = _place_chain(q_minus, sigma, att_body, att_ref, chain_int, chain_float)
             sigma[c] = at
             if not (ok_plus and ok_minus):
                 return q, True, False
@@ -477,20 +491,50 @@ def chain_fit(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray, 
             _input_residuals(q_minus, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc, r_minus)
             for i in range(n_in):
                 slope[i, j] = (r_plus[i] - r_minus[i]) / (2.0 * h)
-        step = solve_linear(slope, -r)   # Gauss-Newton: the normal equations (slope has n_in ≥ d rows)
+        for j in range(d):   # Gauss-Newton: the normal equations
+            acc = 0.0
+            for i in range(n_in):
+                acc -= slope[i, j] * r[i]
+            normal[j, d] = acc
+            for k in range(d):
+                acc = 0.0
+                for i in range(n_in):
+                    acc += slope[i, j] * slope[i, k]
+                normal[j, k] = acc
+        if not _solve_normal(normal):
+            return q, True, False
         size = 0.0
         for j in range(d):
-            v = abs(step[j]) * (1.0 if drivers[j] < nc else lc)
+            v = abs(normal[j, d]) * (1.0 if drivers[j] < nc else lc)
             if not v <= size:
                 size = v
         if not math.isfinite(size):
             return q, True, False
         for j in range(d):
-            sigma[drivers[j]] += step[j]
-        q, closed = chain_pose(sigma, n, att_body, att_ref, chain_int, chain_float)
+            sigma[drivers[j]] += normal[j, d]
+        closed = _place_chain(q, sigma, att_body, att_ref, chain_int, chain_float)
         if size <= tol:
             return q, closed, closed
     return q, closed, False
+
+
+@njit(cache=True)
+def _solve_normal(a: np.ndarray) -> bool:
+    """Gauss-Jordan in place on a (d, d + 1) = [A | b], A symmetric positive definite (normal
+    equations: no pivoting needed): the solution into the last column; False when A is singular."""
+    d = a.shape[0]
+    for j in range(d):
+        pivot = a[j, j]
+        if not pivot > 0.0:
+            return False
+        for c in range(j, d + 1):
+            a[j, c] /= pivot
+        for i in range(d):
+            if i != j:
+                f = a[i, j]
+                for c in range(j, d + 1):
+                    a[i, c] -= f * a[j, c]
+    return True
 
 
 @njit(cache=True)
