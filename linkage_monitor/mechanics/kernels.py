@@ -444,8 +444,8 @@ def chain_fit(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray, 
     input row of Φ squared, angle rows × lc) — found over the chain's driving inputs σ alone: the
     chain's pose at σ (``chain_pose``) closes every hinge, so Σ Φ_input(σ)² is minimised by
     Gauss-Newton on σ, its derivative by central differences (h = 1e-6·lc for a length, 1e-6 rad
-    for an angle). Stops when every input row is ≤ 1e-13·lc (the readings agree) or a step is
-    (``newton``'s tolerance).
+    for an angle). Stops when every input row is ≤ 1e-13·lc (the readings agree) or a step is no
+    larger (``newton``'s two tests).
 
     Returns (q, closed: every chain step within reach, converged). Not converged (a step out of
     reach on the way, no convergence in ``max_iter``): Newton in all coordinates takes over from q.
@@ -461,21 +461,20 @@ def chain_fit(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray, 
         elif chain_int[k, 0] == 1:
             drivers[d] = chain_int[k, 6]
             d += 1
-    q, q_plus, q_minus = np.zeros(n), np.zeros(n), np.zeros(n)
-    if d == 0:
-        return q, n == 0, False
+    q = np.zeros(n)
+    if d == 0 or not _place_chain(q, s, att_body, att_ref, chain_int, chain_float):
+        return q, False, False
+    tol = 1e-13 * lc
+    r = np.empty(n_in)
+    _input_residuals(q, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc, r)
+    if _max_abs(r) <= tol:   # the readings agree (``newton``'s first test): the chain's pose
+        return q, True, True
     sigma = s.copy()
-    r, r_plus, r_minus = np.empty(n_in), np.empty(n_in), np.empty(n_in)
+    q_plus, q_minus = np.zeros(n), np.zeros(n)
+    r_plus, r_minus = np.empty(n_in), np.empty(n_in)
     slope = np.empty((n_in, d))
     normal = np.empty((d, d + 1))   # [slopeᵀ·slope | −slopeᵀ·r]
-    tol = 1e-13 * lc
-    closed = _place_chain(q, sigma, att_body, att_ref, chain_int, chain_float)
     for _ in range(max_iter):
-        if not closed:
-            return q, False, False
-        _input_residuals(q, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc, r)
-        if _max_abs(r) <= tol:   # the readings agree (``newton``'s first test)
-            return q, True, True
         for j in range(d):
             c = drivers[j]
             h = 1e-6 * lc if c < nc else 1e-6
@@ -512,10 +511,12 @@ def chain_fit(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray, 
             return q, True, False
         for j in range(d):
             sigma[drivers[j]] += normal[j, d]
-        closed = _place_chain(q, sigma, att_body, att_ref, chain_int, chain_float)
+        if not _place_chain(q, sigma, att_body, att_ref, chain_int, chain_float):
+            return q, False, False
         if size <= tol:
-            return q, closed, closed
-    return q, closed, False
+            return q, True, True
+        _input_residuals(q, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc, r)
+    return q, True, False
 
 
 @njit(cache=True)
