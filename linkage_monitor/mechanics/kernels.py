@@ -303,18 +303,24 @@ def _add_length_row(jac: np.ndarray, row: int, att: int, sign: float, ux: float,
 
 
 @njit(cache=True)
+def _angle_residual(q: np.ndarray, k: int, s: np.ndarray, nc: int, angle_body: np.ndarray,
+                    angle_reference: np.ndarray, lc: float) -> float:
+    """Φ's row of angle sensor k (m): lc·wrap(θ(bodies[1]) − θ(bodies[0]) + reference − s)."""
+    return lc * _wrap(_theta(q, angle_body[1, k]) - _theta(q, angle_body[0, k]) + angle_reference[k] - s[nc + k])
+
+
+@njit(cache=True)
 def _input_residuals(q: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray, cyl_att: np.ndarray,
                      angle_body: np.ndarray, angle_reference: np.ndarray, lc: float, out: np.ndarray) -> None:
     """The input rows of Φ (``residual_jacobian``'s, m) at pose q into out (n_inputs,): cylinder k
-    |P(rod end) − P(base)| − s_k, angle k lc·wrap(θ(bodies[1]) − θ(bodies[0]) + reference − s)."""
+    |P(rod end) − P(base)| − s_k, then the angles (``_angle_residual``)."""
     nc = cyl_att.shape[1]
     for k in range(nc):
         bx, bz = _point(q, cyl_att[0, k], att_body, att_ref)
         rx, rz = _point(q, cyl_att[1, k], att_body, att_ref)
         out[k] = math.sqrt((rx - bx) * (rx - bx) + (rz - bz) * (rz - bz)) - s[k]
     for k in range(angle_body.shape[1]):
-        out[nc + k] = lc * _wrap(_theta(q, angle_body[1, k]) - _theta(q, angle_body[0, k]) + angle_reference[k]
-                                 - s[nc + k])
+        out[nc + k] = _angle_residual(q, k, s, nc, angle_body, angle_reference, lc)
 
 
 @njit(cache=True)
@@ -338,17 +344,18 @@ def residual_jacobian(q: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_re
         phi[2 * h + 1] = p[a, 1] - p[b, 1]
         _add_point_rows(jac, 2 * h, a, 1.0, att_body, rel)
         _add_point_rows(jac, 2 * h, b, -1.0, att_body, rel)
-    _input_residuals(q, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc, phi[2 * nh:])
     for k in range(nc):
         base, rod = cyl_att[0, k], cyl_att[1, k]
         dx, dz = p[rod, 0] - p[base, 0], p[rod, 1] - p[base, 1]
         length = math.sqrt(dx * dx + dz * dz)
         r = 2 * nh + k
+        phi[r] = length - s[k]   # as ``_input_residuals``, from the positions already computed
         _add_length_row(jac, r, rod, 1.0, dx / length, dz / length, att_body, rel)
         _add_length_row(jac, r, base, -1.0, dx / length, dz / length, att_body, rel)
     for k in range(na):
         b0, b1 = angle_body[0, k], angle_body[1, k]
         r = 2 * nh + nc + k
+        phi[r] = _angle_residual(q, k, s, nc, angle_body, angle_reference, lc)
         if b1 >= 0:
             jac[r, 3 * b1 + 2] += lc
         if b0 >= 0:
