@@ -188,8 +188,9 @@ def soak(driver: Driver, pid: int, minutes: float) -> None:
     print(f"  sent {sent} JointStates; RSS growth {(proc.memory_info().rss - rss0) / 2**20:+.1f} MiB", flush=True)
 
 
-def start_relay(ns: str, log: Path) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, str(Path(__file__).with_name("node_load.py")), "--ros-args",
+def start_relay(ns: str, log: Path, *options: str) -> subprocess.Popen:
+    """bench/node_load.py (the relay; with ``--outputs --record-dir DIR`` the product's floor)."""
+    return subprocess.Popen([sys.executable, str(Path(__file__).with_name("node_load.py")), *options, "--ros-args",
                              "-r", f"__ns:={ns}"], stdout=log.open("w"), stderr=subprocess.STDOUT, env=dict(os.environ))
 
 
@@ -226,41 +227,50 @@ def main() -> None:
         with tempfile.TemporaryDirectory() as tmp:
             work = Path(tmp)
             procs.append(start_relay("/relay", work / "relay.log"))
+            procs.append(start_relay("/floor", work / "floor.log", "--outputs", "--record-dir", str(work / "floor")))
             procs.append(start_monitor("/monitor", {"mechanism": "belarus_1221", "sensor_qos": "reliable",
                                                     "staleness_limit": 3600.0, "record_dir": str(work / "bags")},
                                        work / "node.log"))
-            drivers = {"relay": Driver("/relay"), "node": Driver("/monitor")}
+            drivers = {"relay": Driver("/relay"), "floor": Driver("/floor"), "node": Driver("/monitor")}
             for driver in drivers.values():
                 driver.wait_for_target()
-            targets = {name: (drivers[name], proc.pid) for name, proc in zip(("relay", "node"), procs)}
+            targets = {name: (drivers[name], proc.pid) for name, proc in zip(drivers, procs)}
             results = run_paired(targets, rates, seconds, args.repeats)
             if not args.no_soak and args.soak_minutes > 0:
-                soak(drivers["node"], procs[1].pid, args.soak_minutes)
+                soak(drivers["node"], targets["node"][1], args.soak_minutes)
             for driver in drivers.values():
                 driver.node.destroy_node()
     finally:
         for proc in procs:
             stop(proc)
         rclpy.shutdown()
-    relay, node = results["relay"], results["node"]
+    relay, floor, node = results["relay"], results["floor"], results["node"]
 
     def best(steps: list[list[StepResult]]) -> float:
         return max((rs[0].rate for rs in steps if all(s.sustained for s in rs)), default=0.0)
     print(f"highest sustained rate (zero loss, no queue building up, in every repeat): node {best(node):.0f} Hz, "
-          f"relay {best(relay):.0f} Hz (rates tried: {', '.join(f'{r:g}' for r in rates)} Hz, {seconds:g} s each, "
-          f"{args.repeats} repeats per target, interleaved)")
-    print("node / relay, ratio of the medians over the repeats [range of the per-repeat ratios]:")
-    for n, f in zip(node, relay):
+          f"relay {best(relay):.0f} Hz, floor {best(floor):.0f} Hz (rates tried: {', '.join(f'{r:g}' for r in rates)} "
+          f"Hz, {seconds:g} s each, {args.repeats} repeats per target, interleaved)")
+    for label, a, b in (("node / relay", node, relay), ("floor / relay", floor, relay), ("node / floor", node, floor)):
+        _ratios(label, a, b)
+    cpu = [_median(n, lambda s: s.cpu_ms) / _median(f, lambda s: s.cpu_ms) for n, f in zip(node, relay)]
+    print(f"CPU per message node / relay over the rates: {min(cpu):.2f}-{max(cpu):.2f}x (goal <= 1.5x)")
+    cpu = [_median(n, lambda s: s.cpu_ms) / _median(f, lambda s: s.cpu_ms) for n, f in zip(floor, relay)]
+    print(f"CPU per message floor / relay over the rates: {min(cpu):.2f}-{max(cpu):.2f}x (the node's publishing and "
+          "recording alone, nothing solved)")
+
+
+def _ratios(label: str, a: list[list[StepResult]], b: list[list[StepResult]]) -> None:
+    """Per rate, ratios a / b of the medians over the repeats [range of the per-repeat ratios]."""
+    print(f"{label}, ratio of the medians over the repeats [range of the per-repeat ratios]:")
+    for n, f in zip(a, b):
         if not all(s.latency_ms.size for s in n + f):
             continue
         parts = []
-        for label, value in (("CPU", lambda s: s.cpu_ms), ("latency p50", _p(50)), ("p99", _p(99))):
-            paired = [value(a) / value(b) for a, b in zip(n, f)]
-            parts.append(f"{label} x{_median(n, value) / _median(f, value):.2f} [{min(paired):.2f}-{max(paired):.2f}]")
+        for name, value in (("CPU", lambda s: s.cpu_ms), ("latency p50", _p(50)), ("p99", _p(99))):
+            paired = [value(x) / value(y) for x, y in zip(n, f)]
+            parts.append(f"{name} x{_median(n, value) / _median(f, value):.2f} [{min(paired):.2f}-{max(paired):.2f}]")
         print(f"{n[0].rate:>6.0f} Hz: " + ", ".join(parts))
-    cpu = [_median(n, lambda s: s.cpu_ms) / _median(f, lambda s: s.cpu_ms) for n, f in zip(node, relay)]
-    print(f"CPU per message node / relay over the rates: {min(cpu):.2f}-{max(cpu):.2f}x (goal <= 1.5x)")
-
 
 if __name__ == "__main__":
     main()

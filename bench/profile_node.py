@@ -37,7 +37,7 @@ def drive(rate: float, seconds: float) -> None:
     from bench_node import Driver
 
     rclpy.init()
-    driver = Driver()
+    driver = Driver("")   # the node runs in the root namespace
     driver.wait_for_target()
     sent = driver.drive(rate, seconds)
     driver.drain()
@@ -101,8 +101,15 @@ def _time_stages(node: Any) -> dict[str, list]:
     from profile_step import timed
 
     spent: dict[str, list] = {}
-    for owner, name, label in ((node, "_guarded", "input callback (whole)"), (node.monitor, "step", "  monitoring step"),
+    monitor = node.monitor
+    for owner, name, label in ((node, "_guarded", "input callback (whole)"), (monitor, "step", "  monitoring step"),
+                               (monitor, "_accept", "    acceptance"),
+                               (monitor.machine, "solve", "    solve with the machine level"),
+                               (monitor.solver, "solve_with_machine", "      the solver's part"),
+                               (monitor, "_finish", "    findings"),
                                (node, "_publish", "  outputs: encode, publish, record"),
+                               (node.encoder, "outputs", "    encode the three outputs"),
+                               (node.markers, "markers", "    a MarkerArray (marker_rate)"),
                                (node, "_record", "  a recording call (BagWriter.write)"),
                                (node.pub_hitch, "publish", "  a publish (HitchState)")):
         setattr(owner, name, timed(spent, label, getattr(owner, name), time.thread_time))
