@@ -27,7 +27,7 @@ from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Monitor
 from linkage_monitor.ros.cdr import Template, Writer
 from linkage_monitor.ros.messages import OutputEncoder
-from linkage_monitor.sim.telemetry import simulate
+from linkage_monitor.sim.telemetry import Noise, simulate
 from oracles.output_messages import outputs as oracle_outputs
 
 FIXTURES = Path(__file__).parent / "fixtures"
@@ -84,15 +84,19 @@ def test_every_preset_and_fixture_as_rclpy_builds_it(kind, name):
     names, values = list(monitor.solver.kin.input_names), monitor.solver.kin.reference_inputs()   # the reference pose's
     pressures = {p.name: float(ref.get("pressures", {}).get(p.name, 5e6)) for p in mech.measurements.pressures}
     rng = np.random.default_rng(7)
-    stamp, solved = 1_700_000_000_000_000_000, 0
+    stamp, solved, steps = 1_700_000_000_000_000_000, 0, []
     for k in range(12):
         stamp += 10_000_000
         for sensor, value in pressures.items():   # the reference's, or 5 MPa where it has none
             pressure = value * rng.uniform(0.5, 3.0)
-            solved += _check(monitor, encoder, monitor.on_pressure(f"/pressure/{sensor}", pressure, stamp, stamp))
+            steps.append(monitor.on_pressure(f"/pressure/{sensor}", pressure, stamp, stamp))
+            solved += _check(monitor, encoder, steps[-1])
         inputs = values * (1.0 + 0.001 * rng.uniform(-1.0, 1.0, values.size) * (k > 0))
-        solved += _check(monitor, encoder, monitor.on_joint_state(names, inputs.tolist(), [], stamp, stamp))
+        steps.append(monitor.on_joint_state(names, inputs.tolist(), [], stamp, stamp))
+        solved += _check(monitor, encoder, steps[-1])
     assert solved > 0
+    # all steps at once (the replay's encoding), a fresh encoder: the same bytes as one step at a time
+    assert OutputEncoder().outputs_of(monitor, steps) == [encoder.outputs(monitor, step) for step in steps]
 
 
 def test_warnings_and_a_reconfigured_monitor():
@@ -111,6 +115,57 @@ def test_warnings_and_a_reconfigured_monitor():
         _check(monitor, encoder, step)
         levels.add(step.level.name)
     assert "WARN" in levels and "OK" in levels
+
+
+def test_many_steps_at_once_as_one_at_a_time():
+    """``outputs_of`` (the replay's: one template per status text, filled for all its steps at once)
+    writes the bytes ``outputs`` writes, over a simulated lift with sensor noise: OK steps, WARN
+    steps whose texts carry numbers (one template each), steps without a pose, more distinct texts
+    than the encoder keeps templates for."""
+    mech = load_preset("belarus_1221")
+    stream = simulate(mech, "lift", rate_hz=50.0, seed=3, start_ns=1_700_000_000_000_000_000,
+                      noise=Noise(angle=0.0017, length=0.0005, pressure=2e4))
+    monitor, encoder = _monitor(mech), OutputEncoder()
+    steps = []
+    for i, stamp in enumerate(stream.stamps_ns.tolist()):
+        pressure = float(stream.pressure_values[i, 0]) * (3.0 if i % 3 == 0 else 1.0)   # lift reserve < 1: WARN
+        steps.append(monitor.on_pressure("/pressure/lift_cap_pressure", pressure, stamp, stamp))
+        positions = stream.joint_positions[i].tolist()
+        if i % 50 == 7:
+            positions[0] = math.nan   # an input refused: a step without a pose
+        steps.append(monitor.on_joint_state(list(stream.joint_names), positions, [], stamp, stamp))
+    ours = OutputEncoder().outputs_of(monitor, steps)
+    assert ours == [encoder.outputs(monitor, step) for step in steps]
+    texts = {step.message for step in steps if step.pose is not None}
+    assert any(o is None for o in ours) and len(texts) > OutputEncoder.MAX_TEMPLATES, len(texts)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(1, 6).flatmap(lambda n: st.tuples(
+    st.lists(st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64), min_size=3, max_size=3),
+             min_size=n, max_size=n),
+    st.lists(st.integers(-2**31 * 10**9, 2**31 * 10**9 - 1), min_size=n, max_size=n),
+    st.lists(st.integers(0, 255), min_size=n, max_size=n))))
+def test_rows_filled_at_once_as_one_by_one(rows):
+    """``Template.fill_rows`` (N messages) gives each row ``Template.fill`` of it: stamps before
+    1970 and to the end of int32 seconds, any floats (NaN, inf), any flag bytes; a stamp beyond
+    int32 seconds is refused by both."""
+    values, stamps, flags = rows
+    w = Writer()
+    w.header("base_footprint")
+    w.string("odd length")
+    slots = [w.float64(), w.float64()]
+    flag = w.uint8(0)
+    slots.append(w.float64())
+    template = Template.of(w, slots, (flag,))
+    filled = template.fill_rows(np.array(stamps, dtype=np.int64), np.array(values), np.array(flags, np.uint8)[:, None])
+    assert [row.tobytes() for row in filled] == [bytes(template.fill(t, v, (f,)))
+                                                for t, v, f in zip(stamps, values, flags)]
+    for beyond in (2**31 * 10**9, -2**31 * 10**9 - 1):
+        with pytest.raises(struct.error):
+            template.fill(beyond, values[0])
+        with pytest.raises(struct.error):
+            template.fill_rows(np.array([*stamps, beyond], dtype=np.int64), np.array([*values, values[0]]))
 
 
 @settings(max_examples=200, deadline=None)

@@ -218,18 +218,19 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
         first = raw[0][3]
         writer.record_mechanism(yaml.safe_dump(dict(description.raw), sort_keys=False, allow_unicode=True), first)
         writer.write(CONFIG_TOPIC, String(data=config.to_yaml()), first, log_time_ns=first)
-        gate, name, encoder = DiagnosticGate(), f"linkage_monitor: {description.name}", OutputEncoder()
+        gate, name = DiagnosticGate(), f"linkage_monitor: {description.name}"
+        outputs = OutputEncoder().outputs_of(monitor, run.steps)   # every step's at once, as the node's encoder writes them
         markers, marker_gate = LinkageMarkers(monitor.mechanism), DisplayGate(DEFAULT_RATE_HZ)
         pace_start = time.perf_counter()
         topics = config.topics
-        for (topic, type_name, stamp, receive, data), step in tqdm(list(zip(raw, run.steps)), desc="replay", unit="msg",
-                                                       file=progress, disable=progress is None, mininterval=0.5):
+        for (topic, type_name, stamp, receive, data), step, out in tqdm(
+                list(zip(raw, run.steps, outputs)), desc="replay", unit="msg", file=progress, disable=progress is None,
+                mininterval=0.5):
             if rate:
                 delay = (receive - first) * 1e-9 / rate - (time.perf_counter() - pace_start)
                 if delay > 0:
                     time.sleep(delay)
             writer.write(topic, data, stamp, type_name=type_name, log_time_ns=receive)
-            out = encoder.outputs(monitor, step)
             if out is not None:
                 for out_topic, out_data, out_type in ((topics.hinge_reactions, out.hinge_reactions, HINGE_REACTIONS),
                                                       (topics.hitch_state, out.hitch_state, HITCH_STATE),

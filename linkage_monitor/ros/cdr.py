@@ -202,6 +202,34 @@ class Template:
         return Template(bytes(writer.data), np.array([(o - base) // 8 for o in slot_offsets], dtype=np.intp),
                         flag_offsets)
 
+    def extended(self, write: Callable[[Writer], list[int]]) -> "Template":
+        """This template followed by what ``write`` writes (a tail whose layout depends on, say, a
+        status text); ``write`` returns the offsets of its ``float64`` calls: slots after these."""
+        w = Writer(bytearray(self.data))
+        more = write(w)
+        return Template.of(w, [len(ENCAPSULATION) + 8 * int(k) for k in self.slots] + more, self.flags)
+
+    def fill_rows(self, stamps_ns: np.ndarray, values: np.ndarray, flags: np.ndarray | None = None) -> np.ndarray:
+        """N messages at once: ``fill`` of each row, as an (N, len(data)) uint8 array. ``stamps_ns``
+        (N,) int64 ns since the epoch (struct.error beyond int32 seconds, as ``fill``), ``values``
+        (N, len(slots)) in slot order, ``flags`` (N, len(flags)) uint8 (None: the template's)."""
+        n, size = len(stamps_ns), len(self.data)
+        rows = np.empty((n, size), dtype=np.uint8)
+        rows[:] = np.frombuffer(self.data, dtype=np.uint8)
+        sec, nanosec = np.divmod(np.asarray(stamps_ns, dtype=np.int64), _NS)   # floor, as stamp_fields
+        if n and not (-2**31 <= sec.min() and sec.max() < 2**31):
+            raise struct.error(f"a header stamp of {sec.min() if sec.min() < -2**31 else sec.max()} s is beyond "
+                               "int32 seconds")
+        base = len(ENCAPSULATION)
+        rows[:, base:base + 4] = sec.astype("<i4").view(np.uint8).reshape(n, 4)
+        rows[:, base + 4:base + 8] = nanosec.astype("<u4").view(np.uint8).reshape(n, 4)
+        words = rows[:, base:base + 8 * ((size - base) // 8)].view("<f8")   # every float64 is 8-aligned there
+        words[:, self.slots] = values
+        if flags is not None:
+            for k, offset in enumerate(self.flags):
+                rows[:, offset] = flags[:, k]
+        return rows
+
     def fill(self, stamp_ns: int, values: "np.ndarray | list[float]", flags: tuple[int, ...] = ()) -> bytearray:
         """A copy with the header stamp (ns since the epoch; struct.error beyond int32 seconds),
         the float64 ``values`` in slot order and the uint8 ``flags`` written in."""

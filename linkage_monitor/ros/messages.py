@@ -3,8 +3,9 @@
 The three outputs of a solved pose (HingeReactions, HitchState, Steerability) are written
 straight to their CDR bytes (``ros.cdr``): published as serialized messages and recorded as
 they are, with no rclpy message object in between. Their layout is fixed for a mechanism
-(hinge, cylinder and body names), so ``OutputEncoder`` lays it out once and fills the numbers
-of each pose in; only the status texts are appended per message.
+(hinge, cylinder and body names) up to the status texts, so ``OutputEncoder`` lays it out once
+per status text and fills the numbers of each pose in — of one pose (the node) or of a whole
+recording's poses at once (the replay), the same bytes.
 
 Units SI (m, N, Pa, kg); frame x forward, z up, origin at the rear wheels' ground contact.
 Every output carries the header stamp of the triggering input, never wall-clock time.
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, Callable, Hashable, Sequence
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -81,8 +83,14 @@ class OutputEncoder:
     """Writes the three output messages of solved steps as CDR bytes.
 
     The layout follows the monitor's effective mechanism and is laid out again when the monitor
-    is reconfigured. ``outputs`` returns None for a step without a solved pose.
+    is reconfigured. A message's fixed part (names, counts) is a ``Template``; the status texts
+    after it make one template per text (kept for the texts seen last, ``MAX_TEMPLATES``).
+    ``outputs`` writes one step's messages (the live node), ``outputs_of`` those of many steps at
+    once, the same bytes (the replay: each template filled for all its steps in a few array
+    operations).
     """
+
+    MAX_TEMPLATES = 64   # per message type: most steps share "ok"; texts with numbers in them are not kept long
 
     def __init__(self) -> None:
         self._mechanism: Mechanism | None = None
@@ -93,20 +101,38 @@ class OutputEncoder:
             return None
         if monitor.mechanism is not self._mechanism:
             self._lay_out(monitor)
-        result, machine = step.pose.result, step.pose.machine
-        return Outputs(self._hinge_reactions(step, result), self._hitch_state(step, result, machine),
-                       bytes(self._steerability.fill(step.stamp_ns, self._steer_values.of(machine.steerability_row))))
+        result, machine, stamp = step.pose.result, step.pose.machine, step.stamp_ns
+        hinge, hitch, steer = self._values([result], [machine])
+        return Outputs(bytes(self._hinge_template(hinge_status(step, result, self._overdetermined)).fill(stamp, hinge[0])),
+                       bytes(self._hitch_template(step.message).fill(stamp, hitch[0], (hitch_status(step),))),
+                       bytes(self._steerability.fill(stamp, steer[0])))
+
+    def outputs_of(self, monitor: Monitor, steps: Sequence[Step]) -> list[Outputs | None]:
+        """``outputs`` of each of ``steps`` (steps of ``monitor`` in its present configuration)."""
+        solved = [k for k, step in enumerate(steps) if step.pose is not None]
+        found: list[Outputs | None] = [None] * len(steps)
+        if not solved:
+            return found
+        if monitor.mechanism is not self._mechanism:
+            self._lay_out(monitor)
+        poses = [steps[k] for k in solved]
+        results = [step.pose.result for step in poses]   # type: ignore[union-attr]  # solved: a pose each
+        hinge, hitch, steer = self._values(results, [step.pose.machine for step in poses])  # type: ignore[union-attr]
+        stamps = np.array([step.stamp_ns for step in poses], dtype=np.int64)
+        hinge_keys = [hinge_status(step, result, self._overdetermined) for step, result in zip(poses, results)]
+        flags = np.array([[hitch_status(step)] for step in poses], dtype=np.uint8)
+        hinges = _filled(self._hinge_template, hinge_keys, stamps, hinge)
+        hitches = _filled(self._hitch_template, [step.message for step in poses], stamps, hitch, flags)
+        steers = _filled(lambda _: self._steerability, [None] * len(poses), stamps, steer)
+        for k, a, b, c in zip(solved, hinges, hitches, steers):
+            found[k] = Outputs(a, b, c)
+        return found
 
     # ---- layouts -----------------------------------------------------------------------------
     def _lay_out(self, monitor: Monitor) -> None:
         mech = monitor.mechanism
         self._mechanism, self._overdetermined = mech, monitor.overdetermined
-        points = list(mech.points)
-        self._hinge_rows = np.array([points.index(h.point) for h in mech.hinges], dtype=np.intp)
-        self._steer_values = _Picked(monitor.machine.steerability_keys, STEERABILITY_FIELDS)
-        self._capacity_values = _Picked(monitor.machine.capacity_keys, CAPACITY_FIELDS)
-        self._hinge_values = np.empty((len(mech.hinges), 5))         # fx, fz, magnitude, x, z per hinge
-        self._hitch_values = np.empty(5 * len(mech.cylinders) + 4 + len(CAPACITY_FIELDS))
+        self._lay_out_values(monitor)
         w, slots = Writer(), []
         w.header(FRAME_ID)                              # msg/HingeReactions.msg, field by field
         w.string(mech.name)
@@ -116,7 +142,8 @@ class OutputEncoder:
             w.string(h.bodies[1])                        # on_body: the hinge's second body
             w.string(h.bodies[0])                        # from_body
             slots += [w.float64() for _ in range(5)]     # fx, fz, magnitude, x, z
-        self._hinges = Template.of(w, slots)
+        self._hinges = Template.of(w, slots)             # then status, status_text, residual, consistency
+        self._hinge_texts: dict[tuple[int, str], Template] = {}
 
         w, slots = Writer(), []
         w.header(FRAME_ID)                              # msg/HitchState.msg
@@ -128,9 +155,8 @@ class OutputEncoder:
         w.uint8(int(monitor.estimates_load))            # implement_load_estimated
         slots += [w.float64() for _ in range(7)]         # cg x, z, hitch axis height, 3 capacities, reserve
         status = w.uint8(HitchState.STATUS_OK)
-        self._hitch = Template.of(w, slots, (status,))
-        hitch_point = mech.implement.hitch_point if mech.implement else None
-        self._hitch_row = points.index(hitch_point) if hitch_point is not None else None
+        self._hitch = Template.of(w, slots, (status,))   # then status_text
+        self._hitch_texts: dict[str, Template] = {}
 
         w, slots = Writer(), []
         w.header(FRAME_ID)                              # msg/Steerability.msg
@@ -139,45 +165,102 @@ class OutputEncoder:
         slots += [w.float64() for _ in STEERABILITY_RATIOS]
         self._steerability = Template.of(w, slots)
 
-    # ---- per step ----------------------------------------------------------------------------
-    def _hinge_reactions(self, step: Step, result: Result) -> bytes:
-        values = self._hinge_values
-        values[:, :2] = result.hinge_force
-        values[:, 2] = result.hinge_magnitude
-        values[:, 3:] = result.point_xz[self._hinge_rows]
-        status, text = hinge_status(step, result, self._overdetermined)
-        w = Writer(self._hinges.fill(step.stamp_ns, values.ravel()))
-        w.uint8(status)
-        w.string(text)
-        w.float64(result.residual)
-        w.float64(result.consistency_residual)
-        return bytes(w.data)
+    def _hinge_template(self, key: tuple[int, str]) -> Template:
+        """HingeReactions with status, status_text = ``key`` and the residual slots."""
+        template = self._hinge_texts.get(key)
+        if template is None:
+            def tail(w: Writer) -> list[int]:
+                w.uint8(key[0])
+                w.string(key[1])
+                return [w.float64(), w.float64()]          # residual, consistency_residual
+            template = _kept(self._hinge_texts, key, self._hinges.extended(tail), self.MAX_TEMPLATES)
+        return template
 
-    def _hitch_state(self, step: Step, result: Result, machine: MachineResult) -> bytes:
-        values, row = self._hitch_values, self._hitch_row
-        n = result.cylinder_values.size
-        values[:n] = result.cylinder_values[:, CYLINDER_STATE_ORDER].ravel()
-        values[n:n + 4] = (result.implement_load, result.implement_cg[0], result.implement_cg[1],
-                           result.point_xz[row, 1] if row is not None else math.nan)
-        values[n + 4:] = self._capacity_values.of(machine.capacity_row)
-        w = Writer(self._hitch.fill(step.stamp_ns, values, (hitch_status(step),)))
-        w.string(step.message)
-        return bytes(w.data)
+    def _hitch_template(self, text: str) -> Template:
+        """HitchState with status_text = ``text``."""
+        template = self._hitch_texts.get(text)
+        if template is None:
+            def tail(w: Writer) -> list[int]:
+                w.string(text)
+                return []
+            template = _kept(self._hitch_texts, text, self._hitch.extended(tail), self.MAX_TEMPLATES)
+        return template
+
+    # ---- the numbers -------------------------------------------------------------------------
+    def _lay_out_values(self, monitor: Monitor) -> None:
+        """Where each message's float64 slots come from: one column each of the ``_values`` source
+        rows, laid out as [fx, fz per hinge | |F| per hinge | x, z per point | CylinderResult fields
+        per cylinder | residual, consistency residual, implement load, NaN | implement cg x, z |
+        capacity row | steerability row]."""
+        mech, machine = monitor.mechanism, monitor.machine
+        n_h, n_p, n_c = len(mech.hinges), len(mech.points), len(mech.cylinders)
+        magnitude, point, cylinder = 2 * n_h, 3 * n_h, 3 * n_h + 2 * n_p
+        residual, consistency, load, nan = (cylinder + 5 * n_c + k for k in range(4))
+        cg, capacity = nan + 1, nan + 3
+        steer = capacity + len(machine.capacity_keys)
+        points = list(mech.points)
+        hinge = []
+        for k, h in enumerate(mech.hinges):   # fx, fz, magnitude, x, z
+            at = point + 2 * points.index(h.point)
+            hinge += [2 * k, 2 * k + 1, magnitude + k, at, at + 1]
+        self._hinge_take = np.array(hinge + [residual, consistency], dtype=np.intp)
+        hitch = [cylinder + 5 * c + int(j) for c in range(n_c) for j in CYLINDER_STATE_ORDER]
+        hitch_point = mech.implement.hitch_point if mech.implement else None
+        row = points.index(hitch_point) if hitch_point is not None else None
+        hitch += [load, cg, cg + 1, point + 2 * row + 1 if row is not None else nan]
+        hitch += [capacity + machine.capacity_keys.index(f) if f in machine.capacity_keys else nan
+                  for f in CAPACITY_FIELDS]
+        self._hitch_take = np.array(hitch, dtype=np.intp)
+        self._steer_take = np.array([steer + machine.steerability_keys.index(f) if f in machine.steerability_keys
+                                     else nan for f in STEERABILITY_FIELDS], dtype=np.intp)
+        self._no_capacity = np.full(len(machine.capacity_keys), math.nan)
+        self._no_steerability = np.full(len(machine.steerability_keys), math.nan)
+
+    def _values(self, results: Sequence[Result], machines: Sequence[MachineResult]
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The float64 slots of the three messages for N poses, in slot order: (N, 5·hinges + 2),
+        (N, 5·cylinders + 8), (N, len(STEERABILITY_FIELDS)); NaN for what a pose lacks."""
+        n = len(results)
+        force = _stacked([r.hinge_force for r in results]).reshape(n, -1)
+        source = np.concatenate([
+            force, np.hypot(force[:, 0::2], force[:, 1::2]),   # as Result.hinge_magnitude
+            _stacked([r.point_xz for r in results]).reshape(n, -1),
+            _stacked([r.cylinder_values for r in results]).reshape(n, -1),
+            np.array([(r.residual, r.consistency_residual, r.implement_load, math.nan) for r in results]),
+            _stacked([r.implement_cg for r in results]),
+            _stacked([m.capacity_row if m.capacity_row.size else self._no_capacity for m in machines]),
+            _stacked([m.steerability_row if m.steerability_row.size else self._no_steerability for m in machines])],
+            axis=1)
+        return (source.take(self._hinge_take, axis=1), source.take(self._hitch_take, axis=1),
+                source.take(self._steer_take, axis=1))
 
 
-class _Picked:
-    """The values of a message's ``fields`` from a MachineResult row whose columns are ``keys``
-    (NaN for a field the row lacks, and for all of them when the row is empty)."""
+def _stacked(arrays: list[np.ndarray]) -> np.ndarray:
+    """The arrays stacked along a new first axis (one pose: a view)."""
+    return arrays[0][None] if len(arrays) == 1 else np.stack(arrays)
 
-    def __init__(self, keys: tuple[str, ...], fields: tuple[str, ...]) -> None:
-        self._position = np.array([k for k, f in enumerate(fields) if f in keys], dtype=np.intp)
-        self._column = np.array([keys.index(f) for f in fields if f in keys], dtype=np.intp)
-        self._values = np.full(len(fields), math.nan)
 
-    def of(self, row: np.ndarray) -> np.ndarray:
-        """``row``'s values in field order (a buffer reused by the next call)."""
-        if row.size:
-            self._values[self._position] = row[self._column]
-        else:
-            self._values[:] = math.nan
-        return self._values
+def _kept(cache: dict, key: Hashable, template: Template, limit: int) -> Template:
+    """``template`` kept in ``cache`` under ``key`` (the cache emptied first when full)."""
+    if len(cache) >= limit:
+        cache.clear()
+    cache[key] = template
+    return template
+
+
+def _filled(template_of: Callable[[Any], Template], keys: list, stamps: np.ndarray, values: np.ndarray,
+            flags: np.ndarray | None = None) -> list[bytes]:
+    """The messages of N poses: ``template_of(keys[i])`` filled with stamps[i], values[i] and flags[i]
+    (one ``Template.fill_rows`` per distinct key)."""
+    rows: dict[Any, list[int]] = {}
+    for i, key in enumerate(keys):
+        rows.setdefault(key, []).append(i)
+    found: list[bytes] = [b""] * len(keys)
+    for key, index in rows.items():
+        template = template_of(key)
+        at = np.array(index, dtype=np.intp)
+        data = template.fill_rows(stamps[at], values[at], flags[at] if flags is not None else None).tobytes()
+        size = len(template.data)
+        for j, i in enumerate(index):
+            found[i] = data[j * size:(j + 1) * size]
+    return found
