@@ -90,8 +90,10 @@ def test_replay_of_the_nodes_bag_equals_its_outputs(ros, tmp_path, case):
     _assert_replay_equals(live, live, tmp_path / "offline")
 
 
-def test_runtime_implement_mass_change_is_replayed_where_it_happened(ros, tmp_path):
-    # without pressures the implement load is the configured weight, so the change shows in it
+def test_runtime_implement_mass_change_is_replayed_where_it_happened(ros, tmp_path, monkeypatch):
+    # without pressures the implement load is the configured weight, so the change shows in it;
+    # the replay encodes its outputs 7 steps at a time here (blocks that end anywhere, one across the change)
+    monkeypatch.setattr("linkage_monitor.offline.replay.ENCODE_BLOCK", 7)
     live = _run_node(tmp_path, {"pressure_topics": ["none"]}, None, False, change_at=40)
     loads = [m.implement_load for *_, m in read_bag(live, topics=["/hitch_state"])]
     g = 9.80665  # m/s², the preset's gravity

@@ -38,6 +38,7 @@ from linkage_monitor.ros.sensor_messages import FLUID_PRESSURE, JOINT_STATE, Joi
 
 STRING = "std_msgs/msg/String"
 RawInput = tuple[str, str, int, int, bytes]   # topic, type name, header stamp (ns), receive time (ns), CDR bytes
+ENCODE_BLOCK = 4096   # steps whose output messages are encoded at once (held in memory until written)
 
 
 @dataclass
@@ -211,20 +212,25 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
     node records them."""
     from linkage_monitor.ros.diagnostics import DiagnosticGate, diagnostic_array
     from linkage_monitor.ros.markers import DEFAULT_RATE_HZ, MARKER_ARRAY, DisplayGate, LinkageMarkers
-    from linkage_monitor.ros.messages import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputEncoder
+    from linkage_monitor.ros.messages import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputEncoder, Outputs
 
     writer = BagWriter(out_dir)
     try:
         first = raw[0][3]
         writer.record_mechanism(yaml.safe_dump(dict(description.raw), sort_keys=False, allow_unicode=True), first)
         writer.write(CONFIG_TOPIC, String(data=config.to_yaml()), first, log_time_ns=first)
-        gate, name = DiagnosticGate(), f"linkage_monitor: {description.name}"
-        outputs = OutputEncoder().outputs_of(monitor, run.steps)   # every step's at once, as the node's encoder writes them
+        gate, name, encoder = DiagnosticGate(), f"linkage_monitor: {description.name}", OutputEncoder()
+
+        def encoded() -> Iterator[tuple[RawInput, Step, Outputs | None]]:
+            """The steps with their outputs, encoded ENCODE_BLOCK steps at once (as the node's encoder writes them)."""
+            for start in range(0, len(raw), ENCODE_BLOCK):
+                steps = run.steps[start:start + ENCODE_BLOCK]
+                yield from zip(raw[start:start + ENCODE_BLOCK], steps, encoder.outputs_of(monitor, steps))
         markers, marker_gate = LinkageMarkers(monitor.mechanism), DisplayGate(DEFAULT_RATE_HZ)
         pace_start = time.perf_counter()
         topics = config.topics
         for (topic, type_name, stamp, receive, data), step, out in tqdm(
-                list(zip(raw, run.steps, outputs)), desc="replay", unit="msg", file=progress, disable=progress is None,
+                encoded(), total=len(raw), desc="replay", unit="msg", file=progress, disable=progress is None,
                 mininterval=0.5):
             if rate:
                 delay = (receive - first) * 1e-9 / rate - (time.perf_counter() - pace_start)
