@@ -206,8 +206,8 @@ class Template:
         """This template followed by what ``write`` writes (a tail whose layout depends on, say, a
         status text); ``write`` returns the offsets of its ``float64`` calls: slots after these."""
         w = Writer(bytearray(self.data))
-        more = write(w)
-        return Template.of(w, [len(ENCAPSULATION) + 8 * int(k) for k in self.slots] + more, self.flags)
+        more = [(o - len(ENCAPSULATION)) // 8 for o in write(w)]
+        return Template(bytes(w.data), np.concatenate([self.slots, np.array(more, dtype=np.intp)]), self.flags)
 
     def fill_rows(self, stamps_ns: np.ndarray, values: np.ndarray, flags: np.ndarray | None = None) -> np.ndarray:
         """N messages at once: ``fill`` of each row, as an (N, len(data)) uint8 array. ``stamps_ns``
