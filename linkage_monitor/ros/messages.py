@@ -167,24 +167,18 @@ class OutputEncoder:
 
     def _hinge_template(self, key: tuple[int, str]) -> Template:
         """HingeReactions with status, status_text = ``key`` and the residual slots."""
-        template = self._hinge_texts.get(key)
-        if template is None:
-            def tail(w: Writer) -> list[int]:
-                w.uint8(key[0])
-                w.string(key[1])
-                return [w.float64(), w.float64()]          # residual, consistency_residual
-            template = _kept(self._hinge_texts, key, self._hinges.extended(tail), self.MAX_TEMPLATES)
-        return template
+        def tail(w: Writer) -> list[int]:
+            w.uint8(key[0])
+            w.string(key[1])
+            return [w.float64(), w.float64()]              # residual, consistency_residual
+        return _cached(self._hinge_texts, key, self._hinges, tail, self.MAX_TEMPLATES)
 
     def _hitch_template(self, text: str) -> Template:
         """HitchState with status_text = ``text``."""
-        template = self._hitch_texts.get(text)
-        if template is None:
-            def tail(w: Writer) -> list[int]:
-                w.string(text)
-                return []
-            template = _kept(self._hitch_texts, text, self._hitch.extended(tail), self.MAX_TEMPLATES)
-        return template
+        def tail(w: Writer) -> list[int]:
+            w.string(text)
+            return []
+        return _cached(self._hitch_texts, text, self._hitch, tail, self.MAX_TEMPLATES)
 
     # ---- the numbers -------------------------------------------------------------------------
     def _lay_out_values(self, monitor: Monitor) -> None:
@@ -240,11 +234,13 @@ def _stacked(arrays: list[np.ndarray]) -> np.ndarray:
     return arrays[0][None] if len(arrays) == 1 else np.stack(arrays)
 
 
-def _kept(cache: dict, key: Hashable, template: Template, limit: int) -> Template:
-    """``template`` kept in ``cache`` under ``key`` (the cache emptied first when full)."""
-    if len(cache) >= limit:
-        cache.clear()
-    cache[key] = template
+def _cached(cache: dict, key: Hashable, base: Template, tail: Callable[[Writer], list[int]], limit: int) -> Template:
+    """``base.extended(tail)``, kept in ``cache`` under ``key`` (the cache emptied first when full)."""
+    template = cache.get(key)
+    if template is None:
+        if len(cache) >= limit:
+            cache.clear()
+        template = cache[key] = base.extended(tail)
     return template
 
 
