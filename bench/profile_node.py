@@ -61,9 +61,11 @@ def main() -> None:
         return
     isolate_ros_domain()
     import rclpy
+    from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
     from linkage_monitor.ros.node import LinkageMonitorNode
+    from linkage_monitor.ros.spin import InputSpinner
 
     rclpy.init()
     with tempfile.TemporaryDirectory() as tmp:
@@ -74,16 +76,21 @@ def main() -> None:
         child = subprocess.Popen([sys.executable, __file__, "--drive", "--rate", str(args.rate), "--seconds",
                                   str(args.seconds)], env=dict(os.environ))
         profile = cProfile.Profile()
-        cpu = time.process_time()
+        threads, cpu = _thread_cpu(), time.process_time()
         if spent is None:
             profile.enable()
+        executor = SingleThreadedExecutor()   # as the node's main() spins it
+        executor.add_node(node)
+        spinner = InputSpinner(node, executor, node.input_subscriptions, node.take_inputs)
         while child.poll() is None:
-            rclpy.spin_once(node, timeout_sec=0.1)
+            spinner.spin_once(0.1)
         profile.disable()
-        cpu = time.process_time() - cpu
+        cpu, threads = time.process_time() - cpu, _thread_cpu(threads)
         inputs = node.loss.received.get("/joint_states", 0)
         print(f"node process CPU while driven{'' if spent else ' (profiled)'}: {cpu:.2f} s, "
-              f"{1e6 * cpu / max(inputs, 1):.0f} us per JointState ({inputs})")
+              f"{1e6 * cpu / max(inputs, 1):.0f} us per JointState ({inputs}); by thread (name: us per JointState):")
+        for name, seconds in sorted(threads.items(), key=lambda t: -t[1]):
+            print(f"    {name:24s} {1e6 * seconds / max(inputs, 1):8.0f}")
         node.close()
         node.destroy_node()
     rclpy.shutdown()
@@ -94,6 +101,21 @@ def main() -> None:
         return
     stats = pstats.Stats(profile)
     stats.sort_stats("cumulative").print_stats(args.top)
+
+
+def _thread_cpu(since: dict[str, float] | None = None) -> dict[str, float]:
+    """CPU seconds (user + system) of this process's threads by thread name, the main thread apart
+    (/proc/self/task; clock ticks of 10 ms), less ``since``'s: which threads besides the node's own spend the process CPU
+    (the middleware's, the bag writer's)."""
+    tick, found = os.sysconf("SC_CLK_TCK"), dict.fromkeys(since or (), 0.0)
+    for task in Path("/proc/self/task").iterdir():
+        try:
+            name = (task / "comm").read_text().strip() + ("" if task.name != str(os.getpid()) else " (main)")
+            fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:   # the thread ended meanwhile
+            continue
+        found[name] = found.get(name, 0.0) + (int(fields[11]) + int(fields[12])) / tick   # utime, stime
+    return {name: seconds - (since or {}).get(name, 0.0) for name, seconds in found.items()}
 
 
 def _time_stages(node: Any) -> dict[str, list]:

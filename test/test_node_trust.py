@@ -215,6 +215,43 @@ def test_inputs_the_node_could_not_take_are_counted_and_reported(ros, tmp_path):
     assert [s.message for s in reported] == [s.message for s in in_bag[:len(reported)]]   # published as recorded
 
 
+def test_a_publisher_the_node_cannot_hear_is_named_on_diagnostics(ros, tmp_path):
+    """The middleware's events of the inputs (taken at the heartbeat, ros/input_events.py): a
+    best-effort JointState publisher while the node subscribes reliably never reaches the node — a
+    WARN `<node>: inputs` names the topic and the policy, on /diagnostics and in the bag; the
+    inputs of a matching publisher still solve."""
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
+
+    proc = start_node({"mechanism": "belarus_1221", "record_dir": str(tmp_path / "bags"), "sensor_qos": "reliable",
+                       "stamp_tolerance": 600.0, "staleness_limit": 600.0}, tmp_path / "node.log")
+    client = MonitorClient()
+
+    def warned() -> list:
+        return [s for m in client.received["diagnostics"] for s in m.status
+                if s.name.endswith(": inputs") and s.level == b"\x01"]
+    try:
+        client.wait_for_node()
+        client.node.create_publisher(JointState, "joint_states", QoSProfile(depth=5,
+                                                                            reliability=ReliabilityPolicy.BEST_EFFORT))
+        assert client.spin_until(warned, 10.0), "no WARN about the best-effort publisher"
+        stream = _lift(time.time_ns())
+        stamp = int(stream.stamps_ns[0])
+        client.publish_pressure(PRESSURE_TOPIC, stamp, float(stream.pressure_values[0, 0]) + ATMOSPHERIC_PRESSURE)
+        client.spin_until(lambda: False, 0.2)
+        client.publish_joint_state(stamp + 1, list(stream.joint_names), stream.joint_positions[0].tolist())
+        assert client.spin_until(lambda: client.outputs_at("hinge_reactions", stamp + 1), 10)
+    finally:
+        client.close()
+        assert stop(proc) == 0
+    messages = [s.message for s in warned()]
+    assert len(messages) == 1 and "1 publisher(s) on /joint_states" in messages[0], messages
+    assert "policy: reliability" in messages[0], messages
+    in_bag = [s.message for *_, m in read_bag(node_bag(tmp_path / "bags"), topics=["/diagnostics"]) for s in m.status
+              if s.name.endswith(": inputs")]
+    assert in_bag == messages
+
+
 def test_a_burst_over_two_topics_is_worked_off_in_arrival_order(ros, tmp_path):
     """A burst of pressures and joint states, interleaved and published as fast as the client can,
     far above the node's solve rate, into its deep reliable queues: the node takes the queued

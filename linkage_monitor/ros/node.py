@@ -53,6 +53,8 @@ from linkage_monitor.ros.diagnostics import DiagnosticGate, diagnostic_array
 from linkage_monitor.ros.markers import DEFAULT_RATE_HZ as DEFAULT_MARKER_RATE_HZ
 from linkage_monitor.ros.markers import MARKER_ARRAY, DisplayGate, LinkageMarkers
 from linkage_monitor.ros.cdr import CdrError
+from linkage_monitor.ros.spin import InputSpinner
+from linkage_monitor.ros.input_events import INCOMPATIBLE_QOS, LOST, InputEvents
 from linkage_monitor.ros.messages import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputEncoder
 from linkage_monitor.ros.sensor_messages import (FLUID_PRESSURE, JOINT_STATE, FluidPressureReading, JointStateReading,
                                                  read_input)
@@ -215,6 +217,7 @@ class LinkageMonitorNode(Node):
         self.input_qos = (qos_profile_sensor_data if p["sensor_qos"] == "sensor_data" else
                           QoSProfile(depth=int(p["reliable_queue_depth"]), reliability=ReliabilityPolicy.RELIABLE))
         self._inputs: list[tuple[Any, Callable[[bytes, dict], None]]] = []   # (subscription, its callback)
+        self.input_events = InputEvents()   # taken at the heartbeat (ros/input_events.py)
         self._subscribe(JointState, config.topics.joint_states, self.on_joint_state)
         for topic in config.pressure_topics:
             self._subscribe(FluidPressure, topic, self._pressure_callback(topic))
@@ -238,25 +241,32 @@ class LinkageMonitorNode(Node):
 
     def _subscribe(self, msg_type: type, topic: str, callback: Callable[[bytes, Any], None]) -> None:
         """Inputs are taken serialized (raw): the bag records the bytes that arrived, and the
-        message is deserialized once, here. After each input the queues are drained (``_drain``)."""
-        def lost(info: Any) -> None:
-            self.loss.on_lost_event(topic, info.total_count_change)
-        events = SubscriptionEventCallbacks(message_lost=lost)
-
-        def take(data: bytes, info: dict) -> None:
-            self._drain((info["received_timestamp"], callback, (data, info)))
+        message is deserialized once, here. After each input the queues are drained (``_drain``).
+        The subscription's middleware events are taken at the heartbeat, not waited on
+        (``ros.input_events``)."""
+        def take(data: bytes, info: dict) -> None:   # under rclpy's executor (main() takes inputs itself)
+            self._drain([(info["received_timestamp"], callback, (data, info))])
         sub: Any = self.create_subscription(msg_type, topic, take,   # type: ignore[arg-type]  # raw: bytes
-                                            self.input_qos, event_callbacks=events, raw=True)
+                                            self.input_qos, raw=True,
+                                            event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
+        self.input_events.watch(sub.topic_name, sub)
         self._inputs.append((sub, callback))
 
-    def _drain(self, handed: tuple[int, Callable[[bytes, dict], None], tuple[bytes, dict]]) -> None:
-        """Work off the message the executor ``handed`` over, then what is already waiting in the input
-        queues, before returning to the executor: a burst is worked off without one pass of the
-        executor's wait set per message (rclpy's own cost per message, as large as the monitoring
-        step). Like the executor, one message per queue per cycle (each cycle's few in arrival
-        order, received_timestamp), so the topics advance together as they would through the
-        executor; at most DRAIN_LIMIT messages, so timers (heartbeat) and parameter services run."""
-        cycle = [handed]
+    @property
+    def input_subscriptions(self) -> list[Any]:
+        """The subscriptions of the inputs (JointState, then each pressure topic)."""
+        return [sub for sub, _ in self._inputs]
+
+    def take_inputs(self) -> None:
+        """Work off what is waiting in the input queues (``ros.spin.InputSpinner``'s wake-up)."""
+        self._drain(self._take_cycle())
+
+    def _drain(self, cycle: list[tuple[int, Callable[[bytes, dict], None], tuple[bytes, dict]]]) -> None:
+        """Work off the ``cycle`` of messages taken, then what is already waiting in the input
+        queues, before returning: a burst is worked off without one wake-up of the spin loop per
+        message. Like rclpy's executor, one message per queue per cycle (each cycle's few in
+        arrival order, received_timestamp), so the topics advance together as they would through
+        the executor; at most DRAIN_LIMIT messages, so timers (heartbeat) and parameter services run."""
         taken = 0
         while cycle:
             for _, callback, (data, info) in sorted(cycle, key=lambda c: c[0]):
@@ -266,17 +276,22 @@ class LinkageMonitorNode(Node):
                     self._publish_status("internal", Level.ERROR, f"internal error while taking an input "
                                          f"({len(data)} bytes): {type(exc).__name__}: {exc}", self._now())
             taken += len(cycle)
-            cycle = []
             if taken >= DRAIN_LIMIT:
-                return   # what was taken is worked off; the rest waits for the executor's next pass
-            for sub, callback in self._inputs:
-                try:
-                    with sub.handle:   # as rclpy's executor takes a message (Executor._take_subscription)
-                        message = sub.handle.take_message(sub.msg_type, sub.raw)
-                except InvalidHandle:   # destroyed while shutting down: nothing more to take from it
-                    continue
-                if message is not None:
-                    cycle.append((message[1]["received_timestamp"], callback, message))
+                return   # what was taken is worked off; the rest waits for the next wake-up
+            cycle = self._take_cycle()
+
+    def _take_cycle(self) -> list[tuple[int, Callable[[bytes, dict], None], tuple[bytes, dict]]]:
+        """One message from each input queue that has one: (received_timestamp, callback, (bytes, info))."""
+        cycle = []
+        for sub, callback in self._inputs:
+            try:
+                with sub.handle:   # as rclpy's executor takes a message (Executor._take_subscription)
+                    message = sub.handle.take_message(sub.msg_type, sub.raw)
+            except InvalidHandle:   # destroyed while shutting down: nothing more to take from it
+                continue
+            if message is not None:
+                cycle.append((message[1]["received_timestamp"], callback, message))
+        return cycle
 
     def _now(self) -> int:
         return self.get_clock().now().nanoseconds
@@ -330,6 +345,7 @@ class LinkageMonitorNode(Node):
             if self._reported is not None and time.monotonic() - self._last_heartbeat >= HEARTBEAT_S:
                 # the last reported status again (diagnostic_updater style); the bag holds it once already
                 self._publish_diagnostic(self._reported, now, record=False)
+            self._take_input_events(now)
             self._report_losses(f"in the last {HEARTBEAT_S:.0f} s", now)
             recorder_error = self.recorder.error if self.recorder is not None else None
             if recorder_error:
@@ -337,6 +353,19 @@ class LinkageMonitorNode(Node):
                                      "publishing go on", now)
         except Exception as exc:  # noqa: BLE001
             self.get_logger().error(f"heartbeat failed: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
+
+    def _take_input_events(self, now: int) -> None:
+        """The middleware's events of the inputs since the last take: lost samples are counted
+        (reported with the sequence gaps), a publisher whose QoS the subscription cannot match is a
+        WARN naming the topic and the policy."""
+        for notice in self.input_events.take():
+            if notice.kind == LOST:
+                self.loss.on_lost_event(notice.topic, notice.count)
+            elif notice.kind == INCOMPATIBLE_QOS:
+                self._publish_status("inputs", Level.WARN, f"{notice.count} publisher(s) on {notice.topic} offer a "
+                                     f"QoS this node's subscription cannot match (policy: {notice.policy}): their "
+                                     f"messages never arrive; check the node's sensor_qos "
+                                     f"('{self.get_parameter('sensor_qos').value}') against the publisher's", now)
 
     def _report_losses(self, when: str, now: int) -> None:
         """A WARN ``<node>: inputs`` with the inputs newly known lost, if any (heartbeat and shutdown)."""
@@ -451,7 +480,10 @@ class LinkageMonitorNode(Node):
     def close(self) -> None:
         """Report the inputs lost since the last heartbeat, finish the bag and the Rerun recording."""
         try:
-            self._report_losses("since the last report, at shutdown", self._now())
+            now = self._now()
+            self._take_input_events(now)
+            self.input_events.destroy()
+            self._report_losses("since the last report, at shutdown", now)
         except Exception as exc:  # noqa: BLE001 - the bag is finished whatever happens here
             self.get_logger().error(f"final loss report failed: {type(exc).__name__}: {exc}")
         if self.recorder is not None:
@@ -482,8 +514,9 @@ def main(argv: list[str] | None = None) -> int:
         node = LinkageMonitorNode()
         executor = SingleThreadedExecutor()
         executor.add_node(node)
+        spinner = InputSpinner(node, executor, node.input_subscriptions, node.take_inputs)
         while not stopping.is_set() and rclpy.ok():
-            executor.spin_once(timeout_sec=STOP_POLL_S)
+            spinner.spin_once(STOP_POLL_S)
     except ExternalShutdownException:   # rclpy shut down from elsewhere
         pass
     except (LinkageError, ValueError, BagError, InvalidParameterValueException) as exc:

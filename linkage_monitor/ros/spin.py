@@ -1,0 +1,74 @@
+"""The node's spin loop: its inputs taken straight from one rcl wait set, the rest through rclpy.
+
+rclpy's SingleThreadedExecutor gathers the node's entities and builds a new wait set in Python at
+every wake-up (``Executor._wait_for_ready_callbacks``: a context manager per entity, a readiness
+check per waitable): ~250-300 µs of CPU per wake-up on this machine, for a node whose callback does
+nothing (docs/performance.md, thirteenth session) — once per input message, as much as the
+monitoring step itself. ``InputSpinner`` keeps one wait set of the node's waitable handles
+(subscriptions, timers, services, clients, guard conditions; gathered again after every wake-up
+that is not an input's, the only time the node can create an entity) and at each wake-up:
+
+- an input subscription is ready: ``take_inputs`` (the node's drain) takes the queued inputs
+  itself, in arrival order;
+- anything else is ready (the heartbeat timer, a parameter service, /clock with use_sim_time):
+  one ``executor.spin_once(timeout_sec=0)``, rclpy's own dispatch for these rare wake-ups;
+- nothing within the timeout: it returns, so that the caller's loop (and a signal handler) runs.
+
+rclpy's event handlers of the node's own publishers (/rosout, /parameter_events QoS events) are
+not in the wait set: rclpy's dispatch serves them at the next wake-up that is not an input's (the
+heartbeat's, at the latest). The inputs' own events are taken at the heartbeat
+(``ros.input_events``).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+from rclpy.executors import Executor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy   # rclpy's rcl binding: WaitSet
+from rclpy.node import Node
+
+OTHER_KINDS = ("timer", "service", "client", "guard_condition")   # wait-set entities that are never inputs
+
+
+class InputSpinner:
+    """Spins ``node`` (added to ``executor``), its ``inputs`` subscriptions worked off by ``take_inputs``."""
+
+    def __init__(self, node: Node, executor: Executor, inputs: list[Any], take_inputs: Callable[[], None]) -> None:
+        self._node, self._executor, self._take_inputs = node, executor, take_inputs
+        self._inputs = {sub.handle.pointer for sub in inputs}
+        self._gather()
+
+    def _gather(self) -> None:
+        """The node's waitable handles, and a wait set sized for them."""
+        node = self._node
+        self._subscriptions = [s.handle for s in node.subscriptions]
+        self._timers = [t.handle for t in node.timers]
+        self._services = [s.handle for s in node.services]
+        self._clients = [c.handle for c in node.clients]
+        self._guards = [g.handle for g in node.guards]
+        self._wait_set = _rclpy.WaitSet(len(self._subscriptions), len(self._guards), len(self._timers),
+                                        len(self._clients), len(self._services), 0, node.context.handle)
+
+    def spin_once(self, timeout_s: float) -> None:
+        """Wait up to ``timeout_s`` for work and do what is ready."""
+        wait_set = self._wait_set
+        wait_set.clear_entities()
+        for handle in self._subscriptions:
+            wait_set.add_subscription(handle)
+        for handle in self._timers:
+            wait_set.add_timer(handle)
+        for handle in self._services:
+            wait_set.add_service(handle)
+        for handle in self._clients:
+            wait_set.add_client(handle)
+        for handle in self._guards:
+            wait_set.add_guard_condition(handle)
+        wait_set.wait(int(timeout_s * 1e9))
+        ready = wait_set.get_ready_entities("subscription")
+        inputs = sum(1 for pointer in ready if pointer in self._inputs)
+        if inputs:
+            self._take_inputs()
+        if len(ready) > inputs or any(wait_set.get_ready_entities(kind) for kind in OTHER_KINDS):
+            self._executor.spin_once(timeout_sec=0)
+            self._gather()
