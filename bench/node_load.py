@@ -7,7 +7,8 @@ with nothing solved.
   it, publishes the node's three outputs of one solved belarus_1221 pose (HingeReactions,
   HitchState, Steerability: bytes made once by the node's encoder, the input's header stamp copied
   in) and records them — the node's per-input publishing and recording, without the monitoring
-  step, the markers or /diagnostics.
+  step, the markers or /diagnostics. It spins as the node does (``ros.spin.InputSpinner``: its
+  input taken from one rcl wait set, not through rclpy's executor); the relay spins with rclpy's.
 
 Usage: .venv/bin/python bench/node_load.py [--outputs --record-dir DIR]   (run by bench/bench_node.py;
 Ctrl-C ends it)
@@ -22,13 +23,14 @@ from pathlib import Path
 from typing import Any
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
 from linkage_monitor.msg import HingeReactions, HitchState, Steerability
 from linkage_monitor.ros.node import LATCHED, OUTPUT_QOS
+from linkage_monitor.ros.spin import InputSpinner
 
 INPUT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)  # the node's sensor_qos = reliable
 STAMP = slice(4, 12)   # CDR bytes of header.stamp: after the 4-byte encapsulation, first in every message here
@@ -87,13 +89,27 @@ def main() -> None:
                 publisher.publish(out)
                 recorder.write(topic, out, now, type_name=type_name, qos=OUTPUT_QOS, log_time_ns=now)
         callback: Any = take
-        node.create_subscription(JointState, "joint_states", callback, INPUT_QOS, raw=True)
+        sub = node.create_subscription(JointState, "joint_states", callback, INPUT_QOS, raw=True)
+
+        def take_inputs() -> None:
+            while (message := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
+                take(message[0])
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        spinner = InputSpinner(node, executor, [sub], take_inputs)
+
+        def spin() -> None:   # as the node's main() spins
+            while rclpy.ok():
+                spinner.spin_once(0.1)
     else:
         recorder = None
         node.create_subscription(JointState, "joint_states", lambda msg: pub.publish(HitchState(header=msg.header)),
                                  INPUT_QOS)
+
+        def spin() -> None:
+            rclpy.spin(node)
     try:
-        rclpy.spin(node)
+        spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

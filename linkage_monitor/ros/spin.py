@@ -22,13 +22,15 @@ heartbeat's, at the latest). The inputs' own events are taken at the heartbeat
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any, Callable, Literal
 
 from rclpy.executors import Executor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy   # rclpy's rcl binding: WaitSet
 from rclpy.node import Node
 
-OTHER_KINDS = ("timer", "service", "client", "guard_condition")   # wait-set entities that are never inputs
+# wait-set entities that are never inputs
+OTHER_KINDS: tuple[Literal["timer", "service", "client", "guard_condition"], ...] = (
+    "timer", "service", "client", "guard_condition")
 
 
 class InputSpinner:
@@ -47,23 +49,25 @@ class InputSpinner:
         self._services = [s.handle for s in node.services]
         self._clients = [c.handle for c in node.clients]
         self._guards = [g.handle for g in node.guards]
+        context = node.context.handle
+        assert context is not None, "the node's context is shut down"
         self._wait_set = _rclpy.WaitSet(len(self._subscriptions), len(self._guards), len(self._timers),
-                                        len(self._clients), len(self._services), 0, node.context.handle)
+                                        len(self._clients), len(self._services), 0, context)
 
     def spin_once(self, timeout_s: float) -> None:
         """Wait up to ``timeout_s`` for work and do what is ready."""
         wait_set = self._wait_set
         wait_set.clear_entities()
-        for handle in self._subscriptions:
-            wait_set.add_subscription(handle)
-        for handle in self._timers:
-            wait_set.add_timer(handle)
-        for handle in self._services:
-            wait_set.add_service(handle)
-        for handle in self._clients:
-            wait_set.add_client(handle)
-        for handle in self._guards:
-            wait_set.add_guard_condition(handle)
+        for subscription in self._subscriptions:
+            wait_set.add_subscription(subscription)
+        for timer in self._timers:
+            wait_set.add_timer(timer)
+        for service in self._services:
+            wait_set.add_service(service)
+        for client in self._clients:
+            wait_set.add_client(client)
+        for guard in self._guards:
+            wait_set.add_guard_condition(guard)
         wait_set.wait(int(timeout_s * 1e9))
         ready = wait_set.get_ready_entities("subscription")
         inputs = sum(1 for pointer in ready if pointer in self._inputs)
