@@ -249,7 +249,7 @@ class LinkageMonitorNode(Node):
         sub: Any = self.create_subscription(msg_type, topic, take,   # type: ignore[arg-type]  # raw: bytes
                                             self.input_qos, raw=True,
                                             event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
-        self.input_events.watch(sub.topic_name, sub)
+        self.input_events.watch(topic, sub)   # the loss counter's key for this topic, as for its sequence gaps
         self._inputs.append((sub, callback))
 
     @property
