@@ -34,9 +34,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python tools/demo.py", description=__doc__.splitlines()[0])
     parser.add_argument("--bag", type=Path, default=DEFAULT_BAG, help="input bag (default: the bundled one)")
     parser.add_argument("--rate", type=float, default=1.0,
-                        help="playback speed, times real time (default 1; on a 2-core x86 machine the node took every input at "
-                             "10x, ~930 msg/s, and refused under 1 %% as stamped too far behind its clock at the "
-                             "peak, saying so; faster, it falls further behind and refuses more)")
+                        help="playback speed, times real time (default 1; on a 2-core x86 machine the node took and "
+                             "solved every input at 10x, ~930 msg/s, refusing none (2026-11-24); faster, it can fall "
+                             "behind and refuse inputs stamped too far behind its clock, saying so)")
     parser.add_argument("--out", type=Path, default=Path("out"), help="output directory (default out/)")
     args = parser.parse_args(argv)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")

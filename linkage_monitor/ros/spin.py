@@ -8,10 +8,12 @@ monitoring step itself. ``InputSpinner`` keeps one wait set of the node's waitab
 (subscriptions, timers, services, clients, guard conditions; gathered again after every wake-up
 that is not an input's, the only time the node can create an entity) and at each wake-up:
 
+- anything else is ready (the heartbeat timer, a parameter service, /clock with use_sim_time):
+  first one ``executor.spin_once(timeout_sec=0)``, rclpy's own dispatch for these rare wake-ups
+  (first: a /clock message that arrived with an input sets the node's clock before the input is
+  judged by it, as under rclpy's executor, which takes /clock first: ``make demo`` found it);
 - an input subscription is ready: ``take_inputs`` (the node's drain) takes the queued inputs
   itself, in arrival order;
-- anything else is ready (the heartbeat timer, a parameter service, /clock with use_sim_time):
-  one ``executor.spin_once(timeout_sec=0)``, rclpy's own dispatch for these rare wake-ups;
 - nothing within the timeout: it returns, so that the caller's loop (and a signal handler) runs.
 
 rclpy's event handlers of the node's own publishers (/rosout, /parameter_events QoS events) are
@@ -71,8 +73,9 @@ class InputSpinner:
         wait_set.wait(int(timeout_s * 1e9))
         ready = wait_set.get_ready_entities("subscription")
         inputs = sum(1 for pointer in ready if pointer in self._inputs)
-        if inputs:
-            self._take_inputs()
         if len(ready) > inputs or any(wait_set.get_ready_entities(kind) for kind in OTHER_KINDS):
+            # first, as rclpy's executor would: /clock (use_sim_time) before the inputs judged by it
             self._executor.spin_once(timeout_sec=0)
             self._gather()
+        if inputs:
+            self._take_inputs()
