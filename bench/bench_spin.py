@@ -33,7 +33,7 @@ def one_run(spinner: str, rate: float, seconds: float, run: int) -> float:
     from sensor_msgs.msg import FluidPressure, JointState
     from std_msgs.msg import String
 
-    from linkage_monitor.ros.spin import InputSpinner
+    from node_load import input_spinner
 
     qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
     node = rclpy.create_node(f"spin_target_{run}")
@@ -50,16 +50,17 @@ def one_run(spinner: str, rate: float, seconds: float, run: int) -> float:
         node.create_publisher(String, f"out_{k}", 10, event_callbacks=PublisherEventCallbacks(
             use_default_callbacks=False))
     publisher = driver.create_publisher(JointState, "joint_states", qos)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
+    if spinner == "executor":
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
 
-    def take_inputs() -> None:
-        for sub in inputs:
-            while (message := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
-                take(message[0])
-    input_spinner = InputSpinner(node, executor, inputs, take_inputs)
-    spin_once = ((lambda: executor.spin_once(timeout_sec=0.1)) if spinner == "executor"
-                 else (lambda: input_spinner.spin_once(0.1)))
+        def spin_once() -> None:
+            executor.spin_once(timeout_sec=0.1)
+    else:   # a node belongs to one executor: the spinner's own
+        lean = input_spinner(node, inputs, take)
+
+        def spin_once() -> None:
+            lean.spin_once(0.1)
     end = time.monotonic() + 1.0
     while publisher.get_subscription_count() == 0 or time.monotonic() < end:   # discovery
         spin_once()
@@ -79,7 +80,6 @@ def one_run(spinner: str, rate: float, seconds: float, run: int) -> float:
     cpu, count = time.thread_time() - cpu, taken[0] - first
     stop.set()
     thread.join()
-    executor.shutdown()
     node.destroy_node()
     driver.destroy_node()
     return 1e6 * cpu / max(count, 1)

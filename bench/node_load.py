@@ -20,7 +20,7 @@ import argparse
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -58,6 +58,18 @@ def solved_outputs() -> tuple[bytes, bytes, bytes]:
     return out.hinge_reactions, out.hitch_state, out.steerability
 
 
+def input_spinner(node: Any, subscriptions: list[Any], take: Callable[[bytes], None]) -> InputSpinner:
+    """``node`` spun as linkage_monitor's node spins (``ros.spin.InputSpinner``), every message
+    waiting on ``subscriptions`` (raw) handed to ``take``."""
+    def take_inputs() -> None:
+        for sub in subscriptions:
+            while (message := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
+                take(message[0])
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    return InputSpinner(node, executor, subscriptions, take_inputs)
+
+
 def main() -> None:
     """Spin until Ctrl-C; publishes a latched `mechanism_description` so the bench knows it is up."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -91,12 +103,7 @@ def main() -> None:
         callback: Any = take
         sub = node.create_subscription(JointState, "joint_states", callback, INPUT_QOS, raw=True)
 
-        def take_inputs() -> None:
-            while (message := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
-                take(message[0])
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        spinner = InputSpinner(node, executor, [sub], take_inputs)
+        spinner = input_spinner(node, [sub], take)
 
         def spin() -> None:   # as the node's main() spins
             while rclpy.ok():
