@@ -7,8 +7,12 @@ from __future__ import annotations
 
 import time
 
+import dataclasses
+
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
@@ -110,3 +114,26 @@ def test_marker_bytes_are_what_rclpy_builds(name):
         wire = serialize_message(msg)   # what a subscriber of the oracle gets (float32 colours rounded)
         _same(deserialize_message(data, MarkerArray), deserialize_message(wire, MarkerArray), "markers")
         assert len(data) == len(exact_cdr(MARKER_ARRAY, wire))
+
+
+@settings(max_examples=60, deadline=None)
+@given(exponents=st.lists(st.floats(-4.0, 7.0), min_size=1, max_size=12), sign=st.sampled_from([1.0, -1.0]))
+def test_labels_of_any_length_are_spliced_as_rclpy_builds(exponents, sign):
+    """The label texts change length with the forces ("P03 9.9 kN", "P03 10.0 kN", "P03 1234567.9 kN"),
+    and with them the alignment padding after each: the package lays the message out once per pattern
+    of text lengths and splices the texts in. Hinge forces scaled by 10^e (hypothesis), belarus_1221,
+    compared with rclpy's message (oracle) pose after pose through one builder whose layout cache
+    holds 2 patterns (so layouts are dropped and laid out again)."""
+    mech = load_preset("belarus_1221")
+    solver = Solver(mech)
+    result = solver.solve(Inputs(**{k: dict(v) for k, v in mech.reference_inputs.items()}))
+    ours, theirs = LinkageMarkers(mech), oracle_markers.LinkageMarkers(mech)
+    ours.MAX_LAYOUTS = 2
+    for k, e in enumerate(exponents):
+        factor = sign * 10.0 ** (e + np.arange(len(mech.hinges)) * 0.37 % 3)   # a different length per hinge
+        scaled = dataclasses.replace(result, hinge_force=result.hinge_force * factor[:, None])
+        data, msg = ours.markers(1_700_000_000_000_000_000 + k, scaled), theirs.markers(1_700_000_000_000_000_000 + k,
+                                                                                        scaled)
+        _same(deserialize_message(data, MarkerArray), deserialize_message(serialize_message(msg), MarkerArray),
+              "markers")
+        assert len(data) == len(exact_cdr(MARKER_ARRAY, serialize_message(msg)))

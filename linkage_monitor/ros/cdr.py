@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
-from typing import Any, Callable, Hashable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -68,32 +68,18 @@ class Writer:
     def time(self, stamp_ns: int) -> None:
         """A builtin_interfaces/Time (or Duration) of ``stamp_ns`` ns: int32 sec, uint32 nanosec."""
         self.align(4)
-        self.data += _STAMP.pack(*stamp_fields(stamp_ns))
+        self.data += time_bytes(stamp_ns)
 
     def string(self, text: str) -> None:
-        """A string: length with the NUL, UTF-8 bytes, NUL (cut at an embedded NUL, as rclpy does)."""
-        raw = text.split("\x00", 1)[0].encode("utf-8")
-        self.uint32(len(raw) + 1)
-        self.data += raw
-        self.data.append(0)
+        """A string (``string_bytes``), 4-aligned."""
+        self.align(4)
+        self.data += string_bytes(text)
 
     def float64(self, value: float = 0.0) -> int:
         """A float64; returns its offset in ``data``."""
         self.align(8)
         self.data += _F64.pack(value)
         return len(self.data) - 8
-
-    def constant(self, key: Hashable, write: Callable[["Writer"], None], cache: dict) -> None:
-        """Append what ``write`` writes, from ``cache`` (keyed by ``key`` and the offset modulo 8, on
-        which the alignment padding depends): a run of fields that is the same in every message is
-        laid out once per alignment, not field by field each time."""
-        residue = (len(self.data) - len(ENCAPSULATION)) % 8
-        block = cache.get((key, residue))
-        if block is None:
-            scratch = Writer(bytearray(ENCAPSULATION) + bytes(residue))
-            write(scratch)
-            block = cache[(key, residue)] = bytes(scratch.data[len(ENCAPSULATION) + residue:])
-        self.data += block
 
     def header(self, frame_id: str) -> None:
         """A std_msgs/Header at the payload start with stamp 0 (``Template.fill`` writes it)."""
@@ -170,6 +156,18 @@ class Reader:
         if not count:
             return ()
         return struct.unpack_from(f"{self.order}{count}d", self.data, self._take(8 * count, f"{what} ({count} values)", 8))
+
+
+def time_bytes(stamp_ns: int) -> bytes:
+    """The 8 bytes of a builtin_interfaces/Time of ``stamp_ns`` ns (struct.error beyond int32 seconds)."""
+    return _STAMP.pack(*stamp_fields(stamp_ns))
+
+
+def string_bytes(text: str) -> bytes:
+    """A CDR string after its alignment: uint32 length with the NUL, UTF-8 bytes, NUL (cut at an
+    embedded NUL, as rclpy does)."""
+    raw = text.split("\x00", 1)[0].encode("utf-8")
+    return _U32.pack(len(raw) + 1) + raw + b"\x00"
 
 
 def stamp_fields(stamp_ns: int) -> tuple[int, int]:
