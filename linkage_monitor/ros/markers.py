@@ -98,7 +98,7 @@ class LinkageMarkers:
         source = np.concatenate([xz.ravel(), (at + hinge_f * scale).ravel(), at[:, 1] + 1.5 * TEXT_HEIGHT,
                                  (rod + along * cyl_f[:, None] * scale).ravel()])
         texts = [string_bytes(f"{name} {force / 1e3:.1f} kN")
-                 for name, force in zip(self._hinge_names, np.hypot(hinge_f[:, 0], hinge_f[:, 1]).tolist())]
+                 for name, force in zip(self._hinge_names, result.hinge_magnitude.tolist())]
         key = tuple(len(text) % 8 for text in texts)   # the padding after each text depends on these
         layout = self._layouts.get(key)
         if layout is None:
@@ -108,8 +108,8 @@ class LinkageMarkers:
         data = layout.data.copy()
         data[layout.slots] = np.concatenate([np.frombuffer(time_bytes(stamp_ns), dtype=np.uint8),
                                              source.astype("<f8").view(np.uint8)])[layout.sources]
-        raw = data.tobytes()
-        pieces: list[bytes] = []
+        raw = data.data   # sliced without copies: the join below is the one copy
+        pieces: list[bytes | memoryview] = []
         last = 0
         for cut, text in zip(layout.cuts, texts):
             pieces += (raw[last:cut], text)
