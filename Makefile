@@ -1,10 +1,23 @@
 # Two commands do everything on a fresh machine:
-#   make demo   - set up .venv (ROS 2 Kilted wheels, rosidl messages, deps), run the main job
-#   make test   - set up .venv, run the tests
-# Set-up is idempotent: stamps in .venv make a second run skip what has not changed.
+#   make demo   - set up the venv (ROS 2 wheels, rosidl messages, deps), run the main job
+#   make test   - set up the venv, run the tests
+# ROS_DISTRO selects the ROS 2 distribution: jazzy (default, LTS) into .venv, kilted into
+# .venv-kilted (`ROS_DISTRO=kilted make test`). Each installs exactly its lock file,
+# requirements/<distro>.lock (`make lock` regenerates both from requirements.txt).
+# Set-up is idempotent: stamps in the venv make a second run skip what has not changed.
 
 PYTHON ?= python3
-VENV   := .venv
+ROS_DISTRO ?= jazzy
+DISTROS := jazzy kilted
+ifeq ($(filter $(ROS_DISTRO),$(DISTROS)),)
+$(error ROS_DISTRO=$(ROS_DISTRO) has no ROS 2 wheels here: use jazzy (the default) or kilted, e.g. `ROS_DISTRO=kilted make test`; a system ROS is built with colcon, see README)
+endif
+ifeq ($(ROS_DISTRO),jazzy)
+VENV   ?= .venv
+else
+VENV   ?= .venv-$(ROS_DISTRO)
+endif
+LOCK   := requirements/$(ROS_DISTRO).lock
 PY     := $(VENV)/bin/python
 PIP    := $(PY) -m pip --disable-pip-version-check -q
 DEPS_STAMP := $(VENV)/.deps-stamp
@@ -13,8 +26,9 @@ SYS_STAMP  := $(VENV)/.sys-stamp
 WARM_STAMP := $(VENV)/.numba-stamp
 MSGS   := $(wildcard msg/*.msg)
 PYTEST_ARGS ?=
+export ROS_DISTRO
 
-.PHONY: all setup demo test bench colcon-check clean distclean
+.PHONY: all setup demo test bench colcon-check lock clean distclean
 
 all: test
 
@@ -31,17 +45,33 @@ $(SYS_STAMP): | $(VENV)/bin/python
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
 
-$(DEPS_STAMP): requirements.txt | $(VENV)/bin/python
-	@echo ">> installing Python dependencies (ROS 2 Kilted wheels, numpy, mcap, rerun-sdk, ...)"
-	$(PIP) install --upgrade pip setuptools wheel
-	$(PIP) install -r requirements.txt
+# uv (at the lock's version) installs exactly the lock: same versions, hashes checked, anything
+# not in it removed.
+$(DEPS_STAMP): $(LOCK) | $(VENV)/bin/python
+	@echo ">> installing $(LOCK) into $(VENV) (ROS 2 $(ROS_DISTRO) wheels, numpy, mcap, rerun-sdk, ...)"
+	$(PIP) install "$$(sed -n 's/^\(uv==[^ ]*\).*/\1/p' $(LOCK))"
+	$(VENV)/bin/uv pip sync -q --python $(PY) $(LOCK)
+	@rm -f $(PKG_STAMP)
 	@touch $@
+
+# The lock files, from requirements.txt (the human-edited input) with ${ROS_DISTRO} put in and
+# the other distribution's `# only:` lines left out:
+# exact versions and hashes for CPython 3.11 on x86_64 Linux. Run after editing requirements.txt.
+lock:
+	@command -v uv >/dev/null 2>&1 || $(PYTHON) -m pip install -q uv
+	@for d in $(DISTROS); do \
+	  echo ">> requirements/$$d.lock"; \
+	  awk -v d=$$d '!/# only:/ || $$0 ~ "# only: " d' requirements.txt | sed "s/\$${ROS_DISTRO}/$$d/g" | uv pip compile - -q --generate-hashes \
+	    --python-version 3.11 --python-platform x86_64-manylinux_2_28 --no-header \
+	    --annotation-style line -o requirements/$$d.lock || exit 1; \
+	done
 
 # Generates linkage_monitor.msg from msg/*.msg with rosidl and installs the package
 # (editable: Python edits need no re-install; message edits re-run this step).
 $(PKG_STAMP): $(DEPS_STAMP) setup.py CMakeLists.txt package.xml $(MSGS)
 	@echo ">> building messages and installing linkage_monitor"
 	$(PIP) install --no-build-isolation --no-deps -e .
+	@echo $(ROS_DISTRO) > linkage_monitor/msg/.ros_distro
 	@touch $@
 
 # The physics kernels compiled once into numba's on-disk cache (about a minute the first time),
@@ -51,8 +81,10 @@ $(WARM_STAMP): $(PKG_STAMP) linkage_monitor/mechanics/kernels.py
 	$(PY) -m linkage_monitor.mechanics.warm
 	@touch $@
 
+# The generated messages live in the source tree (editable install) and belong to one
+# distribution: switching distribution regenerates them.
 setup: $(PKG_STAMP) $(SYS_STAMP)
-	@test -f linkage_monitor/msg/__init__.py || { rm -f $(PKG_STAMP); $(MAKE) $(PKG_STAMP); }
+	@test "$$(cat linkage_monitor/msg/.ros_distro 2>/dev/null)" = $(ROS_DISTRO) || { rm -f $(PKG_STAMP); $(MAKE) --no-print-directory $(PKG_STAMP); }
 	@$(MAKE) --no-print-directory $(WARM_STAMP)
 
 test: setup
@@ -68,12 +100,11 @@ bench: setup
 # colcon build of the package in a throw-away workspace against the ROS wheels in .venv, then the
 # built messages imported and the node run from that workspace's install tree (tools/colcon_check.sh)
 colcon-check: setup
-	$(PIP) install colcon-core colcon-cmake colcon-ros colcon-python-setup-py colcon-library-path
-	sh tools/colcon_check.sh
+	VENV=$(VENV) sh tools/colcon_check.sh
 
 clean:
 	rm -rf build out .pytest_cache .hypothesis linkage_monitor/msg linkage_monitor/*.so
 	rm -f $(PKG_STAMP)
 
 distclean: clean
-	rm -rf $(VENV)
+	rm -rf .venv .venv-*

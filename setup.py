@@ -1,6 +1,6 @@
 """Build and install linkage_monitor with its ROS 2 messages in one `pip install`.
 
-The messages in msg/ are generated with rosidl (CMake, the ROS 2 Kilted wheels from PyPI)
+The messages in msg/ are generated with rosidl (CMake, the ROS 2 wheels from PyPI in the environment)
 during `build_py`: the generated `linkage_monitor.msg` package and its typesupport
 libraries are placed beside the hand-written Python package, and the staged `lib/` and
 `share/` trees (shared libraries, .msg files, ament index) are installed into the
@@ -21,7 +21,8 @@ from setuptools.command.build_py import build_py
 
 ROOT = Path(__file__).resolve().parent
 PACKAGE = "linkage_monitor"
-BUILD = ROOT / "build" / "rosidl"
+# one build tree per environment: each venv holds its own ROS 2 distribution
+BUILD = ROOT / "build" / f"rosidl{Path(sys.prefix).name.removeprefix('.venv')}"
 STAGE = BUILD / "stage"
 GENERATED = ROOT / PACKAGE / "msg"
 

@@ -1,11 +1,11 @@
 #!/bin/sh
 # `make colcon-check`: build linkage_monitor the ROS 2 way — colcon, in a throw-away workspace
-# with the package linked in, against the ROS 2 Kilted wheels in .venv (no ROS distribution) —
+# with the package linked in, against the ROS 2 wheels in the venv ($VENV, default .venv) (no ROS distribution) —
 # then, from that workspace's install tree only, import the built messages and run the node for
 # a few seconds: a JointState and a pressure in, the outputs must come back (tools/colcon_smoke.py).
 set -eu
 REPO=$(cd "$(dirname "$0")/.." && pwd)
-VENV=$REPO/.venv
+VENV=${VENV:-.venv}; case $VENV in /*) ;; *) VENV=$REPO/$VENV ;; esac
 WS=$(mktemp -d "${TMPDIR:-/tmp}/linkage_monitor_colcon.XXXXXX")
 trap 'rm -rf "$WS"' EXIT
 mkdir "$WS/src"
