@@ -34,7 +34,7 @@ all: test
 
 # Debian packages the tests and the Rerun screenshot need (a headless X server and a
 # software Vulkan driver for the real Rerun viewer). Skipped when already present.
-$(SYS_STAMP): | $(VENV)/bin/python
+$(SYS_STAMP): | $(DEPS_STAMP)
 	@if ! command -v xvfb-run >/dev/null 2>&1 || ! ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1; then \
 	  echo ">> installing Debian packages: xvfb mesa-vulkan-drivers xauth"; \
 	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
@@ -42,16 +42,15 @@ $(SYS_STAMP): | $(VENV)/bin/python
 	fi
 	@touch $@
 
-$(VENV)/bin/python:
-	$(PYTHON) -m venv $(VENV)
-
-# uv (at the lock's version) installs exactly the lock: same versions, hashes checked, anything
-# not in it removed.
-$(DEPS_STAMP): $(LOCK) | $(VENV)/bin/python
+# uv (at the lock's version) installs exactly the lock, hashes checked. A changed lock rebuilds
+# the venv from scratch (seconds, from uv's cache): several ROS wheels install into shared
+# directories, and removing one of them in place has deleted another's modules.
+$(DEPS_STAMP): $(LOCK)
 	@echo ">> installing $(LOCK) into $(VENV) (ROS 2 $(ROS_DISTRO) wheels, numpy, mcap, rerun-sdk, ...)"
+	rm -rf $(VENV)
+	$(PYTHON) -m venv $(VENV)
 	$(PIP) install "$$(sed -n 's/^\(uv==[^ ]*\).*/\1/p' $(LOCK))"
 	$(VENV)/bin/uv pip sync -q --python $(PY) $(LOCK)
-	@rm -f $(PKG_STAMP)
 	@touch $@
 
 # The lock files, from requirements.txt (the human-edited input) with ${ROS_DISTRO} put in and
