@@ -24,7 +24,7 @@ DEPS_STAMP := $(VENV)/.deps-stamp
 PKG_STAMP  := $(VENV)/.pkg-stamp
 SYS_STAMP  := $(VENV)/.sys-stamp
 WARM_STAMP := $(VENV)/.numba-stamp
-MSGS   := $(wildcard msg/*.msg)
+MSGS   := $(wildcard msg/*.msg interfaces/can_msgs/msg/*.msg interfaces/can_msgs/CMakeLists.txt)
 PYTEST_ARGS ?=
 export ROS_DISTRO
 

@@ -25,6 +25,10 @@ PACKAGE = "linkage_monitor"
 BUILD = ROOT / "build" / f"rosidl{Path(sys.prefix).name.removeprefix('.venv')}"
 STAGE = BUILD / "stage"
 GENERATED = ROOT / PACKAGE / "msg"
+# can_msgs/msg/Frame (ros2_socketcan's /from_can_bus): no wheel exists, built here from its public
+# definition (interfaces/can_msgs) into the Python package can_msgs beside linkage_monitor
+CAN_MSGS_SOURCE = ROOT / "interfaces" / "can_msgs"
+CAN_MSGS = ROOT / "can_msgs"
 
 
 def _run(cmd: list[str], env: dict[str, str], cwd: Path, log: Path) -> None:
@@ -35,34 +39,38 @@ def _run(cmd: list[str], env: dict[str, str], cwd: Path, log: Path) -> None:
         raise SystemExit(f"message generation failed: {' '.join(cmd)} (log: {log})")
 
 
-def generate_messages() -> None:
-    """Run rosidl on msg/ via CMake into build/rosidl/stage and copy the Python side in."""
+def generate_messages(source: Path, package: str, build: Path, target: Path) -> None:
+    """Run rosidl on ``source``'s msg/ via CMake into build/rosidl/stage and copy the Python side of
+    ``package`` (its generated msg/ and typesupport modules) into ``target``."""
     prefix = Path(sys.prefix)
     # CMake refuses exported include paths inside the source dir, and the venv lives in
     # the repository: configure from a copy of the interface sources under build/.
-    src = BUILD / "src"
+    src = build / "src"
     src.mkdir(parents=True, exist_ok=True)
     for name in ("CMakeLists.txt", "package.xml"):
-        shutil.copy2(ROOT / name, src / name)
-    shutil.copytree(ROOT / "msg", src / "msg", dirs_exist_ok=True)
+        shutil.copy2(source / name, src / name)
+    shutil.copytree(source / "msg", src / "msg", dirs_exist_ok=True)
     env = dict(os.environ)
     env["AMENT_PREFIX_PATH"] = str(prefix)
     env["CMAKE_PREFIX_PATH"] = str(prefix)
     env["PATH"] = f"{prefix / 'bin'}{os.pathsep}{env.get('PATH', '')}"
     cmake = shutil.which("cmake", path=env["PATH"]) or "cmake"
-    work = BUILD / "cmake"
+    work = build / "cmake"
     work.mkdir(parents=True, exist_ok=True)
     if not (work / "build.ninja").exists():
         _run([cmake, str(src), "-G", "Ninja", f"-DCMAKE_INSTALL_PREFIX={STAGE}",
               f"-DPython3_EXECUTABLE={sys.executable}", "-DBUILD_TESTING=OFF",
-              "-DLINKAGE_MONITOR_MSGS_ONLY=ON"], env, work, BUILD / "configure.log")
-    _run([cmake, "--build", ".", "--target", "install"], env, work, BUILD / "build.log")
-    site = next(STAGE.glob(f"lib/python*/site-packages/{PACKAGE}"))
-    shutil.rmtree(GENERATED, ignore_errors=True)
-    shutil.copytree(site / "msg", GENERATED,
+              "-DLINKAGE_MONITOR_MSGS_ONLY=ON"], env, work, build / "configure.log")
+    _run([cmake, "--build", ".", "--target", "install"], env, work, build / "build.log")
+    site = next(STAGE.glob(f"lib/python*/site-packages/{package}"))
+    target.mkdir(exist_ok=True)
+    shutil.rmtree(target / "msg", ignore_errors=True)
+    shutil.copytree(site / "msg", target / "msg",
                     ignore=shutil.ignore_patterns("*.c", "__pycache__"))
     for lib in site.glob("*.so"):
-        shutil.copy2(lib, ROOT / PACKAGE / lib.name)
+        shutil.copy2(lib, target / lib.name)
+    if not (target / "__init__.py").exists():   # can_msgs: the generated package whole (linkage_monitor has its own)
+        shutil.copy2(site / "__init__.py", target / "__init__.py")
 
 
 def staged_data_files() -> list[tuple[str, list[str]]]:
@@ -82,7 +90,8 @@ class BuildWithMessages(build_py):
     """build_py that first generates linkage_monitor.msg from msg/*.msg."""
 
     def run(self) -> None:
-        generate_messages()
+        generate_messages(ROOT, PACKAGE, BUILD, ROOT / PACKAGE)
+        generate_messages(CAN_MSGS_SOURCE, "can_msgs", BUILD / "can_msgs", CAN_MSGS)
         self.distribution.data_files = staged_data_files()
         super().run()
 
@@ -98,12 +107,13 @@ class PlatformDistribution(Distribution):
 
 
 GENERATED.mkdir(exist_ok=True)  # filled by build_py; must exist for the metadata step
+(CAN_MSGS / "msg").mkdir(parents=True, exist_ok=True)
 setup(
     name=PACKAGE,
     version="0.1.0",
     description="Live hinge reactions, lift capacity and steerability of tractor linkages (ROS 2)",
-    packages=sorted({*find_packages(include=[PACKAGE, f"{PACKAGE}.*"]), f"{PACKAGE}.msg"}),
-    package_data={PACKAGE: ["*.so"], f"{PACKAGE}.mechanics.presets": ["*.yaml"]},
+    packages=sorted({*find_packages(include=[PACKAGE, f"{PACKAGE}.*"]), f"{PACKAGE}.msg", "can_msgs", "can_msgs.msg"}),
+    package_data={PACKAGE: ["*.so"], f"{PACKAGE}.mechanics.presets": ["*.yaml"], "can_msgs": ["*.so"]},
     data_files=[],
     python_requires=">=3.10",
     distclass=PlatformDistribution,
