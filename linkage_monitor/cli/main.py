@@ -19,6 +19,8 @@ import yaml
 from linkage_monitor.bag.writer import BagError
 from linkage_monitor.cli.arguments import add_mechanism_group, bounded, mechanism_from_args, new_directory, output_file
 from linkage_monitor.cli.calibrate import add_calibrate_parser, run_calibrate
+from linkage_monitor.cli.can import COMMANDS as CAN_COMMANDS
+from linkage_monitor.cli.can import add_can_parsers, run_can_command
 from linkage_monitor.cli.capacity import add_capacity_parser, run_capacity
 from linkage_monitor.cli.fleet import add_fleet_parser, add_spectrum_arguments, run_fleet_command
 from linkage_monitor.cli.simulate import add_simulate_parser, run_simulate
@@ -75,6 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="print each hinge's rainflow load spectrum and damage-equivalent load (docs/fleet.md)")
     add_spectrum_arguments(replay)
     add_fleet_parser(sub)
+    add_can_parsers(sub)
     return parser
 
 
@@ -207,6 +210,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return run_fleet_command(args)
         if args.command == "replay":
             return _replay(args)
+        if args.command in CAN_COMMANDS:
+            return run_can_command(args)
         return _solve(args)
     except (LinkageError, BagError, yaml.YAMLError) as exc:
         print(f"linkage-monitor: error: {str(exc).splitlines()[0]}", file=sys.stderr)

@@ -158,7 +158,14 @@ def _check_choices(p: dict[str, Any]) -> None:
 
 
 class LinkageMonitorNode(Node):
-    """Subscribes to the sensors, solves on every message, publishes results and diagnostics."""
+    """Subscribes to the sensors, solves on every message, publishes results and diagnostics.
+
+    A driver that brings its own inputs (the CAN bridge, ``linkage_monitor.can.node``) subclasses
+    it with ``subscribes_sensors = False`` and hands its decoded inputs to ``_record`` / ``monitor``
+    / ``_publish`` as the sensor callbacks do.
+    """
+
+    subscribes_sensors = True
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
@@ -218,9 +225,10 @@ class LinkageMonitorNode(Node):
                           QoSProfile(depth=int(p["reliable_queue_depth"]), reliability=ReliabilityPolicy.RELIABLE))
         self._inputs: list[tuple[Any, Callable[[bytes, dict], None]]] = []   # (subscription, its callback)
         self.input_events = InputEvents()   # taken at the heartbeat (ros/input_events.py)
-        self._subscribe(JointState, config.topics.joint_states, self.on_joint_state)
-        for topic in config.pressure_topics:
-            self._subscribe(FluidPressure, topic, self._pressure_callback(topic))
+        if self.subscribes_sensors:
+            self._subscribe(JointState, config.topics.joint_states, self.on_joint_state)
+            for topic in config.pressure_topics:
+                self._subscribe(FluidPressure, topic, self._pressure_callback(topic))
         self.create_timer(HEARTBEAT_S, self.on_heartbeat)
         self.add_on_set_parameters_callback(self.validate_parameters)
         self.add_post_set_parameters_callback(self.apply_parameters)
@@ -498,8 +506,10 @@ def _publisher_id(info: dict) -> object:
     return tuple(gid["data"]) if isinstance(gid, dict) and "data" in gid else None
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Console script `linkage_monitor_node`: run until Ctrl-C / SIGTERM / shutdown.
+def main(argv: list[str] | None = None, make_node: Callable[[], LinkageMonitorNode] = LinkageMonitorNode) -> int:
+    """Console script `linkage_monitor_node`: run until Ctrl-C / SIGTERM / shutdown. ``make_node``
+    builds the node (the CAN bridge passes its own; errors of its inputs end the start as the
+    node's own do: one line on stderr, exit code 2).
 
     A signal only asks the spin loop to stop (rclpy's own handlers are off): it never lands as an
     exception in the middle of a callback, e.g. half-way through writing a message into the bag's
@@ -511,7 +521,7 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(signum, lambda *_: stopping.set())
     node = None
     try:
-        node = LinkageMonitorNode()
+        node = make_node()
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         spinner = InputSpinner(node, executor, node.input_subscriptions, node.take_inputs)

@@ -1,0 +1,171 @@
+"""The live CAN bridge: the monitor's node fed from CAN frames instead of sensor topics.
+
+Frames come from a python-can bus (``--bus INTERFACE:CHANNEL``: a reader thread hands them to
+the node's thread through a guard condition) or from ``can_msgs/msg/Frame`` messages on a topic
+(``/from_can_bus``, beside ros2_socketcan). Each frame is recorded raw (can_msgs/msg/Frame on the
+raw topic), decoded (``decoder``), each decoded input recorded as the sensor message it stands for
+and handed to the monitoring core; the outputs, markers, /diagnostics and the bag are the node's
+own (``ros.node.LinkageMonitorNode``: this class adds only the frames' way in). A refused frame,
+an error frame, bus-off, a receive error and a silent bus are findings on /diagnostics; the frame
+counts (decoded + ignored + refused = received) are a status ``linkage_monitor: can`` at every
+heartbeat and at shutdown. Units SI; stamps: the frames' own (µs), receive times the node's clock.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import can
+from can_msgs.msg import Frame as FrameMsg
+
+from linkage_monitor.monitoring.core import Step
+from linkage_monitor.monitoring.findings import Code, Finding, Level, fmt
+from linkage_monitor.ros.node import LinkageMonitorNode, _publisher_id
+
+from .decoder import CanDecoder, load_databases
+from .frame_msg import FRAME_TYPE, from_cdr, to_cdr
+from .frames import Frame, from_message
+from .mapping import CanMapping
+from .sources import open_bus
+from .to_bag import RAW_TOPIC, input_record
+
+RECV_TIMEOUT_S = 0.1   # s, the reader thread looks this often whether it should stop
+RETRY_S = 1.0          # s, wait after a receive error before the next try
+
+
+@dataclass(frozen=True)
+class CanSource:
+    """Where the bridge's frames come from: ``bus`` (INTERFACE:CHANNEL) or else ``topic`` (can_msgs/Frame);
+    the DBC files and the mapping; ``raw_topic``: where raw frames are recorded."""
+
+    mapping: CanMapping
+    dbc: tuple[Path, ...]
+    bus: str | None = None
+    topic: str = RAW_TOPIC
+    raw_topic: str = RAW_TOPIC
+
+
+class CanBridgeNode(LinkageMonitorNode):
+    """The monitor's node with CAN frames as its inputs (see the module docstring)."""
+
+    subscribes_sensors = False
+
+    def __init__(self, source: CanSource, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.source = source
+        self.source_name = source.bus or self.resolve_topic_name(source.topic)
+        self.decoder = CanDecoder(load_databases(source.dbc), source.mapping, self.monitor.description,
+                                  self.monitor.config, self.source_name)
+        self.silence_s = source.mapping.silence_timeout_s
+        self._last_frame = time.monotonic()
+        self._silent = False
+        self._queue: deque[Frame | Finding] = deque()
+        self._stop = threading.Event()
+        self._reader: threading.Thread | None = None
+        self.bus: can.BusABC | None = None
+        if source.bus is not None:
+            self.bus = open_bus(source.bus)
+            self._wake = self.create_guard_condition(self._take_queued)
+            self._reader = threading.Thread(target=self._read_bus, name=f"CAN {source.bus}", daemon=True)
+            self._reader.start()
+        else:
+            self._subscribe(FrameMsg, self.source_name, self._on_frame_message)
+        self.create_timer(min(0.1, self.silence_s / 4), self._check_silence)
+        self.get_logger().info(f"CAN frames from {self.source_name}, {len(source.mapping.inputs)} mapped input(s)")
+
+    # ---- the bus: a reader thread, the node's thread works the frames off -------------------------
+    def _read_bus(self) -> None:
+        assert self.bus is not None
+        while not self._stop.is_set():
+            try:
+                msg = self.bus.recv(RECV_TIMEOUT_S)
+            except (can.CanError, OSError) as exc:
+                self._queue.append(Finding(Code.INPUTS_LOST, f"receiving from {self.source_name} failed "
+                                           f"({type(exc).__name__}: {exc}); frames meanwhile are lost, retrying in "
+                                           f"{fmt(RETRY_S)} s"))
+                self._wake.trigger()
+                self._stop.wait(RETRY_S)
+                continue
+            if msg is not None:
+                self._queue.append(from_message(msg))
+                self._wake.trigger()
+
+    def _take_queued(self) -> None:
+        while self._queue:
+            item = self._queue.popleft()
+            now = self._now()
+            if isinstance(item, Finding):
+                self._publish(Step(now, self.source_name, (item,)), now)
+            else:
+                self._take_frame(item, to_cdr(item), now)
+
+    # ---- the topic ---------------------------------------------------------------------------------
+    def _on_frame_message(self, data: bytes, info: dict) -> None:
+        now = self._now()
+        self.loss.on_message(self.source_name, _publisher_id(info), info.get("publication_sequence_number"))
+        try:
+            frame = from_cdr(data)
+        except Exception as exc:  # noqa: BLE001 - rclpy raises its own errors for bytes that are not the type
+            self.decoder.counts.received += 1
+            self.decoder.counts.refused += 1
+            self._record(self.source.raw_topic, data, now, now, self.input_qos, FRAME_TYPE)
+            self._publish(self.monitor.on_unreadable(self.source_name, FRAME_TYPE, len(data), str(exc), now), now)
+            return
+        self._take_frame(frame, data, now)
+
+    # ---- one frame -----------------------------------------------------------------------------------
+    def _take_frame(self, frame: Frame, raw: bytes, now: int) -> None:
+        """Record the raw frame, decode it, record and solve each input it gives; publish findings."""
+        self._last_frame = time.monotonic()
+        if self._silent:
+            self._silent = False
+            self.get_logger().info(f"CAN frames again on {self.source_name}")
+        try:
+            self._record(self.source.raw_topic, raw, frame.stamp_ns, now, self.input_qos, FRAME_TYPE)
+        except Exception as exc:  # noqa: BLE001 - a recording fault must not stop the monitoring
+            self._publish_status("recording", Level.ERROR, f"recording failed for {self.source.raw_topic}: "
+                                 f"{type(exc).__name__}: {exc}; solving and publishing go on", now)
+        decoded = self.decoder.decode(frame, now)
+        if decoded.finding is not None:
+            self._publish(Step(frame.stamp_ns, self.source_name, (decoded.finding,)), now)
+        for event in decoded.events:
+            type_name, data = input_record(event)
+            self._record(event.topic, data, frame.stamp_ns, now, self.input_qos, type_name)
+            self._publish(self.monitor.step(event), now)
+
+    def _check_silence(self) -> None:
+        silent_for = time.monotonic() - self._last_frame
+        if silent_for > self.silence_s and not self._silent:
+            self._silent = True
+            now = self._now()
+            self._publish(Step(now, self.source_name, (Finding(Code.STALE_INPUT, (
+                f"no CAN frame on {self.source_name} for {silent_for:.1f} s (silence_timeout {fmt(self.silence_s)} s): "
+                "no solve until frames come again; check the bus connection, its bit rate and the tractor's ECUs")),)),
+                now)
+
+    # ---- frame counts with the heartbeat, at shutdown ----------------------------------------------------
+    def on_heartbeat(self) -> None:
+        super().on_heartbeat()
+        self._publish_counts()
+
+    def _publish_counts(self) -> None:
+        counts = self.decoder.counts
+        self._publish_status("can", Level.OK, counts.summary(), self._now())
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._reader is not None:
+            self._reader.join(timeout=2 * RECV_TIMEOUT_S + RETRY_S)
+        if self.bus is not None:
+            self.bus.shutdown()
+        try:
+            self._publish_counts()
+            self.get_logger().info(f"CAN {self.source_name}: {self.decoder.counts.summary()}")
+        except Exception as exc:  # noqa: BLE001 - the bag is finished whatever happens here
+            self.get_logger().error(f"final frame count failed: {type(exc).__name__}: {exc}")
+        super().close()

@@ -1,0 +1,53 @@
+"""Where frames come from: a python-can bus (``INTERFACE:CHANNEL``) or a log file read by
+python-can's own readers (candump .log, .asc, .blf, ... : ``can.LogReader``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Iterator
+
+import can
+
+from linkage_monitor.mechanics import InputError
+
+from .frames import Frame, from_message
+
+LOG_SUFFIXES = (".log", ".asc", ".blf", ".csv", ".db", ".mf4", ".trc")
+
+
+def parse_bus(spec: str) -> tuple[str, str]:
+    """(interface, channel) of ``INTERFACE:CHANNEL`` (``socketcan:can0``, ``virtual:demo``,
+    ``udp_multicast:239.74.163.2``); InputError if malformed or the interface is unknown."""
+    interface, sep, channel = spec.partition(":")
+    if not sep or not interface or not channel:
+        raise InputError(f"--bus {spec!r}: expected INTERFACE:CHANNEL, e.g. socketcan:can0")
+    if interface not in can.VALID_INTERFACES:
+        raise InputError(f"--bus {spec!r}: python-can knows no interface '{interface}' "
+                         f"(known: {', '.join(sorted(can.VALID_INTERFACES))})")
+    return interface, channel
+
+
+def open_bus(spec: str, **options: object) -> can.BusABC:
+    """The python-can bus of ``INTERFACE:CHANNEL``; InputError saying why it cannot be opened."""
+    interface, channel = parse_bus(spec)
+    try:
+        return can.Bus(interface=interface, channel=channel, **options)  # type: ignore[arg-type]
+    except (can.CanError, OSError, ImportError, ValueError) as exc:
+        raise InputError(f"--bus {spec}: cannot open ({type(exc).__name__}: {exc}); for socketcan the "
+                         "interface must be up (ip link set can0 up type can bitrate 250000)") from None
+
+
+def read_log(path: str | Path) -> Iterator[Frame]:
+    """The frames of a log file in file order (python-can's LogReader picks the reader by suffix)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"CAN log {path}: no such file")
+    if path.suffix.lower() not in LOG_SUFFIXES:
+        raise InputError(f"CAN log {path}: unknown format '{path.suffix}' (python-can reads "
+                         f"{', '.join(LOG_SUFFIXES)})")
+    try:
+        with can.LogReader(str(path)) as reader:
+            for msg in reader:
+                yield from_message(msg)
+    except (ValueError, can.CanError, IndexError, KeyError) as exc:
+        raise InputError(f"CAN log {path}: unreadable ({type(exc).__name__}: {exc})") from None
