@@ -43,7 +43,8 @@ from support.ros_harness import LATCHED, stop  # noqa: E402
 
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE  # noqa: E402
 from linkage_monitor.msg import HitchState  # noqa: E402
-from linkage_monitor.ros.messages import header, stamp_ns  # noqa: E402
+from linkage_monitor.ros.messages import header  # noqa: E402
+from linkage_monitor.wire.cdr import stamp_ns  # noqa: E402
 
 RELIABLE = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 JOINTS = ["lift_cylinder", "lift_arm_angle"]

@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from linkage_monitor.mechanics import Inputs, load_preset  # noqa: E402
 from linkage_monitor.monitoring.config import MonitorConfig  # noqa: E402
 from linkage_monitor.monitoring.core import Monitor  # noqa: E402
-from linkage_monitor.ros.messages import OutputEncoder  # noqa: E402
+from linkage_monitor.wire.outputs import OutputEncoder  # noqa: E402
 from linkage_monitor.sim.telemetry import simulate  # noqa: E402
 
 PRESSURE_TOPIC = "/pressure/lift_cap_pressure"

@@ -51,7 +51,8 @@ def over_topics(preset: str, count: int) -> FuzzTally:
     from linkage_monitor.bag.reader import FLUID_PRESSURE, JOINT_STATE, read_bag
     from linkage_monitor.offline.compare import compare_bags
     from linkage_monitor.offline.replay import replay
-    from linkage_monitor.ros.messages import header, stamp_ns
+    from linkage_monitor.ros.messages import header
+    from linkage_monitor.wire.cdr import stamp_ns
     from support.ros_env import isolate_ros_domain
     from support.ros_harness import MonitorClient, node_bag, settle, start_node, stop
 

@@ -42,7 +42,7 @@ def solved_outputs() -> tuple[bytes, bytes, bytes]:
     from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
     from linkage_monitor.monitoring.config import MonitorConfig
     from linkage_monitor.monitoring.core import Event, JointStateEvent, Monitor, PressureEvent
-    from linkage_monitor.ros.messages import OutputEncoder
+    from linkage_monitor.wire.outputs import OutputEncoder
 
     sys.path.insert(0, str(Path(__file__).parent))
     from bench_node import GAUGE, JOINTS, POSE
@@ -82,7 +82,7 @@ def main() -> None:
     node.create_publisher(String, "mechanism_description", LATCHED).publish(String(data="relay"))
     if args.outputs:
         from linkage_monitor.bag.writer import BagWriter
-        from linkage_monitor.ros.messages import HINGE_REACTIONS, HITCH_STATE, STEERABILITY
+        from linkage_monitor.wire.outputs import HINGE_REACTIONS, HITCH_STATE, STEERABILITY
 
         recorder = BagWriter(args.record_dir)
         outputs = [(node.create_publisher(msg_type, topic, OUTPUT_QOS) if topic != "hitch_state" else pub,

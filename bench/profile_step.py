@@ -28,7 +28,7 @@ from linkage_monitor.mechanics import kernels, machine  # noqa: E402
 from linkage_monitor.mechanics import load_preset  # noqa: E402
 from linkage_monitor.monitoring import core  # noqa: E402
 from linkage_monitor.monitoring.config import MonitorConfig  # noqa: E402
-from linkage_monitor.ros.messages import OutputEncoder  # noqa: E402
+from linkage_monitor.wire.outputs import OutputEncoder  # noqa: E402
 from linkage_monitor.sim.telemetry import simulate  # noqa: E402
 
 PRESSURE_TOPIC = "/pressure/lift_cap_pressure"

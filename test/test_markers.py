@@ -19,12 +19,12 @@ from mcap_ros2.decoder import DecoderFactory
 from rclpy.serialization import deserialize_message, serialize_message
 from visualization_msgs.msg import MarkerArray
 
-from linkage_monitor.bag.definitions import exact_cdr
+from linkage_monitor.wire.definitions import exact_cdr
 from linkage_monitor.mechanics import Inputs, Solver, load_preset, preset_names
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
 from linkage_monitor.offline.replay import replay
-from linkage_monitor.ros.markers import FRAME, MARKER_ARRAY, LinkageMarkers
-from linkage_monitor.ros.messages import stamp_ns
+from linkage_monitor.wire.markers import FRAME, MARKER_ARRAY, LinkageMarkers
+from linkage_monitor.wire.cdr import stamp_ns
 from linkage_monitor.viz.drawing import ARROW_LENGTH, body_outline
 from oracles import markers as oracle_markers
 from support.ros_harness import node_bag, read_bag_rosbags, settle, stop
@@ -94,7 +94,7 @@ def test_node_publishes_and_records_the_linkage_as_markers(node):
 
 @pytest.mark.parametrize("name", preset_names())
 def test_marker_bytes_are_what_rclpy_builds(name):
-    """The MarkerArray bytes the package writes (ros.markers, CDR by hand) decode with rclpy to the
+    """The MarkerArray bytes the package writes (wire.markers, CDR by its layout) decode with rclpy to the
     message the former builder made field by field (oracle: test/oracles/markers.py), floats bit
     for bit, and have its exact CDR length (rclpy's buffer cut by rosbags' decoder); on every
     preset, over a simulated lift (several poses: the force scale fixed by the first)."""

@@ -20,7 +20,7 @@ from linkage_monitor.mechanics import Inputs, Solver, load_preset
 from linkage_monitor.mechanics.capacity import stroke_mechanism
 from linkage_monitor.mechanics.machine import MachineModel
 from linkage_monitor.mechanics.results import angle_readings
-from linkage_monitor.ros.messages import stamp_ns
+from linkage_monitor.wire.cdr import stamp_ns
 from support.ros_harness import MonitorClient, start_node, stop
 
 T0 = (time.time_ns() // 10**9) * 10**9  # ns, now (whole s): the node refuses stamps far from its clock

@@ -22,7 +22,7 @@ from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
 from linkage_monitor.monitoring.config import CONFIG_TOPIC
 from linkage_monitor.mechanics import Solver, load_preset
 from linkage_monitor.mechanics.capacity import stroke_mechanism
-from linkage_monitor.ros.messages import stamp_ns
+from linkage_monitor.wire.cdr import stamp_ns
 from linkage_monitor.bag.writer import MECHANISM_TOPIC
 from support.ros_harness import MonitorClient, node_bag, read_bag_rosbags, settle, stop
 

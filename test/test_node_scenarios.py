@@ -24,7 +24,7 @@ from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
 from linkage_monitor.mechanics import Inputs, Solver, load_preset
 from linkage_monitor.mechanics.machine import MachineModel
 from linkage_monitor.monitoring.core import ASSEMBLY_LIMIT_M
-from linkage_monitor.ros.messages import stamp_ns
+from linkage_monitor.wire.cdr import stamp_ns
 from linkage_monitor.cli.simulate import NOISE_ANGLE, NOISE_LENGTH, NOISE_PRESSURE
 from linkage_monitor.sim.telemetry import Noise, SimulatedStream, simulate
 from support.ros_harness import (MonitorClient, node_bag, read_bag_rosbags, settle, start_node,

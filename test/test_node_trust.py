@@ -21,7 +21,7 @@ from linkage_monitor.bag.reader import read_bag
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
 from linkage_monitor.mechanics import Solver, load_preset
 from linkage_monitor.monitoring.core import ASSEMBLY_LIMIT_M
-from linkage_monitor.ros.messages import stamp_ns
+from linkage_monitor.wire.cdr import stamp_ns
 from linkage_monitor.sim.telemetry import Noise, simulate
 from support.ros_harness import MonitorClient, node_bag, read_bag_rosbags, settle, start_node, stop
 

@@ -1,11 +1,11 @@
-"""The outputs written as CDR bytes (ros.messages.OutputEncoder) are the messages rclpy builds
+"""The outputs written as CDR bytes (wire.outputs.OutputEncoder) are the messages rclpy builds
 and serializes field by field (oracle: test/oracles/output_messages.py, the package's former
 builders), for every preset and fixture, OK and WARN steps, NaN fields, a reconfigured monitor
 and arbitrary values; and they decode with readers we did not write (rclpy, rosbags).
 
 How each check compares: rclpy's ``deserialize_message`` of our bytes equals the oracle
 message field by field (NaN equal to NaN, floats bit for bit), and our length equals the
-message's exact CDR length (rclpy's buffer cut by rosbags' decoder, bag.definitions.exact_cdr).
+message's exact CDR length (rclpy's buffer cut by rosbags' decoder, wire.definitions.exact_cdr).
 """
 
 from __future__ import annotations
@@ -20,13 +20,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message, serialize_message
 
-from linkage_monitor.bag.definitions import exact_cdr
+from linkage_monitor.wire.definitions import exact_cdr
 from linkage_monitor.bag.writer import message_type_name
 from linkage_monitor.mechanics import load_mechanism, load_preset, preset_names
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Monitor
-from linkage_monitor.ros.cdr import Template, Writer
-from linkage_monitor.ros.messages import OutputEncoder
+from linkage_monitor.wire.outputs import OutputEncoder
 from linkage_monitor.sim.telemetry import Noise, simulate
 from oracles.output_messages import outputs as oracle_outputs
 
@@ -138,65 +137,3 @@ def test_many_steps_at_once_as_one_at_a_time():
     assert ours == [encoder.outputs(monitor, step) for step in steps]
     texts = {step.message for step in steps if step.pose is not None}
     assert any(o is None for o in ours) and len(texts) > OutputEncoder.MAX_TEMPLATES, len(texts)
-
-
-@settings(max_examples=100, deadline=None)
-@given(st.integers(1, 6).flatmap(lambda n: st.tuples(
-    st.lists(st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64), min_size=3, max_size=3),
-             min_size=n, max_size=n),
-    st.lists(st.integers(-2**31 * 10**9, 2**31 * 10**9 - 1), min_size=n, max_size=n),
-    st.lists(st.integers(0, 255), min_size=n, max_size=n))))
-def test_rows_filled_at_once_as_one_by_one(rows):
-    """``Template.fill_rows`` (N messages) gives each row ``Template.fill`` of it: stamps before
-    1970 and to the end of int32 seconds, any floats (NaN, inf), any flag bytes; a stamp beyond
-    int32 seconds is refused by both."""
-    values, stamps, flags = rows
-    w = Writer()
-    w.header("base_footprint")
-    w.string("odd length")
-    slots = [w.float64(), w.float64()]
-    flag = w.uint8(0)
-    slots.append(w.float64())
-    template = Template.of(w, slots, (flag,))
-    filled = template.fill_rows(np.array(stamps, dtype=np.int64), np.array(values), np.array(flags, np.uint8)[:, None])
-    assert [row.tobytes() for row in filled] == [bytes(template.fill(t, v, (f,)))
-                                                for t, v, f in zip(stamps, values, flags)]
-    for beyond in (2**31 * 10**9, -2**31 * 10**9 - 1):
-        with pytest.raises(struct.error):
-            template.fill(beyond, values[0])
-        with pytest.raises(struct.error):
-            template.fill_rows(np.array([*stamps, beyond], dtype=np.int64), np.array([*values, values[0]]))
-
-
-@settings(max_examples=200, deadline=None)
-@given(st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64), min_size=1, max_size=9),
-       st.integers(0, 2**31 - 1), st.integers(0, 999_999_999), st.text(max_size=20), st.integers(0, 255))
-def test_template_fills_any_values(values, sec, nanosec, text, flag):
-    """Any floats, stamps, texts and flag bytes land where rclpy's decoder reads them (a
-    Writer-built message of float64s separated by strings, bytes and counts)."""
-    from linkage_monitor.msg import HitchState
-
-    w, slots = Writer(), []
-    w.header("base_footprint")
-    w.uint32(len(values))
-    for k, _ in enumerate(values):
-        w.string(f"cyl{'x' * k}")
-        slots += [w.float64() for _ in range(5)]
-    slots.append(w.float64())
-    w.uint8(1)
-    slots += [w.float64() for _ in range(7)]   # cg x, z, hitch axis height, 3 capacities, reserve
-    status = w.uint8(0)
-    template = Template.of(w, slots, (status,))
-    numbers = [values[k % len(values)] for k in range(len(slots))]
-    data = template.fill(sec * 1_000_000_000 + nanosec, np.array(numbers), (flag,))
-    Writer(data).string(text)
-    msg = deserialize_message(bytes(data), HitchState)
-    assert (msg.header.stamp.sec, msg.header.stamp.nanosec, msg.status, msg.status_text) == (sec, nanosec, flag,
-                                                                                             text.split("\x00")[0])
-    assert [c.name for c in msg.cylinders] == [f"cyl{'x' * k}" for k in range(len(values))]
-    got = [v for c in msg.cylinders for v in (c.length, c.force, c.cap_pressure_measured, c.rod_pressure_measured,
-                                               c.cap_pressure_predicted)]
-    got += [msg.implement_load, msg.implement_cg_x, msg.implement_cg_z, msg.hitch_axis_height,
-            msg.lift_capacity_hitch_axis, msg.lift_capacity_610mm, msg.lift_capacity_implement_cg, msg.lift_reserve]
-    assert struct.pack(f"<{len(got)}d", *got) == struct.pack(f"<{len(numbers)}d", *numbers)
-    assert msg.implement_load_estimated is True

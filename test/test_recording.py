@@ -22,7 +22,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from sensor_msgs.msg import FluidPressure, JointState
 
-from linkage_monitor.bag.definitions import dependencies, message_definition, msg_file
+from linkage_monitor.wire.definitions import dependencies, message_definition, msg_file
 from linkage_monitor.bag.writer import MECHANISM_TOPIC, BagError, BagWriter
 
 REPO = Path(__file__).resolve().parents[1]

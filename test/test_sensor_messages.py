@@ -1,4 +1,4 @@
-"""The input messages read from their CDR bytes (ros.sensor_messages) are what rclpy reads.
+"""The input messages read from their CDR bytes (wire.sensor_messages) are what rclpy reads.
 
 Oracle: rclpy's ``deserialize_message`` (Fast CDR through the C type support) of the same bytes.
 Valid messages (hypothesis: any names, values incl. NaN/inf, sequences of differing lengths,
@@ -18,8 +18,8 @@ from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
-from linkage_monitor.ros.cdr import CdrError
-from linkage_monitor.ros.sensor_messages import read_fluid_pressure, read_joint_state
+from linkage_monitor.wire.cdr import CdrError
+from linkage_monitor.wire.sensor_messages import read_fluid_pressure, read_joint_state
 
 texts = st.text(max_size=12)
 floats = st.floats(allow_nan=True, allow_infinity=True)

@@ -27,8 +27,8 @@ from mcap.reader import NonSeekingReader, SeekingReader
 from rclpy.serialization import deserialize_message
 
 from linkage_monitor.bag.writer import BagError
-from linkage_monitor.ros.cdr import stamp_ns
-from linkage_monitor.ros.sensor_messages import FLUID_PRESSURE, JOINT_STATE
+from linkage_monitor.wire.cdr import stamp_ns
+from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE
 
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
 _log = logging.getLogger(__name__)

@@ -35,7 +35,7 @@ from rclpy.qos import (
     DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy)
 from rclpy.serialization import serialize_message
 
-from linkage_monitor.bag.definitions import exact_cdr, message_definition
+from linkage_monitor.wire.definitions import exact_cdr, message_definition
 
 MECHANISM_TOPIC = "/linkage_monitor/mechanism"
 """Topic of the mechanism description (std_msgs/String holding the mechanism YAML)."""

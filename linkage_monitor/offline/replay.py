@@ -33,8 +33,8 @@ from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
 from linkage_monitor.monitoring.core import (ConfigEvent, Event, JointStateEvent, Monitor, PressureEvent, Run, Step,
                                             UnreadableEvent)
 from linkage_monitor.monitoring.findings import Level
-from linkage_monitor.ros.cdr import CdrError
-from linkage_monitor.ros.sensor_messages import FLUID_PRESSURE, JOINT_STATE, JointStateReading, read_input
+from linkage_monitor.wire.cdr import CdrError
+from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, JointStateReading, read_input
 
 STRING = "std_msgs/msg/String"
 RawInput = tuple[str, str, int, int, bytes]   # topic, type name, header stamp (ns), receive time (ns), CDR bytes
@@ -129,7 +129,7 @@ def _default_config(bag: Path, description: Mechanism) -> MonitorConfig:
 def _events(path: Path, config: MonitorConfig, raw: list[RawInput]) -> Iterator[Event]:
     """The bag's input and configuration events in recording order; inputs also appended to ``raw``
     as (topic, type name, header stamp, receive time, CDR bytes as recorded). The inputs are read
-    from their bytes as the node reads them (``ros.sensor_messages``); bytes that are not their
+    from their bytes as the node reads them (``wire.sensor_messages``); bytes that are not their
     type (the node records them as they came) are an UnreadableEvent, as in the node."""
     wanted = [config.topics.joint_states, *config.pressure_topics, CONFIG_TOPIC]
     first_config = True
@@ -210,9 +210,9 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
                raw: list[RawInput], run: Run, rate: float | None, progress: TextIO | None) -> None:
     """Inputs (their recorded bytes, unchanged), outputs and diagnostics in recording order, as the
     node records them."""
-    from linkage_monitor.ros.diagnostics import DiagnosticGate, diagnostic_array
-    from linkage_monitor.ros.markers import DEFAULT_RATE_HZ, MARKER_ARRAY, DisplayGate, LinkageMarkers
-    from linkage_monitor.ros.messages import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputEncoder, Outputs
+    from linkage_monitor.wire.diagnostics import DIAGNOSTIC_ARRAY, DiagnosticGate, diagnostic_array
+    from linkage_monitor.wire.markers import DEFAULT_RATE_HZ, MARKER_ARRAY, DisplayGate, LinkageMarkers
+    from linkage_monitor.wire.outputs import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputEncoder, Outputs
 
     writer = BagWriter(out_dir)
     try:
@@ -247,7 +247,7 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
                              type_name=MARKER_ARRAY, log_time_ns=receive)
             if gate.due(step):
                 writer.write(topics.diagnostics, diagnostic_array(step, name, description.name, receive),
-                             step.stamp_ns, log_time_ns=receive)
+                             step.stamp_ns, type_name=DIAGNOSTIC_ARRAY, log_time_ns=receive)
     finally:
         writer.close()
 

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from rclpy.event_handler import QoSSubscriptionEventType
-# rclpy's own binding of rcl's events, as rclpy.event_handler.EventHandler creates and takes them
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+from .rcl_private import event_handle   # rcl's events, as rclpy.event_handler.EventHandler creates and takes them
 
 LOST, INCOMPATIBLE_QOS = "lost", "incompatible QoS"
 EVENT_TYPES = {LOST: QoSSubscriptionEventType.RCL_SUBSCRIPTION_MESSAGE_LOST,
@@ -49,7 +49,7 @@ class InputEvents:
         """Take the events of ``subscription`` (an rclpy Subscription created without event handlers)."""
         for kind, event_type in EVENT_TYPES.items():
             with subscription.handle:
-                self._handles.append((topic, kind, _rclpy.EventHandle(subscription.handle, event_type)))
+                self._handles.append((topic, kind, event_handle(subscription.handle, event_type)))
 
     def take(self) -> list[InputNotice]:
         """The events since the last take, one notice per topic and kind that had any."""

@@ -25,7 +25,7 @@ from typing import Any, Callable
 
 import rclpy
 import yaml
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidHandle, InvalidParameterValueException
@@ -49,14 +49,14 @@ from linkage_monitor.monitoring.inputs import InputTracker
 from linkage_monitor.monitoring.loss import LossCounter
 from linkage_monitor.monitoring.name_value import name_value
 from linkage_monitor.msg import HingeReactions, HitchState, Steerability
-from linkage_monitor.ros.diagnostics import DiagnosticGate, diagnostic_array
-from linkage_monitor.ros.markers import DEFAULT_RATE_HZ as DEFAULT_MARKER_RATE_HZ
-from linkage_monitor.ros.markers import MARKER_ARRAY, DisplayGate, LinkageMarkers
-from linkage_monitor.ros.cdr import CdrError
+from linkage_monitor.wire.diagnostics import DIAGNOSTIC_ARRAY, DiagnosticGate, diagnostic_array, status_array
+from linkage_monitor.wire.markers import DEFAULT_RATE_HZ as DEFAULT_MARKER_RATE_HZ
+from linkage_monitor.wire.markers import MARKER_ARRAY, DisplayGate, LinkageMarkers
+from linkage_monitor.wire.cdr import CdrError
 from linkage_monitor.ros.spin import InputSpinner
 from linkage_monitor.ros.input_events import INCOMPATIBLE_QOS, LOST, InputEvents
-from linkage_monitor.ros.messages import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputEncoder
-from linkage_monitor.ros.sensor_messages import (FLUID_PRESSURE, JOINT_STATE, FluidPressureReading, JointStateReading,
+from linkage_monitor.wire.outputs import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputEncoder
+from linkage_monitor.wire.sensor_messages import (FLUID_PRESSURE, JOINT_STATE, FluidPressureReading, JointStateReading,
                                                  read_input)
 
 NODE_NAME = "linkage_monitor"
@@ -462,17 +462,15 @@ class LinkageMonitorNode(Node):
         msg = diagnostic_array(step, self.status_name, self.monitor.mechanism.name, now)
         self.pub_diag.publish(msg)
         if record:
-            self._record(self.monitor.config.topics.diagnostics, msg, step.stamp_ns, now, OUTPUT_QOS)
+            self._record(self.monitor.config.topics.diagnostics, msg, step.stamp_ns, now, OUTPUT_QOS, DIAGNOSTIC_ARRAY)
         self._last_heartbeat = time.monotonic()
 
     def _publish_status(self, part: str, level: Level, message: str, now: int) -> None:
         """A separate DiagnosticStatus ``<node>: <part>`` (input stream, recording, internal)."""
-        status = DiagnosticStatus(level=bytes([level]), name=f"{NODE_NAME}: {part}", message=message,
-                                  hardware_id=self.monitor.mechanism.name, values=[KeyValue(key="part", value=part)])
-        msg = DiagnosticArray(status=[status])
-        msg.header.stamp = self.get_clock().now().to_msg()
+        msg = status_array(self.get_clock().now().nanoseconds, level, f"{NODE_NAME}: {part}", message,
+                           self.monitor.mechanism.name, {"part": part})
         if part != "recording":
-            self._record(self.monitor.config.topics.diagnostics, msg, now, now, OUTPUT_QOS)
+            self._record(self.monitor.config.topics.diagnostics, msg, now, now, OUTPUT_QOS, DIAGNOSTIC_ARRAY)
         self.pub_diag.publish(msg)
 
     def _record(self, topic: str, msg: Any, stamp: int, now: int, qos: QoSProfile, type_name: str | None = None

@@ -20,8 +20,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
 from linkage_monitor.bag.reader import message_class, read_bag_raw
-from linkage_monitor.ros.cdr import CdrError
-from linkage_monitor.ros.sensor_messages import FLUID_PRESSURE, JOINT_STATE, read_input
+from linkage_monitor.wire.cdr import CdrError
+from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, read_input
 
 PLAYER_QOS = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
 

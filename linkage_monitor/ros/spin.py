@@ -27,8 +27,9 @@ from __future__ import annotations
 from typing import Any, Callable, Literal
 
 from rclpy.executors import Executor
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy   # rclpy's rcl binding: WaitSet
 from rclpy.node import Node
+
+from .rcl_private import wait_set
 
 # wait-set entities that are never inputs
 OTHER_KINDS: tuple[Literal["timer", "service", "client", "guard_condition"], ...] = (
@@ -53,8 +54,8 @@ class InputSpinner:
         self._guards = [g.handle for g in node.guards]
         context = node.context.handle
         assert context is not None, "the node's context is shut down"
-        self._wait_set = _rclpy.WaitSet(len(self._subscriptions), len(self._guards), len(self._timers),
-                                        len(self._clients), len(self._services), 0, context)
+        self._wait_set = wait_set(len(self._subscriptions), len(self._guards), len(self._timers),
+                                  len(self._clients), len(self._services), context)
 
     def spin_once(self, timeout_s: float) -> None:
         """Wait up to ``timeout_s`` for work and do what is ready."""

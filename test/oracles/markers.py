@@ -1,6 +1,6 @@
 """Oracle for the linkage markers: the MarkerArray of a solved pose built with rclpy's generated
 message classes, field by field (how the package built it before it wrote the CDR bytes directly,
-``linkage_monitor.ros.markers.LinkageMarkers``). Serialized by rclpy, it is what the package's
+``linkage_monitor.wire.markers.LinkageMarkers``). Serialized by rclpy, it is what the package's
 bytes must decode to (test/test_markers.py).
 
 Frame ``linkage``: the mechanism's plane x–z with y = 0 (x forward, z up; REP 103 axes), units m.
@@ -17,7 +17,7 @@ from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
 from linkage_monitor.mechanics import Mechanism, Result
-from linkage_monitor.ros.markers import FRAME, HINGE_DIAMETER, LIFETIME_S, LINE_WIDTH, TEXT_HEIGHT
+from linkage_monitor.wire.markers import FRAME, HINGE_DIAMETER, LIFETIME_S, LINE_WIDTH, TEXT_HEIGHT
 from linkage_monitor.ros.messages import header
 from linkage_monitor.viz.drawing import (BODY_COLORS, CYLINDER_COLOR, GROUND_COLOR, HINGE_FORCE_COLOR, body_outline,
                                          force_scale)

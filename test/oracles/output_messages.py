@@ -1,6 +1,6 @@
 """Oracle for the output messages: the three outputs of a step built field by field with rclpy's
 generated message classes (how the package built them before it wrote their CDR bytes directly,
-``linkage_monitor.ros.messages.OutputEncoder``). Serialized by rclpy, they are what the encoder's
+``linkage_monitor.wire.outputs.OutputEncoder``). Serialized by rclpy, they are what the encoder's
 bytes must decode to (test/test_output_cdr.py).
 
 Units SI (m, N, Pa, kg); frame x forward, z up, origin at the rear wheels' ground contact.
@@ -15,7 +15,8 @@ from typing import Mapping
 from linkage_monitor.mechanics import Mechanism, Result
 from linkage_monitor.monitoring.core import Monitor, Step
 from linkage_monitor.msg import CylinderState, HingeReaction, HingeReactions, HitchState, Steerability
-from linkage_monitor.ros.messages import header, hinge_status, hitch_status, steerability_reference
+from linkage_monitor.ros.messages import header
+from linkage_monitor.wire.outputs import hinge_status, hitch_status, steerability_reference
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,8 @@ from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import String
 
 from linkage_monitor.msg import HingeReactions, HitchState, Steerability
-from linkage_monitor.ros.messages import header, stamp_ns
+from linkage_monitor.ros.messages import header
+from linkage_monitor.wire.cdr import stamp_ns
 
 RELIABLE = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)

@@ -1,4 +1,5 @@
-"""Monitoring steps -> diagnostic_msgs/DiagnosticArray, the way diagnostic_updater reports.
+"""Monitoring steps -> diagnostic_msgs/DiagnosticArray, the way diagnostic_updater reports, as CDR
+bytes written by the message's layout (``wire.compose``: published and recorded as they are).
 
 One DiagnosticStatus per step (level OK / WARN / ERROR, the message naming the input and the
 reason, key-values with the numbers and the stamp of the triggering input). A step is
@@ -8,29 +9,39 @@ as a heartbeat.
 
 from __future__ import annotations
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from typing import Mapping
 
 from linkage_monitor.monitoring.core import Step
 from linkage_monitor.monitoring.findings import Level
-from linkage_monitor.ros.messages import header
 
+from .compose import encode
+from .outputs import FRAME_ID
+
+DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
 STAMP_KEY = "input stamp [ns]"
 MAX_TIME_NS = 2**31 * 1_000_000_000  # builtin_interfaces/Time.sec is int32
 CODES_KEY = "findings"  # the findings' codes (monitoring.findings.Code identifiers), space-separated
 
 
-def diagnostic_array(step: Step, name: str, hardware_id: str, now_ns: int) -> DiagnosticArray:
-    """A DiagnosticArray with the one status of `step`, stamped like every output with the
+def status_array(stamp_ns: int, level: Level, name: str, message: str, hardware_id: str,
+                 values: Mapping[str, str], frame_id: str = "") -> bytes:
+    """A DiagnosticArray of one DiagnosticStatus, stamped ``stamp_ns`` (ns since the epoch)."""
+    return encode(DIAGNOSTIC_ARRAY, {
+        "header": {"stamp": stamp_ns, "frame_id": frame_id},
+        "status": [{"level": int(level), "name": name, "message": message, "hardware_id": hardware_id,
+                    "values": [{"key": k, "value": v} for k, v in values.items()]}]})
+
+
+def diagnostic_array(step: Step, name: str, hardware_id: str, now_ns: int) -> bytes:
+    """The DiagnosticArray with the one status of `step`, stamped like every output with the
     input's stamp, or with `now_ns` (the monitor's clock) when that stamp cannot be a ROS time
     (negative, or beyond int32 seconds: the fault being reported); the input's stamp is a key-value."""
-    values = [KeyValue(key=k, value=v) for k, v in step.values.items()]
-    values.append(KeyValue(key=STAMP_KEY, value=str(step.stamp_ns)))
+    values = dict(step.values)
+    values[STAMP_KEY] = str(step.stamp_ns)
     if step.findings:
-        values.append(KeyValue(key=CODES_KEY, value=" ".join(f.code.ident for f in step.findings)))
-    status = DiagnosticStatus(level=bytes([step.level]), name=name, message=step.message,
-                              hardware_id=hardware_id, values=values)
+        values[CODES_KEY] = " ".join(f.code.ident for f in step.findings)
     stamp = step.stamp_ns if 0 <= step.stamp_ns < MAX_TIME_NS else now_ns
-    return DiagnosticArray(header=header(stamp), status=[status])
+    return status_array(stamp, step.level, name, step.message, hardware_id, values, FRAME_ID)
 
 
 class DiagnosticGate:

@@ -12,25 +12,26 @@ the rear wheels' ground contact; REP 103 axes), units m. Per solved pose, namesp
 - ``labels``: one TEXT_VIEW_FACING per hinge, ``<hinge> <force> kN``.
 
 Published at a display rate (DisplayGate), not at every message; the bag records what is published.
-The MarkerArray is written straight to its CDR bytes (``ros.cdr``: laid out once per pattern of
-label lengths, then filled per pose), not built from rclpy's message classes and serialized
+The MarkerArray is written straight to its CDR bytes (by its layout, ``wire.compose``: laid out once
+per pattern of label lengths, then filled per pose), not built from rclpy's message classes and serialized
 (oracle of that: test/oracles/markers.py).
 """
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
-from visualization_msgs.msg import Marker
 
 from linkage_monitor.mechanics import Mechanism, Result
 from linkage_monitor.viz.drawing import (BODY_COLORS, CYLINDER_COLOR, GROUND_COLOR, HINGE_FORCE_COLOR, body_outline,
                                          force_scale)
 
-from .cdr import Writer, string_bytes, time_bytes
+from .cdr import string_bytes, time_bytes
+from .compose import STAMP, Column, Composer, Spliced
+from .layout import constants
 
-MARKER_ARRAY = "visualization_msgs/msg/MarkerArray"
+MARKER_ARRAY, MARKER = "visualization_msgs/msg/MarkerArray", "visualization_msgs/msg/Marker"
 FRAME = "linkage"
 DEFAULT_RATE_HZ = 10.0
 LINE_WIDTH = 0.02      # m
@@ -120,65 +121,48 @@ class LinkageMarkers:
     def _lay_out(self, residues: tuple[int, ...]) -> "_Layout":
         """The message for label texts whose serialized sizes are ``residues`` modulo 8 (placeholders
         of those sizes; a text 8·k bytes longer shifts what follows it by whole 8-byte words). What changes
-        with the pose is given as indices into ``markers``' source vector (ints; floats are constant):
+        with the pose is a ``Column`` of ``markers``' source vector (floats are constant):
         [x, z of every point | arrow tip x, z per hinge | label z per hinge | arrow tip x, z per
-        cylinder]."""
+        cylinder]; every marker's stamp is a ``STAMP``."""
         n_points, n_hinges = len(self._point_names), len(self._hinge_names)
         tip, label_z, cylinder_tip = 2 * n_points, 2 * n_points + 2 * n_hinges, 2 * n_points + 3 * n_hinges
-        w = Writer()
-        slots: list[tuple[int, int]] = []   # (byte offset, byte of the source: 0-7 the stamp, then 8 per value)
-        texts: list[tuple[int, int]] = []   # (start, end) of each placeholder text's serialization
+        kinds = constants(MARKER)
 
-        def numbers(*values: float | int) -> None:
-            for value in values:
-                if isinstance(value, int):
-                    at = w.float64()
-                    slots.extend((at + b, 8 + 8 * value + b) for b in range(8))
-                else:
-                    w.float64(value)
+        def point(p: str) -> tuple[Column, Column]:
+            return Column(2 * self._row[p]), Column(2 * self._row[p] + 1)
 
-        def point(p: str) -> tuple[int, int]:
-            return 2 * self._row[p], 2 * self._row[p] + 1
+        def marker(ns: str, ident: int, kind: str, color: tuple[int, int, int], size: tuple[float, float, float],
+                   where: Sequence[tuple[Column, Column]] = (), text: int | None = None,
+                   position: tuple[float | Column, float | Column] = (0.0, 0.0)) -> dict[str, Any]:
+            """One visualization_msgs/Marker's values (the fields not named: their defaults, empty)."""
+            return {"header": {"stamp": STAMP, "frame_id": FRAME}, "ns": ns, "id": ident, "type": kinds[kind],
+                    "action": kinds["ADD"],
+                    "pose": {"position": {"x": position[0], "y": 0.0, "z": position[1]}, "orientation": {"w": 1.0}},
+                    "scale": dict(zip("xyz", size)),
+                    "color": {"r": color[0] / 255, "g": color[1] / 255, "b": color[2] / 255, "a": 1.0},
+                    "lifetime": LIFETIME_S * 1_000_000_000, "frame_locked": False,
+                    "points": [{"x": x, "y": 0.0, "z": z} for x, z in where],
+                    "text": "" if text is None else Spliced("x" * ((residues[text] - 5) % 8))}   # 4 + length + NUL bytes
 
-        def marker(ns: str, ident: int, kind: int, color: tuple[int, int, int], size: tuple[float, float, float],
-                   where: Sequence[tuple[int, int]] = (), text: int | None = None,
-                   position: tuple[float | int, float | int] = (0.0, 0.0)) -> None:
-            """One visualization_msgs/Marker, in message order (Marker.msg, Kilted)."""
-            w.align(4)
-            slots.extend((len(w.data) + b, b) for b in range(8))
-            w.time(0)                                          # header: stamp,
-            _identity(w, ns, ident, kind)                      # frame_id .. action
-            numbers(position[0], 0.0, position[1], 0.0, 0.0, 0.0, 1.0)   # pose: position, orientation
-            _appearance(w, size, color)
-            w.uint32(len(where))                               # points (geometry_msgs/Point: x, y, z)
-            for x, z in where:
-                numbers(x, 0.0, z)
-            _before_text(w)
-            w.align(4)
-            start = len(w.data)
-            w.string("" if text is None else "x" * ((residues[text] - 5) % 8))   # 4 + length + NUL bytes
-            if text is not None:
-                texts.append((start, len(w.data)))
-            _after_text(w)
-
-        w.uint32(len(self._bodies) + 2 * len(self.mechanism.cylinders) + 1 + 2 * n_hinges)
-        for k, (_, outline, color) in enumerate(self._bodies):
-            marker("links", k, Marker.LINE_STRIP, color, (LINE_WIDTH, 0.0, 0.0), [point(p) for p in outline])
-        for k, c in enumerate(self.mechanism.cylinders):
-            marker("cylinders", k, Marker.LINE_STRIP, CYLINDER_COLOR, (1.5 * LINE_WIDTH, 0.0, 0.0),
-                   [point(c.base.point), point(c.rod_end.point)])
-        marker("hinges", 0, Marker.SPHERE_LIST, (240, 240, 240), (HINGE_DIAMETER,) * 3,
-               [point(h.point) for h in self.mechanism.hinges])
+        markers = [marker("links", k, "LINE_STRIP", color, (LINE_WIDTH, 0.0, 0.0), [point(p) for p in outline])
+                   for k, (_, outline, color) in enumerate(self._bodies)]
+        markers += [marker("cylinders", k, "LINE_STRIP", CYLINDER_COLOR, (1.5 * LINE_WIDTH, 0.0, 0.0),
+                           [point(c.base.point), point(c.rod_end.point)]) for k, c in enumerate(self.mechanism.cylinders)]
+        markers.append(marker("hinges", 0, "SPHERE_LIST", (240, 240, 240), (HINGE_DIAMETER,) * 3,
+                              [point(h.point) for h in self.mechanism.hinges]))
         for k, h in enumerate(self.mechanism.hinges):
             x, z = point(h.point)
-            marker("reactions", k, Marker.ARROW, HINGE_FORCE_COLOR, (0.015, 0.03, 0.05),
-                   [(x, z), (tip + 2 * k, tip + 2 * k + 1)])
-            marker("labels", k, Marker.TEXT_VIEW_FACING, (255, 255, 255), (0.0, 0.0, TEXT_HEIGHT), text=k,
-                   position=(x, label_z + k))
-        for k, c in enumerate(self.mechanism.cylinders):
-            marker("cylinder_forces", k, Marker.ARROW, CYLINDER_COLOR, (0.015, 0.03, 0.05),
-                   [point(c.rod_end.point), (cylinder_tip + 2 * k, cylinder_tip + 2 * k + 1)])
-        return _Layout(w.data, texts, slots)
+            markers.append(marker("reactions", k, "ARROW", HINGE_FORCE_COLOR, (0.015, 0.03, 0.05),
+                                  [(x, z), (Column(tip + 2 * k), Column(tip + 2 * k + 1))]))
+            markers.append(marker("labels", k, "TEXT_VIEW_FACING", (255, 255, 255), (0.0, 0.0, TEXT_HEIGHT), text=k,
+                                  position=(x, Column(label_z + k))))
+        markers += [marker("cylinder_forces", k, "ARROW", CYLINDER_COLOR, (0.015, 0.03, 0.05),
+                           [point(c.rod_end.point), (Column(cylinder_tip + 2 * k), Column(cylinder_tip + 2 * k + 1))])
+                    for k, c in enumerate(self.mechanism.cylinders)]
+        composer = Composer().message(MARKER_ARRAY, {"markers": markers})
+        slots = [(at + b, b) for at in composer.stamps for b in range(8)]   # (byte offset, byte of the source:
+        slots += [(at + b, 8 + 8 * column + b) for at, column in composer.columns for b in range(8)]   # 0-7 stamp)
+        return _Layout(composer.data, composer.spliced, slots)
 
 
 class _Layout:
@@ -195,39 +179,3 @@ class _Layout:
         self.cuts = [start - int(shift[start]) for start, _ in texts]   # where each text goes in ``data``
         offsets, sources = np.array(slots, dtype=np.intp).reshape(-1, 2).T
         self.slots, self.sources = offsets - shift[offsets], sources
-
-
-def _identity(w: Writer, ns: str, ident: int, kind: int) -> None:
-    """Marker fields header.frame_id .. action."""
-    w.string(FRAME)
-    w.string(ns)
-    w.int32(ident)
-    w.int32(kind)
-    w.int32(Marker.ADD)
-
-
-def _appearance(w: Writer, size: tuple[float, float, float], color: tuple[int, int, int]) -> None:
-    """Marker fields scale .. frame_locked."""
-    w.float64s(*size)
-    w.float32s(color[0] / 255, color[1] / 255, color[2] / 255, 1.0)
-    w.time(LIFETIME_S * 1_000_000_000)                 # lifetime
-    w.uint8(0)                                         # frame_locked
-
-
-def _before_text(w: Writer) -> None:
-    """Marker fields colors .. uv_coordinates: empty."""
-    w.uint32(0)                                        # colors
-    w.string("")                                       # texture_resource
-    w.time(0)                                          # texture (sensor_msgs/CompressedImage): header,
-    w.string("")
-    w.string("")                                       # format,
-    w.uint32(0)                                        # data
-    w.uint32(0)                                        # uv_coordinates
-
-
-def _after_text(w: Writer) -> None:
-    """Marker fields mesh_resource .. mesh_use_embedded_materials: empty."""
-    w.string("")                                       # mesh_resource
-    w.string("")                                       # mesh_file: filename,
-    w.uint32(0)                                        # data
-    w.uint8(0)                                         # mesh_use_embedded_materials

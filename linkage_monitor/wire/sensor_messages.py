@@ -7,15 +7,14 @@ both on generated and on damaged messages), without building an rclpy message ob
 costs 12 µs in a loop and 170–240 µs after the few milliseconds of idle between two sensor
 messages on these machines (docs/performance.md, ninth session). A message that is not the
 CDR of its type raises ``CdrError`` naming the field and the byte. The rare XCDR2 payload
-(alignment and headers of its own) is left to rclpy.
+(alignment and headers of its own) is left to rclpy, imported then (the wire layer does not import
+rclpy otherwise).
 """
 
 from __future__ import annotations
 
+import importlib
 from typing import Any, Callable, NamedTuple
-
-from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import FluidPressure, JointState
 
 from .cdr import CdrError, Reader, is_xcdr1, stamp_ns
 
@@ -43,7 +42,7 @@ class FluidPressureReading(NamedTuple):
 def read_joint_state(data: bytes) -> JointStateReading:
     """The JointState in ``data`` (its CDR bytes); CdrError if they are not one."""
     if len(data) >= 4 and not is_xcdr1(data):
-        msg = _rclpy(data, JointState)
+        msg = _rclpy(data, JOINT_STATE)
         return JointStateReading(stamp_ns(msg.header), list(msg.name), tuple(msg.position), tuple(msg.velocity))
     r = Reader(data)
     stamp = r.time_ns("header.stamp")
@@ -57,7 +56,7 @@ def read_joint_state(data: bytes) -> JointStateReading:
 def read_fluid_pressure(data: bytes) -> FluidPressureReading:
     """The FluidPressure in ``data`` (its CDR bytes); CdrError if they are not one."""
     if len(data) >= 4 and not is_xcdr1(data):
-        msg = _rclpy(data, FluidPressure)
+        msg = _rclpy(data, FLUID_PRESSURE)
         return FluidPressureReading(stamp_ns(msg.header), float(msg.fluid_pressure))
     r = Reader(data)
     stamp = r.time_ns("header.stamp")
@@ -67,10 +66,12 @@ def read_fluid_pressure(data: bytes) -> FluidPressureReading:
     return FluidPressureReading(stamp, pressure)
 
 
-def _rclpy(data: bytes, msg_type: type) -> Any:
+def _rclpy(data: bytes, type_name: str) -> Any:
     """rclpy's reading of a payload ``Reader`` does not read; its refusal as a CdrError."""
+    from rclpy.serialization import deserialize_message
+    package, _, name = type_name.split("/")
     try:
-        return deserialize_message(data, msg_type)
+        return deserialize_message(data, getattr(importlib.import_module(f"{package}.msg"), name))
     except Exception as exc:  # noqa: BLE001 - rclpy raises RMWError and others for bytes it cannot read
         raise CdrError(f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__} "
                        f"(encapsulation {bytes(data[:2]).hex() or '(none)'})") from None

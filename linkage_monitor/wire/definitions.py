@@ -63,7 +63,8 @@ def msg_file(type_name: str) -> Path:
 
 
 @functools.lru_cache(maxsize=None)
-def _msg_text(type_name: str) -> str:
+def msg_text(type_name: str) -> str:
+    """The text of the installed `.msg` file of `pkg/msg/Type`."""
     return msg_file(type_name).read_text(encoding="utf-8")
 
 
@@ -95,7 +96,7 @@ def message_definition(type_name: str) -> str:
         if depth <= 0:
             raise MessageDefinitionError(
                 f"message type {type_name!r} nests deeper than {_MAX_DEPTH} levels (cycle?)")
-        text = _msg_text(name)
+        text = msg_text(name)
         package = name.split("/", 1)[0]
         for dependency in dependencies(text, package):
             if dependency not in seen:
