@@ -164,6 +164,7 @@ class CanBridgeNode(LinkageMonitorNode):
         if self.bus is not None:
             self.bus.shutdown()
         try:
+            self._take_queued()   # what the reader thread received is worked off: no frame left behind
             self._publish_counts()
             self.get_logger().info(f"CAN {self.source_name}: {self.decoder.counts.summary()}")
         except Exception as exc:  # noqa: BLE001 - the bag is finished whatever happens here
