@@ -1,7 +1,9 @@
 """The output messages written as CDR bytes, alone: one pose's three outputs (``OutputEncoder.outputs``),
 a recording's worth at once (``OutputEncoder.outputs_of``, as the replay), one MarkerArray
-(``LinkageMarkers.markers``) and one DiagnosticArray, against rclpy's ``serialize_message`` of the same
-HitchState built with the generated class, timed in the same run.
+(``LinkageMarkers.markers``) and one DiagnosticArray (``diagnostic_array``, CDR bytes published and
+recorded as they are), against rclpy's ``serialize_message`` of the same HitchState built with the
+generated class, timed in the same run. For the DiagnosticArray also what a message object costs on
+its way out: ``serialize_message`` to publish it, again with ``exact_cdr`` to record it.
 
 belarus_1221's simulated lift at 100 Hz, solved once; the encoders then run over the solved steps.
 Printed: µs per message (median of 5 passes) and the ratios to ``serialize_message``.
@@ -19,16 +21,18 @@ from typing import Callable
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from rclpy.serialization import serialize_message  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 
 from linkage_monitor.mechanics import load_preset  # noqa: E402
 from linkage_monitor.monitoring.config import MonitorConfig  # noqa: E402
 from linkage_monitor.monitoring.core import Monitor  # noqa: E402
 from linkage_monitor.msg import CylinderState, HitchState  # noqa: E402
-from linkage_monitor.wire.diagnostics import diagnostic_array  # noqa: E402
+from linkage_monitor.sim.telemetry import simulate  # noqa: E402
+from linkage_monitor.wire.definitions import exact_cdr  # noqa: E402
+from linkage_monitor.wire.diagnostics import DIAGNOSTIC_ARRAY, diagnostic_array  # noqa: E402
 from linkage_monitor.wire.markers import LinkageMarkers  # noqa: E402
 from linkage_monitor.wire.outputs import OutputEncoder  # noqa: E402
-from linkage_monitor.sim.telemetry import simulate  # noqa: E402
 
 PRESSURE_TOPIC = "/pressure/lift_cap_pressure"
 
@@ -76,13 +80,22 @@ def main() -> None:
         for _ in solved:
             serialize_message(hitch)
 
+    objects = [deserialize_message(diagnostic_array(step, "linkage_monitor", mech.name, step.stamp_ns), DiagnosticArray)
+               for step in solved]
+
+    def rclpy_diagnostics() -> None:
+        for msg in objects:
+            serialize_message(msg)
+            exact_cdr(DIAGNOSTIC_ARRAY, serialize_message(msg))
+
     n, us = len(solved), 1e6
     base = per_item(rclpy_hitch, n)
     print(f"belarus_1221, {n} solved poses; median of 5 passes, us per pose")
     print(f"baseline: rclpy serialize_message(HitchState):     {base * us:7.2f} us")
     for label, run in (("OutputEncoder.outputs (3 messages)", one_by_one),
                        ("OutputEncoder.outputs_of (3 messages)", lambda: encoder.outputs_of(monitor, solved)),
-                       ("LinkageMarkers.markers (MarkerArray)", drawn), ("diagnostic_array (DiagnosticArray)", diagnostics)):
+                       ("LinkageMarkers.markers (MarkerArray)", drawn), ("diagnostic_array (DiagnosticArray)", diagnostics),
+                       ("an rclpy DiagnosticArray published+recorded", rclpy_diagnostics)):
         t = per_item(run, n)
         print(f"{label:38s} {t * us:7.2f} us   {t / base:5.2f}x baseline")
 

@@ -15,7 +15,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from linkage_monitor.mechanics import Inputs, Solver, load_preset, mechanism_from_dict
+from linkage_monitor.mechanics import Inputs, Solver, apply_overrides, load_preset, mechanism_from_dict
 from linkage_monitor.mechanics.capacity import reference_length, stroke_mechanism
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Monitor
@@ -32,7 +32,7 @@ def _unit_front_axle_load(mech, x_s6: float, implement_weight: float) -> float:
 
 
 def _model(overrides: dict) -> MachineModel:
-    mech = stroke_mechanism(load_preset("belarus_1221")).with_overrides(overrides)
+    mech = apply_overrides(stroke_mechanism(load_preset("belarus_1221")), overrides)
     return MachineModel(mech, Solver(mech))
 
 
@@ -107,7 +107,7 @@ def test_soil_forces_differ_from_whole_unit_balance_by_their_moment():
 
 def test_margin_below_zero_and_reserve_below_one_are_flagged():
     """3000 kg header: k < 0.2 by seed 003's balance, and 29.4 kN > Table 2's G_s = 23.03 kN at S = 0.535 m."""
-    mech = load_preset("belarus_1221").with_overrides({"implement.mass": 3000.0})
+    mech = apply_overrides(load_preset("belarus_1221"), {"implement.mass": 3000.0})
     solver = Solver(mech)
     model = MachineModel(mech, solver)
     res = solver.solve(_reference_inputs(mech))

@@ -16,7 +16,7 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
-from linkage_monitor.mechanics import Inputs, Solver, load_preset
+from linkage_monitor.mechanics import Inputs, Solver, apply_overrides, load_preset
 from linkage_monitor.mechanics.capacity import stroke_mechanism
 from linkage_monitor.mechanics.machine import MachineModel
 from linkage_monitor.mechanics.results import angle_readings
@@ -242,7 +242,7 @@ def test_implement_mass_changed_at_runtime_applies_from_the_next_message(ros, tm
     assert not after.implement_load_estimated
     assert before.implement_load == pytest.approx(mech.implement.mass * 9.80665, rel=1e-12)  # the file's mass
     assert after.implement_load == pytest.approx(3000.0 * 9.80665, rel=1e-12)               # the new parameter
-    heavy = load_preset("belarus_1221").with_overrides({"implement.mass": 3000.0})
+    heavy = apply_overrides(load_preset("belarus_1221"), {"implement.mass": 3000.0})
     offline = Solver(heavy).solve(Inputs(cylinders={"lift_cylinder": s}, angles={"lift_arm_angle": angle}))
     expected = MachineModel(heavy, Solver(heavy)).evaluate(offline).steerability["margin"]
     assert client.outputs_at("steerability", T0 + 1)[0].margin == pytest.approx(expected, rel=1e-9)

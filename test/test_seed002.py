@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from linkage_monitor.mechanics import Solver, load_preset
+from linkage_monitor.mechanics import Solver, apply_overrides, load_preset
 from oracles.seed002 import Header, forces, pose
 
 FRICTIONS = (0.0, 0.5, 0.6, 0.7, 0.8)  # seed 002: f = 0; 0.5; 0.6; 0.7; 0.8
@@ -51,7 +51,7 @@ def sweep(mech, angles):
     """Solver results over the copying range for each f: {f: BatchResult}."""
     out = {}
     for f in FRICTIONS:
-        solver = Solver(mech.with_overrides({"contacts.shoe.friction": f}))
+        solver = Solver(apply_overrides(mech, {"contacts.shoe.friction": f}))
         ref = _ref(mech)  # locked lengths exactly as in the reference pose (the file rounds them to 0.1 um)
         locked = {"lift_cylinder": np.hypot(*(ref["C"] - ref["A"])), "tilt_cylinder": np.hypot(*(ref["I"] - ref["H"]))}
         batch = solver.solve_batch(cylinders=locked,

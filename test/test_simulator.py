@@ -164,7 +164,7 @@ def test_node_publishes_joint_states_and_fluid_pressure(belarus, solver):
     from sensor_msgs.msg import FluidPressure, JointState
 
     child = subprocess.Popen(
-        [sys.executable, "-m", "linkage_monitor.sim.node", "--preset", "belarus_1221", "--scenario", "lift",
+        [sys.executable, "-m", "linkage_monitor.cli.simulate", "--preset", "belarus_1221", "--scenario", "lift",
          "--rate", "50", "--duration", "8", "--noise-angle", "0", "--noise-length", "0", "--noise-pressure", "0"],
         cwd=ROOT, env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     joints: dict[int, JointState] = {}

@@ -17,9 +17,9 @@ import numpy as np
 from linkage_monitor.cli.arguments import add_mechanism_group, mechanism_from_args, output_file
 from linkage_monitor.mechanics import InputError, LinkageError, Mechanism
 from linkage_monitor.mechanics.calibration import UNITS, FitResult, calibrate, fitted_yaml
+from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
 from linkage_monitor.monitoring.name_value import name_value, number
 
-ATMOSPHERE = 101325.0  # Pa, ISO 2533; sensor_msgs/FluidPressure carries absolute pressure
 
 
 def add_calibrate_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -113,7 +113,7 @@ def read_bag_columns(path: Path, mech: Mechanism, gauge: bool = False) -> dict[s
         pc = match[0]
         order = np.argsort(pc.stamp_ns)
         p_stamps = pc.stamp_ns[order].astype(float)
-        value = pc.fluid_pressure[order] - (0.0 if gauge else ATMOSPHERE)
+        value = pc.fluid_pressure[order] - (0.0 if gauge else ATMOSPHERIC_PRESSURE)
         columns[f"pressure:{sensor.name}"] = np.interp(stamps, p_stamps, value)
         keep &= (stamps >= p_stamps[0]) & (stamps <= p_stamps[-1])
     if not np.any(keep):

@@ -25,7 +25,7 @@ from linkage_monitor.cli.capacity import add_capacity_parser, run_capacity
 from linkage_monitor.cli.fleet import add_fleet_parser, add_spectrum_arguments, run_fleet_command
 from linkage_monitor.cli.simulate import add_simulate_parser, run_simulate
 from linkage_monitor.mechanics import kernels
-from linkage_monitor.mechanics import Inputs, LinkageError, Mechanism, Result, Solver, preset_names
+from linkage_monitor.mechanics import Inputs, LinkageError, Mechanism, Result, Solver, apply_overrides, preset_names
 from linkage_monitor.mechanics.machine import machine_summary
 from linkage_monitor.mechanics.presets import preset_description
 from linkage_monitor.monitoring.name_value import name_value, number
@@ -158,7 +158,7 @@ def _solve(args: argparse.Namespace) -> int:
         key, value = name_value(text, "--set")
         overrides[key] = yaml.safe_load(value)
     if overrides:
-        mech = mech.with_overrides(overrides)
+        mech = apply_overrides(mech, overrides)
     solver = Solver(mech)
     res = solver.solve(_inputs(mech, args))
     summary = machine_summary(solver, res)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import Sequence
 
 from linkage_monitor.cli.arguments import add_mechanism_group, bounded, mechanism_from_args
 from linkage_monitor.mechanics import LinkageError
@@ -54,7 +55,7 @@ def add_simulate_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
 
 
 def parser() -> argparse.ArgumentParser:
-    """Stand-alone parser of the simulate options (for ``python -m linkage_monitor.sim.node``)."""
+    """Stand-alone parser of the simulate options (for ``python -m linkage_monitor.cli.simulate``)."""
     p = argparse.ArgumentParser(prog="linkage-monitor-simulate", description=__doc__.splitlines()[0])
     add_simulate_arguments(p)
     return p
@@ -77,3 +78,17 @@ def run_simulate(args: argparse.Namespace) -> int:
     except (LinkageError, ValueError) as exc:
         print(f"linkage-monitor simulate: {exc}", file=sys.stderr)
         return 2
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m linkage_monitor.cli.simulate``: the options of ``linkage-monitor simulate`` plus ROS arguments."""
+    from rclpy.utilities import remove_ros_args
+
+    argv = list(sys.argv if argv is None else argv)
+    args = parser().parse_args(remove_ros_args(argv)[1:])
+    args.ros_args = argv
+    return run_simulate(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

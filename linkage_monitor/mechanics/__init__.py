@@ -12,11 +12,11 @@ from .errors import (AssemblyError, DeadCentreError, InputError, LinkageError, M
 from .model import Mechanism
 from .presets import load_description, load_preset, preset_description, preset_names, preset_path
 from .results import BatchResult, ContactResult, CylinderResult, HingeResult, Result, Status
-from .schema import load_mechanism, mechanism_from_dict, mechanism_from_text
+from .schema import apply_overrides, load_mechanism, mechanism_from_dict, mechanism_from_text
 from .solver import Inputs, Solver
 
 __all__ = [
-    "AssemblyError", "BatchResult", "ContactResult", "CylinderResult", "DeadCentreError", "HingeResult",
+    "AssemblyError", "BatchResult", "apply_overrides", "ContactResult", "CylinderResult", "DeadCentreError", "HingeResult",
     "InputError", "Inputs", "LinkageError", "Mechanism", "MechanismFileError", "Result", "Status",
     "Solver", "UnobservableError", "load_description", "load_mechanism", "load_preset", "mechanism_from_dict",
     "mechanism_from_text",

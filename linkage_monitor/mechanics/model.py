@@ -172,7 +172,7 @@ class Tractor:
 class Mechanism:
     """A validated planar linkage; build it with ``load_mechanism`` / ``load_preset``.
 
-    ``raw`` keeps the description as read (a dict) so that ``with_overrides`` can re-validate.
+    ``raw`` keeps the description as read (a dict) so that ``schema.apply_overrides`` can re-validate.
     """
 
     name: str
@@ -211,8 +211,3 @@ class Mechanism:
         """The cylinder called ``name``."""
         return next(c for c in self.cylinders if c.name == name)
 
-    def with_overrides(self, overrides: Mapping[str, Any]) -> "Mechanism":
-        """A copy with scalars replaced by dotted key (``implement.mass``, ``cylinders.lift_cylinder.bore``), re-validated."""
-        from .schema import apply_overrides  # schema builds Mechanism; import here avoids a cycle
-
-        return apply_overrides(self, overrides)

@@ -12,13 +12,13 @@ from typing import Mapping
 import numpy as np
 
 from . import kernels
+from .constants import ATMOSPHERIC_PRESSURE   # a gauge pressure below −1 atm is a negative absolute pressure
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
 from .kinematics import Kinematics, KinematicState
 from .model import Cylinder, Mechanism
 from .results import BatchResult, Result, ResultNames, Status
 from .statics import StaticsLayout
 
-ATMOSPHERE = 101325.0  # Pa; a gauge pressure below −1 atm is a negative absolute pressure
 ArrayMap = Mapping[str, "float | np.ndarray"]
 _SOLVED = np.zeros(1, dtype=int)   # KinematicState.status of one solved pose (shared, read-only)
 _SOLVED.flags.writeable = False
@@ -266,7 +266,7 @@ class Solver:
         pressures = list(arrays["pressures"].values())
         rates = list(arrays["rates"].values()) + list(arrays["accelerations"].values())
         if (np.isfinite(s).all() and (s[:, :nc] > 0.0).all() and all(np.isfinite(v).all() for v in rates)
-                and all((v >= -ATMOSPHERE).all() and np.isfinite(v).all() for v in pressures)):
+                and all((v >= -ATMOSPHERIC_PRESSURE).all() and np.isfinite(v).all() for v in pressures)):
             return problems  # the usual case, checked whole-array; below: which pose, which input
         checks = [(f"cylinder '{n}' length" if j < nc else f"angle '{n}'", s[:, j], "m", j < nc)
                   for j, n in enumerate(kin.input_names)]
@@ -280,7 +280,7 @@ class Solver:
                 for i in np.flatnonzero(values <= 0.0):
                     problems[i] = problems[i] or f"{label} is {values[i]} {unit}: a length must be > 0"
         for name, values in arrays["pressures"].items():
-            for i in np.flatnonzero(values < -ATMOSPHERE):
+            for i in np.flatnonzero(values < -ATMOSPHERIC_PRESSURE):
                 problems[i] = problems[i] or (f"pressure '{name}' is {values[i]:.0f} Pa gauge, i.e. a negative "
                                               f"absolute pressure: check the sensor and its zero offset")
         return problems
@@ -324,7 +324,7 @@ class Solver:
         except (KeyError, TypeError, ValueError):
             return None
         if not (all(math.isfinite(v) for v in values) and all(v > 0.0 for v in values[:nc])
-                and all(math.isfinite(v) and v >= -ATMOSPHERE for _, v in pressures)):
+                and all(math.isfinite(v) and v >= -ATMOSPHERIC_PRESSURE for _, v in pressures)):
             return None
         for j, reference in enumerate(self._angle_reference, start=nc):   # kin.wrap_angles on floats
             values[j] = reference + ((values[j] - reference + math.pi) % (2.0 * math.pi) - math.pi)

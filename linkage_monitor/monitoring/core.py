@@ -20,7 +20,7 @@ from typing import Iterable, Mapping, Sequence, Union
 import numpy as np
 
 from linkage_monitor.mechanics import (AssemblyError, BatchResult, DeadCentreError, InputError, Inputs, LinkageError,
-                                       Mechanism, Result, Solver, Status)
+                                       Mechanism, Result, Solver, Status, apply_overrides)
 from linkage_monitor.mechanics.machine import MachineBatch, MachineModel, MachineResult
 
 from .config import MonitorConfig
@@ -191,7 +191,7 @@ class Monitor:
     """Mechanism + configuration -> solver, machine model and the latest inputs; events -> Steps.
 
     ``description`` is the mechanism as described (preset or file, without the configuration's
-    overrides); the effective mechanism is ``description.with_overrides(config.overrides)``.
+    overrides); the effective mechanism is ``apply_overrides(description, config.overrides)``.
     """
 
     def __init__(self, description: Mechanism, config: MonitorConfig) -> None:
@@ -201,7 +201,7 @@ class Monitor:
 
     # ---- configuration ---------------------------------------------------------------------
     def _build(self, config: MonitorConfig, previous: InputTracker | None) -> None:
-        mech = self.description.with_overrides(dict(config.overrides)) if config.overrides else self.description
+        mech = apply_overrides(self.description, dict(config.overrides)) if config.overrides else self.description
         tracker = InputTracker(mech, config)   # raises ValueError for a bad mapping: nothing changed yet
         solver = Solver(mech, consistency_tol=ASSEMBLY_LIMIT_M)
         machine = MachineModel(mech, solver)

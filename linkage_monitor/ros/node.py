@@ -39,7 +39,7 @@ from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
 from linkage_monitor.bag.writer import BagError, BagWriter
-from linkage_monitor.mechanics import LinkageError, Mechanism, load_description
+from linkage_monitor.mechanics import LinkageError, Mechanism, apply_overrides, load_description
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
 from linkage_monitor.mechanics.warm import compiled_kernels
 from linkage_monitor.monitoring.config import CONFIG_TOPIC, OVERRIDE_KEYS, MonitorConfig, Topics
@@ -403,7 +403,7 @@ class LinkageMonitorNode(Node):
         """Accept a change only if the mechanism with it is valid (nothing is applied here)."""
         try:
             config = self._config_with(params)
-            mech = self.monitor.description.with_overrides(dict(config.overrides))
+            mech = apply_overrides(self.monitor.description, dict(config.overrides))
             InputTracker(mech, config)
         except (LinkageError, ValueError) as exc:
             return SetParametersResult(successful=False, reason=str(exc))

@@ -11,7 +11,6 @@ the node's current time (so a live monitor does not see the samples as stale).
 
 from __future__ import annotations
 
-import sys
 import time
 from typing import Sequence
 
@@ -97,19 +96,3 @@ def run(mechanism: Mechanism, scenario: str = "lift", rate_hz: float = 50.0, noi
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Console entry point: the options of ``linkage-monitor simulate`` plus ROS arguments."""
-    from rclpy.utilities import remove_ros_args
-
-    from linkage_monitor.cli.simulate import parser as simulate_parser, run_simulate
-
-    argv = list(sys.argv if argv is None else argv)
-    args = simulate_parser().parse_args(remove_ros_args(argv)[1:])
-    args.ros_args = argv
-    return run_simulate(args)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

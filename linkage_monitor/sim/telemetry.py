@@ -60,13 +60,13 @@ import numpy as np
 
 from linkage_monitor.mechanics import LinkageError, Mechanism, Solver, UnobservableError, mechanism_from_dict
 from linkage_monitor.mechanics.capacity import interval_around, reference_length, stroke_mechanism
+from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
 from linkage_monitor.mechanics.machine import steerability
 from linkage_monitor.mechanics.model import PressureSensor
 from linkage_monitor.mechanics.results import Status, angle_readings
 
 from .ground import GROUND_SCENARIOS, GroundDrive, ground_profile
 
-ATMOSPHERE = 101325.0   # Pa, ISO 2533 standard atmosphere; FluidPressure carries absolute pressure
 CYLINDER_SCENARIOS = ("lift", "transport", "field", "overload")   # driven by the lift cylinder
 SCENARIOS = (*CYLINDER_SCENARIOS, *GROUND_SCENARIOS)
 TRANSPORT_FRACTION = 0.6  # transport length = work + this share of the assemblable stroke above work
@@ -180,7 +180,7 @@ class SimulatedStream:
         for k, name in enumerate(self.pressure_names):
             msg = FluidPressure()
             _set_stamp(msg, self.stamps_ns[i] if stamp_ns is None else stamp_ns)
-            msg.fluid_pressure = float(self.pressure_values[i, k]) + (0.0 if gauge else ATMOSPHERE)
+            msg.fluid_pressure = float(self.pressure_values[i, k]) + (0.0 if gauge else ATMOSPHERIC_PRESSURE)
             msg.variance = float(self.noise.pressure ** 2)
             out[name] = msg
         return out

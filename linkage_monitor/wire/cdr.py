@@ -32,7 +32,7 @@ class Writer:
 
     def align(self, size: int) -> None:
         """Pad with zeros to a multiple of ``size`` bytes from the payload start."""
-        pad = -(len(self.data) - len(ENCAPSULATION)) % size
+        pad = (len(ENCAPSULATION) - len(self.data)) % size
         if pad:
             self.padding.append((len(self.data), len(self.data) + pad))
             self.data += bytes(pad)

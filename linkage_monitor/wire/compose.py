@@ -16,6 +16,7 @@ string whose serialization is cut out and spliced in per message (``spliced``: s
 
 from __future__ import annotations
 
+import functools
 import struct
 from typing import Any, Mapping, NamedTuple, Sequence
 
@@ -24,6 +25,8 @@ from .layout import PRIMITIVES, Field, LayoutError, layout
 
 _STRUCTS = {kind: struct.Struct("<" + fmt) for kind, (fmt, _) in PRIMITIVES.items()}
 _TIMES = frozenset({"builtin_interfaces/msg/Time", "builtin_interfaces/msg/Duration"})
+_ZEROS = [bytes(n) for n in range(8)]
+_MISSING = object()
 
 
 class Column(NamedTuple):
@@ -76,20 +79,28 @@ class Composer:
         """Write ``type_name``'s fields from ``values`` — all of them, or those from the field
         ``start`` up to (not including) the field ``stop``: a message written in two parts, the second
         after the first in the same payload (alignment counts from the payload start)."""
-        fields = layout(type_name).fields
-        names = [f.name for f in fields]
-        first = names.index(start) if start is not None else 0
-        last = names.index(stop) if stop is not None else len(fields)
-        unknown = set(values) - set(names)
-        if unknown:
-            raise LayoutError(f"{type_name} has no field(s) {', '.join(sorted(unknown))}")
-        for field in fields[first:last]:
-            if field.name in values:
-                self._field(type_name, field, values[field.name])
-            elif self.strict:
-                raise LayoutError(f"no value for {type_name}.{field.name}")
+        plan = _plan(type_name)
+        if not plan.names.issuperset(values):
+            raise LayoutError(f"{type_name} has no field(s) {', '.join(sorted(set(values) - plan.names))}")
+        fields = plan.fields
+        if start is not None or stop is not None:
+            fields = fields[plan.position[start] if start is not None else 0:
+                            plan.position[stop] if stop is not None else len(fields)]
+        for field, default in fields:
+            value = values.get(field.name, _MISSING)
+            if value is _MISSING:
+                if self.strict:
+                    raise LayoutError(f"no value for {type_name}.{field.name}")
+                value = default
+            if field.array is None and field.kind == "string" and type(value) is str:   # the common case, inline
+                data = self.writer.data
+                pad = (4 - len(data)) % 4
+                if pad:
+                    self.writer.padding.append((len(data), len(data) + pad))
+                    data += _ZEROS[pad]
+                data += string_bytes(value)
             else:
-                self._field(type_name, field, _default(field))
+                self._field(type_name, field, value)
         return self
 
     def _field(self, owner: str, field: Field, value: Any) -> None:
@@ -106,6 +117,10 @@ class Composer:
                 self.writer.align(size)
                 self.writer.data += value if isinstance(value, (bytes, bytearray)) else \
                     struct.pack(f"<{len(value)}{fmt}", *value)
+            return
+        if field.nested and field.kind not in _TIMES:
+            for item in value:
+                self.message(field.kind, item)
             return
         for item in value:
             self._one(owner, field, item)
@@ -145,6 +160,21 @@ class Composer:
 def encode(type_name: str, values: Mapping[str, Any], strict: bool = False) -> bytes:
     """The CDR bytes (encapsulation header first) of a ``type_name`` message of ``values``."""
     return bytes(Composer(strict=strict).message(type_name, values).data)
+
+
+class _Plan(NamedTuple):
+    """A type's fields with their values when none is given, and its field names."""
+
+    fields: tuple[tuple[Field, Any], ...]
+    names: frozenset[str]
+    position: dict[str, int]
+
+
+@functools.lru_cache(maxsize=None)
+def _plan(type_name: str) -> _Plan:
+    fields = layout(type_name).fields
+    return _Plan(tuple((f, _default(f)) for f in fields), frozenset(f.name for f in fields),
+                 {f.name: k for k, f in enumerate(fields)})
 
 
 def _default(field: Field) -> Any:

@@ -223,7 +223,7 @@ def _filled(template_of: Callable[[Any], Template], keys: list, stamps: np.ndarr
     for key, index in rows.items():
         template = template_of(key)
         at = np.array(index, dtype=np.intp)
-        data = template.fill_rows(stamps[at], source[at].take(template.columns, axis=1),
+        data = template.fill_rows(stamps[at], source[np.ix_(at, template.columns)],
                                   flags[at] if flags is not None else None).tobytes()
         size = len(template.data)
         for j, i in enumerate(index):

@@ -102,9 +102,9 @@ class MonitorClient:
 
 
 def start_simulator(args: list[str], log: Path) -> subprocess.Popen:
-    """`python -m linkage_monitor.sim.node <args>` (the options of `linkage-monitor simulate`);
+    """`python -m linkage_monitor.cli.simulate <args>` (the options of `linkage-monitor simulate`);
     it exits by itself once the scenario has been published."""
-    return subprocess.Popen([sys.executable, "-m", "linkage_monitor.sim.node", *args],
+    return subprocess.Popen([sys.executable, "-m", "linkage_monitor.cli.simulate", *args],
                             stdout=log.open("w"), stderr=subprocess.STDOUT, env=dict(os.environ))
 
 
