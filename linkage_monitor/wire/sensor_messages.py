@@ -1,8 +1,8 @@
 """The monitor's two input messages read straight from their CDR bytes (live node and replay).
 
 sensor_msgs/JointState (positions: rad for revolute joints, m for cylinder strokes; velocities
-rad/s, m/s) and sensor_msgs/FluidPressure (Pa) are read field by field with ``cdr.Reader``
-instead of rclpy's ``deserialize_message``: the same values (test_sensor_messages.py compares
+rad/s, m/s) and sensor_msgs/FluidPressure (Pa) are read field by field by their layouts
+(``wire.read``) instead of rclpy's ``deserialize_message``: the same values (test_sensor_messages.py compares
 both on generated and on damaged messages), without building an rclpy message object, which
 costs 12 µs in a loop and 170–240 µs after the few milliseconds of idle between two sensor
 messages on these machines (docs/performance.md, ninth session). A message that is not the
@@ -16,7 +16,8 @@ from __future__ import annotations
 import importlib
 from typing import Any, Callable, NamedTuple
 
-from .cdr import CdrError, Reader, is_xcdr1, stamp_ns
+from .cdr import CdrError, is_xcdr1, stamp_ns
+from .read import read_message
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 FLUID_PRESSURE = "sensor_msgs/msg/FluidPressure"
@@ -44,13 +45,8 @@ def read_joint_state(data: bytes) -> JointStateReading:
     if len(data) >= 4 and not is_xcdr1(data):
         msg = _rclpy(data, JOINT_STATE)
         return JointStateReading(stamp_ns(msg.header), list(msg.name), tuple(msg.position), tuple(msg.velocity))
-    r = Reader(data)
-    stamp = r.time_ns("header.stamp")
-    r.string("header.frame_id")
-    names = r.strings("name")
-    position, velocity = r.float64s("position"), r.float64s("velocity")
-    r.float64s("effort")
-    return JointStateReading(stamp, names, position, velocity)
+    m = read_message(JOINT_STATE, data)
+    return JointStateReading(m["header.stamp"], m["name"], m["position"], m["velocity"])
 
 
 def read_fluid_pressure(data: bytes) -> FluidPressureReading:
@@ -58,16 +54,12 @@ def read_fluid_pressure(data: bytes) -> FluidPressureReading:
     if len(data) >= 4 and not is_xcdr1(data):
         msg = _rclpy(data, FLUID_PRESSURE)
         return FluidPressureReading(stamp_ns(msg.header), float(msg.fluid_pressure))
-    r = Reader(data)
-    stamp = r.time_ns("header.stamp")
-    r.string("header.frame_id")
-    pressure = r.float64("fluid_pressure")
-    r.float64("variance")
-    return FluidPressureReading(stamp, pressure)
+    m = read_message(FLUID_PRESSURE, data)
+    return FluidPressureReading(m["header.stamp"], m["fluid_pressure"])
 
 
 def _rclpy(data: bytes, type_name: str) -> Any:
-    """rclpy's reading of a payload ``Reader`` does not read; its refusal as a CdrError."""
+    """rclpy's reading of a payload ``read_message`` does not read (XCDR2); its refusal as a CdrError."""
     from rclpy.serialization import deserialize_message
     package, _, name = type_name.split("/")
     try:
