@@ -43,8 +43,8 @@ class Code(Enum):
     LIFT_RESERVE_LOW = ("lift_reserve_low", Level.WARN)     # lift reserve < 1
     # the monitor itself
     INTERNAL_ERROR = ("internal_error", Level.ERROR)        # a bug: reported, the monitor goes on
-    INPUTS_LOST = ("inputs_lost", Level.ERROR)              # the middleware dropped inputs
-    RECORDING_FAILED = ("recording_failed", Level.ERROR)    # the bag cannot be written any more
+    INPUTS_LOST = ("inputs_lost", Level.WARN)               # inputs dropped before the monitor saw them (a WARN
+                                                            # on /diagnostics, as the node reports lost inputs)
 
     @property
     def ident(self) -> str:
