@@ -1,7 +1,7 @@
 """The live CAN bridge: the monitor's node fed from CAN frames instead of sensor topics.
 
-Frames come from a python-can bus (``--bus INTERFACE:CHANNEL``: a reader thread hands them to
-the node's thread through a guard condition) or from ``can_msgs/msg/Frame`` messages on a topic
+Frames come from a python-can bus (``--bus INTERFACE:CHANNEL``: a reader thread queues them, the
+node's thread works the queue off every DRAIN_PERIOD_S) or from ``can_msgs/msg/Frame`` messages on a topic
 (``/from_can_bus``, beside ros2_socketcan). Each frame is recorded raw (can_msgs/msg/Frame on the
 raw topic), decoded (``decoder``), each decoded input recorded as the sensor message it stands for
 and handed to the monitoring core; the outputs, markers, /diagnostics and the bag are the node's
@@ -35,6 +35,10 @@ from .sources import open_bus
 from .to_bag import RAW_TOPIC, input_record
 
 RECV_TIMEOUT_S = 0.1   # s, the reader thread looks this often whether it should stop
+# s, the node's thread takes the reader's frames this often: a timer, not a guard condition (the
+# node's spin loop, ros.spin.InputSpinner, consumes a guard condition's trigger in its own wait
+# before rclpy's executor, which runs the callback, waits for it)
+DRAIN_PERIOD_S = 0.01
 RETRY_S = 1.0          # s, wait after a receive error before the next try
 
 
@@ -70,7 +74,7 @@ class CanBridgeNode(LinkageMonitorNode):
         self.bus: can.BusABC | None = None
         if source.bus is not None:
             self.bus = open_bus(source.bus)
-            self._wake = self.create_guard_condition(self._take_queued)
+            self.create_timer(DRAIN_PERIOD_S, self._take_queued)
             self._reader = threading.Thread(target=self._read_bus, name=f"CAN {source.bus}", daemon=True)
             self._reader.start()
         else:
@@ -88,12 +92,10 @@ class CanBridgeNode(LinkageMonitorNode):
                 self._queue.append(Finding(Code.INPUTS_LOST, f"receiving from {self.source_name} failed "
                                            f"({type(exc).__name__}: {exc}); frames meanwhile are lost, retrying in "
                                            f"{fmt(RETRY_S)} s"))
-                self._wake.trigger()
                 self._stop.wait(RETRY_S)
                 continue
             if msg is not None:
                 self._queue.append(from_message(msg))
-                self._wake.trigger()
 
     def _take_queued(self) -> None:
         while self._queue:

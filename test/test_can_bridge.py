@@ -1,0 +1,151 @@
+"""The live CAN bridge in a process of its own, fed by another process: over a python-can bus
+and over can_msgs/msg/Frame on /from_can_bus (real rclpy pub/sub); its bag replayed, and its
+raw frames turned into a candump log, through can-to-bag and replay: the same outputs.
+
+The bus: python-can's `udp_multicast` interface on the loopback. Its `virtual` interface carries
+frames inside one process only, and a kernel `vcan0` cannot be made here (`ip link add vcan0
+type vcan`: "Unknown device type", no vcan module), so udp_multicast is the bus two processes
+share. Each test uses its own multicast group (runs at the same time do not hear each other).
+"""
+
+from __future__ import annotations
+
+import random
+import subprocess
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import can
+import pytest
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosbags.rosbag2 import Reader
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from support.ros_harness import node_bag, stop
+
+pytestmark = pytest.mark.ros
+
+ROOT = Path(__file__).resolve().parent.parent
+LOG = ROOT / "bags" / "belarus_1221_can_lift.log"
+MAP = ROOT / "config" / "can" / "belarus_1221.yaml"
+OUTPUTS = ("/hinge_reactions", "/hitch_state", "/steerability")
+RATE = 600.0   # frames/s sent (the log's 120 frames/s at 5x)
+
+
+def _cli(*args: str) -> list[str]:
+    return [sys.executable, "-m", "linkage_monitor.cli.main", *args]
+
+
+def _topic_bytes(bag: Path, topics: tuple[str, ...]) -> dict[str, list[bytes]]:
+    """Every message of ``topics`` in the bag as recorded (rosbags reads it: a reader we did not write)."""
+    out: dict[str, list[bytes]] = {t: [] for t in topics}
+    with Reader(bag) as reader:
+        connections = [c for c in reader.connections if c.topic in topics]
+        for connection, _, data in reader.messages(connections=connections):
+            out[connection.topic].append(bytes(data))
+    return out
+
+
+def _frames_in_bag(bag: Path) -> list[can.Message]:
+    """The raw frames the bridge recorded (can_msgs/msg/Frame, decoded by rosbags with the bag's
+    own definition) as python-can messages."""
+    with Reader(bag) as reader:
+        [connection] = [c for c in reader.connections if c.topic == "/from_can_bus"]
+        store = get_typestore(Stores.EMPTY)
+        store.register(get_types_from_msg(connection.msgdef.data, "can_msgs/msg/Frame"))
+        frames = []
+        for _, _, data in reader.messages(connections=[connection]):
+            f = store.deserialize_cdr(data, "can_msgs/msg/Frame")
+            frames.append(can.Message(timestamp=f.header.stamp.sec + f.header.stamp.nanosec * 1e-9,
+                                      arbitration_id=f.id, is_extended_id=f.is_extended, dlc=f.dlc,
+                                      data=bytes(f.data[:f.dlc])))
+    return frames
+
+
+def _expected_counts() -> tuple[int, int]:
+    """(mapped, other) frames of the shipped log, counted by identifier from its text: the rear hitch
+    status (0x0CFE45F0) and the maker pressure frame (0x18FF2021) feed the monitor, the wheel speed
+    and the engine's EEC1 do not."""
+    ids = Counter(line.split()[2].split("#")[0] for line in LOG.read_text().splitlines())
+    mapped = ids["0CFE45F0"] + ids["18FF2021"]
+    return mapped, sum(ids.values()) - mapped
+
+
+def _wait_for_count(total: int, timeout: float = 90.0) -> str:
+    """Spin a test node on /diagnostics until the bridge's frame-count status says ``total`` frames
+    were received (it repeats it every heartbeat); returns that status text."""
+    node = rclpy.create_node("can_bridge_test")
+    seen: list[str] = []
+    node.create_subscription(DiagnosticArray, "/diagnostics",
+                             lambda m: seen.extend(s.message for s in m.status if s.name.endswith(": can")),
+                             QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+    try:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            rclpy.spin_once(node, timeout_sec=0.1)
+            if seen and seen[-1].startswith(f"{total} frames"):
+                return seen[-1]
+        raise AssertionError(f"the bridge did not count {total} frames within {timeout} s: {seen[-1:]}")
+    finally:
+        node.destroy_node()
+
+
+def _wait_for(path: Path, text: str, proc: subprocess.Popen, timeout: float = 60.0) -> None:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if path.exists() and text in path.read_text():
+            return
+        assert proc.poll() is None, f"bridge exited ({proc.returncode}):\n{path.read_text()}"
+        time.sleep(0.1)
+    raise AssertionError(f"bridge did not log {text!r} within {timeout} s:\n{path.read_text()}")
+
+
+@pytest.mark.parametrize("source", ["bus", "topic"])
+def test_live_bridge_equals_replay_and_can_to_bag(source: str, tmp_path: Path, ros: None) -> None:
+    group = f"239.74.{random.randint(0, 255)}.{random.randint(1, 254)}"
+    where = ["--bus", f"udp_multicast:{group}"] if source == "bus" else ["--topic"]
+    bridge_log = tmp_path / "bridge.log"
+    bridge = subprocess.Popen(_cli("can", "--map", str(MAP), *where, "--ros-args", "-p",
+                                   f"record_dir:={tmp_path / 'bags'}", "-p", "sensor_qos:=reliable"),
+                              stdout=bridge_log.open("w"), stderr=subprocess.STDOUT)
+    try:
+        _wait_for(bridge_log, "CAN frames from", bridge)
+        target = f"udp_multicast:{group}" if source == "bus" else "/from_can_bus"
+        sent = subprocess.run([sys.executable, str(ROOT / "test" / "support" / "can_sender.py"), source, target,
+                               str(LOG), str(RATE)], capture_output=True, text=True, timeout=120)
+        assert sent.returncode == 0, sent.stderr
+        mapped, other = _expected_counts()
+        status = _wait_for_count(mapped + other)
+    finally:
+        code = stop(bridge)
+    assert code == 0, bridge_log.read_text()
+    live = node_bag(tmp_path / "bags")
+
+    # every frame arrived and is accounted for: decoded + ignored + refused = received = sent
+    assert int(sent.stdout.strip()) == mapped + other
+    raw = _frames_in_bag(live)
+    assert len(raw) == mapped + other
+    assert status.startswith(f"{mapped + other} frames: {mapped} decoded, {other} ignored") and "0 refused" in status
+
+    # the bag replayed: the live outputs, byte for byte and in order
+    live_out = _topic_bytes(live, OUTPUTS)
+    assert len(live_out["/hinge_reactions"]) > 0.9 * mapped   # one output per solved input
+    replayed = tmp_path / "replayed"
+    subprocess.run(_cli("replay", str(live), "--out", str(replayed), "--quiet"), check=True, capture_output=True)
+    assert _topic_bytes(replayed, OUTPUTS) == live_out
+
+    # the recorded raw frames as a candump log (python-can's writer), can-to-bag, replay: the same outputs
+    candump = tmp_path / "recorded.log"
+    with can.CanutilsLogWriter(str(candump), channel="can0") as writer:
+        for msg in raw:
+            writer.on_message_received(msg)
+    converted, replayed_log = tmp_path / "converted", tmp_path / "replayed_log"
+    subprocess.run(_cli("can-to-bag", str(candump), "--map", str(MAP), "--out", str(converted)), check=True,
+                   capture_output=True)
+    subprocess.run(_cli("replay", str(converted), "--out", str(replayed_log), "--quiet"), check=True,
+                   capture_output=True)
+    assert _topic_bytes(replayed_log, OUTPUTS) == live_out
