@@ -3,7 +3,7 @@ sensor_msgs/msg/JointState (header, name[], position[] rad / m, velocity[] and e
 and sensor_msgs/msg/FluidPressure (header, fluid_pressure Pa, variance 0 = unknown).
 
 Laid out in little-endian CDR field by field from the two definitions, padding zeroed, frame_id
-empty (the bag's replay reads them with ``ros.sensor_messages`` as the node's inputs; the tests
+empty (the bag's replay reads them with ``wire.sensor_messages`` as the node's inputs; the tests
 compare them with rclpy's serialization). The header stamp is the frame's.
 """
 

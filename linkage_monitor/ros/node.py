@@ -320,7 +320,7 @@ class LinkageMonitorNode(Node):
         self._guarded(topic, data, info, FLUID_PRESSURE, solve)
 
     def _guarded(self, topic: str, data: bytes, info: dict, type_name: str, solve: Callable[[Any, int], Step]) -> None:
-        """Read the input from its CDR bytes (``ros.sensor_messages``), record the bytes as they came,
+        """Read the input from its CDR bytes (``wire.sensor_messages``), record the bytes as they came,
         then solve and publish — or, for bytes that are not the topic's type, an ERROR saying why."""
         now = self._now()
         self.loss.on_message(topic, _publisher_id(info), info.get("publication_sequence_number"))
