@@ -1,11 +1,12 @@
 """The outputs written as CDR bytes (wire.outputs.OutputEncoder) are the messages rclpy builds
 and serializes field by field (oracle: test/oracles/output_messages.py, the package's former
-builders), for every preset and fixture, OK and WARN steps, NaN fields, a reconfigured monitor
-and arbitrary values; and they decode with readers we did not write (rclpy, rosbags).
+builders), for every preset and fixture, OK and WARN steps, NaN fields and a reconfigured monitor
+(arbitrary values: test/test_wire.py); and they decode with readers we did not write (rclpy, rosbags).
 
 How each check compares: rclpy's ``deserialize_message`` of our bytes equals the oracle
 message field by field (NaN equal to NaN, floats bit for bit), and our length equals the
-message's exact CDR length (rclpy's buffer cut by rosbags' decoder, wire.definitions.exact_cdr).
+message's exact CDR length (rclpy's buffer cut by rosbags' decoder, wire.definitions.exact_cdr), and
+the bytes are rclpy's serialization but for the alignment padding (test_wire.assert_rclpy_bytes).
 """
 
 from __future__ import annotations
@@ -16,8 +17,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message, serialize_message
 
 from linkage_monitor.wire.definitions import exact_cdr
@@ -28,6 +27,7 @@ from linkage_monitor.monitoring.core import Monitor
 from linkage_monitor.wire.outputs import OutputEncoder
 from linkage_monitor.sim.telemetry import Noise, simulate
 from oracles.output_messages import outputs as oracle_outputs
+from test_wire import assert_rclpy_bytes
 
 FIXTURES = Path(__file__).parent / "fixtures"
 FIELDS = ("hinge_reactions", "hitch_state", "steerability")
@@ -59,6 +59,7 @@ def _check(monitor: Monitor, encoder: OutputEncoder, step) -> int:
         assert isinstance(data, bytes)
         _same(deserialize_message(data, type(msg)), msg, name)
         assert len(data) == len(exact_cdr(message_type_name(msg), serialize_message(msg))), name
+        assert_rclpy_bytes(message_type_name(msg), data, msg)   # and byte for byte, padding aside
     return 1
 
 
