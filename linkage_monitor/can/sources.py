@@ -51,3 +51,19 @@ def read_log(path: str | Path) -> Iterator[Frame]:
                 yield from_message(msg)
     except (ValueError, can.CanError, IndexError, KeyError) as exc:
         raise InputError(f"CAN log {path}: unreadable ({type(exc).__name__}: {exc})") from None
+
+
+def read_bag_frames(path: str | Path, topic: str) -> Iterator[Frame]:
+    """The raw frames a bag recorded on ``topic`` (can_msgs/msg/Frame), in recording order; InputError
+    if it holds none."""
+    from linkage_monitor.bag.reader import read_bag_raw
+
+    from .frame_msg import FRAME_TYPE, from_cdr
+
+    found = False
+    for _, type_name, _, _, data in read_bag_raw(path, topics=[topic]):
+        if type_name == FRAME_TYPE:
+            found = True
+            yield from_cdr(data)
+    if not found:
+        raise InputError(f"bag {path} holds no {FRAME_TYPE} on {topic}: it was not recorded from CAN frames")

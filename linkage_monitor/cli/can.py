@@ -84,10 +84,16 @@ def run_can(args: argparse.Namespace) -> int:
     """The live bridge (ros.node.main with the CAN node)."""
     from rclpy.parameter import Parameter
 
+    from linkage_monitor.can.decoder import CanDecoder, load_databases
     from linkage_monitor.can.node import CanBridgeNode, CanSource
+    from linkage_monitor.can.sources import parse_bus
     from linkage_monitor.ros.node import main as node_main
 
-    mapping, _, dbc = _setup(args)
+    mapping, mech, dbc = _setup(args)
+    # the bus, the DBC files and the mapping checked before the node starts (and records)
+    if args.bus is not None:
+        parse_bus(args.bus)
+    CanDecoder(load_databases(dbc), mapping, mech, MonitorConfig.default(_mechanism_spec(args, mapping), mech), "check")
     source = CanSource(mapping=mapping, dbc=dbc, bus=args.bus, topic=args.topic or RAW_TOPIC)
     overrides = [Parameter("mechanism", value=_mechanism_spec(args, mapping))]
     return node_main(["linkage-monitor", "--ros-args", *args.ros_args],
@@ -156,6 +162,40 @@ def run_can_calibrate(args: argparse.Namespace) -> int:
         args.out.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
         print(f"calibrated mapping written to {args.out}")
     return 0
+
+
+def add_redecode_arguments(replay: argparse.ArgumentParser) -> None:
+    """``replay --map [--dbc]``: decode the bag's raw CAN frames again before replaying."""
+    group = replay.add_argument_group("CAN", "decode the raw frames the bag recorded again, with a corrected DBC or "
+                                      "mapping, instead of the inputs decoded when it was recorded")
+    group.add_argument("--map", metavar="FILE", help="mapping YAML (docs/can-mapping.md)")
+    group.add_argument("--dbc", action="append", default=[], metavar="FILE",
+                       help="DBC file (repeatable); default: the mapping's 'dbc' list")
+    group.add_argument("--raw-topic", default=RAW_TOPIC, metavar="TOPIC",
+                       help=f"the bag's can_msgs/msg/Frame topic (default {RAW_TOPIC})")
+
+
+def redecoded(args: argparse.Namespace, work: Path) -> Path:
+    """The bag of ``args.bag``'s raw frames decoded again (``--map``/``--dbc``) under ``work``, with the
+    mechanism and configuration the bag recorded (or given); prints the frame counts."""
+    from linkage_monitor.can.decoder import CanDecoder, load_databases
+    from linkage_monitor.can.mapping import load_mapping
+    from linkage_monitor.can.sources import read_bag_frames
+    from linkage_monitor.can.to_bag import can_to_bag
+    from linkage_monitor.offline.replay import recording_in_bag
+
+    mapping = load_mapping(args.map)
+    recorded = recording_in_bag(Path(args.bag))
+    mech = mechanism_from_args(args) or recorded.description
+    if mech is None:
+        raise InputError(f"bag {args.bag} holds no mechanism description: give --preset NAME or --mechanism FILE")
+    config = recorded.config or MonitorConfig.default(mech.name, mech)
+    decoder = CanDecoder(load_databases(tuple(Path(d) for d in args.dbc) or mapping.dbc), mapping, mech, config,
+                         args.raw_topic)
+    bag = work / "redecoded"
+    converted = can_to_bag(read_bag_frames(args.bag, args.raw_topic), decoder, mech, config, bag, args.raw_topic)
+    print(f"decoded again with {args.map}: {converted.counts.summary()}")
+    return bag
 
 
 COMMANDS = {"can": run_can, "can-to-bag": run_can_to_bag, "can-calibrate": run_can_calibrate}
