@@ -11,6 +11,7 @@ import json
 import math
 import os
 import sys
+import tempfile
 from pathlib import Path
 from typing import NoReturn, Sequence
 
@@ -20,7 +21,7 @@ from linkage_monitor.bag.writer import BagError
 from linkage_monitor.cli.arguments import add_mechanism_group, bounded, mechanism_from_args, new_directory, output_file
 from linkage_monitor.cli.calibrate import add_calibrate_parser, run_calibrate
 from linkage_monitor.cli.can import COMMANDS as CAN_COMMANDS
-from linkage_monitor.cli.can import add_can_parsers, run_can_command
+from linkage_monitor.cli.can import add_can_parsers, add_redecode_arguments, redecoded, run_can_command
 from linkage_monitor.cli.capacity import add_capacity_parser, run_capacity
 from linkage_monitor.cli.fleet import add_fleet_parser, add_spectrum_arguments, run_fleet_command
 from linkage_monitor.cli.simulate import add_simulate_parser, run_simulate
@@ -76,6 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument("--spectra", action="store_true",
                         help="print each hinge's rainflow load spectrum and damage-equivalent load (docs/fleet.md)")
     add_spectrum_arguments(replay)
+    add_redecode_arguments(replay)
     add_fleet_parser(sub)
     add_can_parsers(sub)
     return parser
@@ -170,7 +172,14 @@ def _solve(args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
-    replayed = replay(Path(args.bag), mechanism_from_args(args), out_dir=args.out, rrd=args.rrd, rate=args.rate,
+    if args.map:   # the bag's raw CAN frames decoded again first
+        with tempfile.TemporaryDirectory() as work:
+            return _replay_bag(args, redecoded(args, Path(work)))
+    return _replay_bag(args, Path(args.bag))
+
+
+def _replay_bag(args: argparse.Namespace, bag: Path) -> int:
+    replayed = replay(bag, mechanism_from_args(args), out_dir=args.out, rrd=args.rrd, rate=args.rate,
                       progress=None if args.quiet else sys.stderr)
     summary = replayed.summary
     print(summary.table())
