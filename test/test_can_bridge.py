@@ -50,6 +50,15 @@ def _topic_bytes(bag: Path, topics: tuple[str, ...]) -> dict[str, list[bytes]]:
     return out
 
 
+def _messages(bag: Path, topic: str) -> list:
+    """The messages of ``topic`` decoded by rosbags with the bag's own definitions."""
+    with Reader(bag) as reader:
+        [connection] = [c for c in reader.connections if c.topic == topic]
+        store = get_typestore(Stores.EMPTY)
+        store.register(get_types_from_msg(connection.msgdef.data, connection.msgtype))
+        return [store.deserialize_cdr(data, connection.msgtype) for _, _, data in reader.messages([connection])]
+
+
 def _frames_in_bag(bag: Path) -> list[can.Message]:
     """The raw frames the bridge recorded (can_msgs/msg/Frame, decoded by rosbags with the bag's
     own definition) as python-can messages."""
@@ -61,8 +70,8 @@ def _frames_in_bag(bag: Path) -> list[can.Message]:
         for _, _, data in reader.messages(connections=[connection]):
             f = store.deserialize_cdr(data, "can_msgs/msg/Frame")
             frames.append(can.Message(timestamp=f.header.stamp.sec + f.header.stamp.nanosec * 1e-9,
-                                      arbitration_id=f.id, is_extended_id=f.is_extended, dlc=f.dlc,
-                                      data=bytes(f.data[:f.dlc])))
+                                      arbitration_id=f.id, is_extended_id=f.is_extended, is_error_frame=f.is_error,
+                                      dlc=f.dlc, data=bytes(f.data[:f.dlc])))
     return frames
 
 
@@ -114,22 +123,29 @@ def test_live_bridge_equals_replay_and_can_to_bag(source: str, tmp_path: Path, r
                               stdout=bridge_log.open("w"), stderr=subprocess.STDOUT)
     try:
         _wait_for(bridge_log, "CAN frames from", bridge)
+        time.sleep(1.5)   # longer than the mapping's silence_timeout (1 s): the silent bus is a finding
         target = f"udp_multicast:{group}" if source == "bus" else "/from_can_bus"
         sent = subprocess.run([sys.executable, str(ROOT / "test" / "support" / "can_sender.py"), source, target,
                                str(LOG), str(RATE)], capture_output=True, text=True, timeout=120)
         assert sent.returncode == 0, sent.stderr
         mapped, other = _expected_counts()
-        status = _wait_for_count(mapped + other)
+        faults = 3   # the sender's error frame, bus-off and 'not available' position
+        status = _wait_for_count(mapped + other + faults)
     finally:
         code = stop(bridge)
     assert code == 0, bridge_log.read_text()
     live = node_bag(tmp_path / "bags")
 
     # every frame arrived and is accounted for: decoded + ignored + refused = received = sent
-    assert int(sent.stdout.strip()) == mapped + other
+    assert int(sent.stdout.strip()) == mapped + other + faults
     raw = _frames_in_bag(live)
-    assert len(raw) == mapped + other
-    assert status.startswith(f"{mapped + other} frames: {mapped} decoded, {other} ignored") and "0 refused" in status
+    assert len(raw) == mapped + other + faults
+    assert status.startswith(f"{mapped + other + faults} frames: {mapped} decoded, {other} ignored")
+    assert status.endswith(f"{faults} refused")
+    # the silent bus, the error frame, bus-off and the missing value: findings on /diagnostics (as recorded)
+    findings = [s for m in _messages(live, "/diagnostics") for s in m.status]
+    for words, level in (("no CAN frame on", 1), ("error frame on", 2), ("bus-off on", 1), ("'not available'", 1)):
+        assert any(words in s.message and s.level == level for s in findings), words
 
     # the bag replayed: the live outputs, byte for byte and in order
     live_out = _topic_bytes(live, OUTPUTS)

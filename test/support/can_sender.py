@@ -1,4 +1,5 @@
-"""Send a CAN log's frames in a separate process, paced: onto a python-can bus (`bus SPEC`) or as
+"""Send a CAN log's frames in a separate process, paced, then FAULTS: an error frame, a bus-off
+error frame, and a rear hitch status whose position reads 'not available' (0xFF): onto a python-can bus (`bus SPEC`) or as
 can_msgs/msg/Frame on a ROS topic (`topic NAME`). The frames keep their identifiers and data; the
 bus stamps them on receipt, the topic's messages are stamped with the send time (the bridge's
 stamp check judges them against its clock). Prints the number of frames sent.
@@ -15,13 +16,19 @@ from dataclasses import replace
 
 import can
 
+from linkage_monitor.can.frames import Frame
+
+FAULTS = (Frame(0, 0x004, False, False, True, 8, bytes(8)),        # error frame: controller problems (class 0x4)
+          Frame(0, 0x040, False, False, True, 8, bytes(8)),        # error frame: bus-off (CAN_ERR_BUSOFF)
+          Frame(0, 0x0CFE45F0, True, False, False, 8, bytes([0xFF, 0x40, 0xFF, 0xFF, 0xFF, 0x3F, 0, 0])))
+
 
 def main() -> int:
     mode, target, log, rate = sys.argv[1], sys.argv[2], sys.argv[3], float(sys.argv[4])
     from linkage_monitor.can.frames import to_message
     from linkage_monitor.can.sources import open_bus, read_log
 
-    frames = list(read_log(log))
+    frames = list(read_log(log)) + list(FAULTS)
     if mode == "bus":
         bus = open_bus(target)
 
