@@ -23,6 +23,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message, serialize_message
 
+from linkage_monitor.can.frame_msg import FRAME_TYPE, to_cdr
+from linkage_monitor.can.frames import Frame
 from linkage_monitor.mechanics import load_preset, preset_names
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Monitor
@@ -38,9 +40,10 @@ from linkage_monitor.wire.template import Template
 from oracles.markers import LinkageMarkers as OracleMarkers
 from oracles.output_messages import outputs as oracle_outputs
 
-# every message type the node publishes or the recorder writes (ros/node.py publishers, the replay's writes)
+# every message type the node publishes or the recorder writes (ros/node.py publishers, the replay's writes,
+# the CAN bridge's raw frames)
 WRITTEN = (HINGE_REACTIONS, HITCH_STATE, STEERABILITY, DIAGNOSTIC_ARRAY, MARKER_ARRAY, JOINT_STATE, FLUID_PRESSURE,
-           "std_msgs/msg/String")
+           "std_msgs/msg/String", FRAME_TYPE)
 _TEXT = st.text(st.characters(blacklist_categories=("Cs",), blacklist_characters="\x00"), max_size=12)
 _INTS = {"int8": 8, "int16": 16, "int32": 32, "int64": 64}
 
@@ -136,6 +139,17 @@ def test_a_field_without_a_value_is_its_definition_default():
         encode(HITCH_STATE, {"header": {"stamp": 0, "frame_id": ""}}, strict=True)
     with pytest.raises(LayoutError, match="no field"):
         encode(STEERABILITY, {"not_a_field": 1.0})
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(-2**31 * 10**9, 2**31 * 10**9 - 1), st.integers(0, 2**32 - 1), st.booleans(), st.booleans(),
+       st.booleans(), st.integers(0, 8), st.binary(max_size=8), _TEXT)
+def test_the_can_bridge_frames_are_their_layouts(stamp, ident, extended, remote, error, dlc, data, frame_id):
+    """can/frame_msg.to_cdr (a struct per can_msgs/Frame) writes the bytes of the message's layout."""
+    frame = Frame(stamp, ident, extended, remote, error, dlc, data)
+    assert to_cdr(frame, frame_id) == encode(FRAME_TYPE, {
+        "header": {"stamp": stamp, "frame_id": frame_id}, "id": ident, "is_rtr": remote, "is_extended": extended,
+        "is_error": error, "dlc": dlc, "data": (data + bytes(8))[:8]}, strict=True)
 
 
 @settings(max_examples=100, deadline=None)
