@@ -13,6 +13,7 @@ reads itself (``wire.sensor_messages``).
 
 from __future__ import annotations
 
+import functools
 import struct
 from typing import Any
 
@@ -53,11 +54,27 @@ def is_xcdr1(data: bytes) -> bool:
     return len(data) >= len(ENCAPSULATION) and data[0] == 0 and data[1] <= 3
 
 
+@functools.cache
+def option_padding_honoured() -> bool:
+    """Whether the installed middleware's CDR reader takes the last option byte's two low bits as
+    padding bytes at the end of the payload (not data): Fast CDR 2.3 (Kilted) does, Fast CDR 2.2
+    (Jazzy) reads the payload whole. Probed once through rclpy: a std_msgs/UInt32 whose options
+    declare 3 bytes of padding, which leaves too few bytes for its field when honoured."""
+    from rclpy.serialization import deserialize_message
+    from std_msgs.msg import UInt32
+    try:
+        deserialize_message(b"\x00\x01\x00\x03\x07\x00\x00\x00", UInt32)
+    except Exception:  # noqa: BLE001 - rclpy raises RMWError (or others) for bytes it cannot read
+        return True
+    return False
+
+
 class Reader:
     """Reads XCDR1 primitives from ``data`` in order, as rmw_fastrtps (Fast CDR) deserializes them:
     encapsulation 0x0000-0x0003 (plain or parameter-list CDR, big endian when even), the last option
-    byte's two low bits = padding bytes at the end of the payload (not data), every primitive
-    aligned to its size from the payload start, bytes after the last field ignored."""
+    byte's two low bits = padding bytes at the end of the payload (not data) where the installed
+    Fast CDR takes them so (``option_padding_honoured``), every primitive aligned to its size from
+    the payload start, bytes after the last field ignored."""
 
     def __init__(self, data: bytes) -> None:
         if len(data) < len(ENCAPSULATION):
@@ -66,7 +83,7 @@ class Reader:
             raise CdrError(f"not XCDR1: encapsulation {bytes(data[:2]).hex() or '(none)'}, expected 0000 to 0003")
         self.order = "<" if data[1] & 1 else ">"
         self._u32, self._stamp, self._f64 = (_U32, _STAMP, _F64) if self.order == "<" else _BIG_ENDIAN
-        self.data = memoryview(data)[:len(data) - (data[3] & 0x03)]
+        self.data = memoryview(data)[:len(data) - (data[3] & 0x03 if option_padding_honoured() else 0)]
         self.offset = len(ENCAPSULATION)
 
     def _take(self, size: int, what: str, align: int) -> int:
