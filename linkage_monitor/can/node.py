@@ -1,7 +1,7 @@
 """The live CAN bridge: the monitor's node fed from CAN frames instead of sensor topics.
 
-Frames come from a python-can bus (``--bus INTERFACE:CHANNEL``: a reader thread queues them, the
-node's thread works the queue off every DRAIN_PERIOD_S) or from ``can_msgs/msg/Frame`` messages on a topic
+Frames come from a python-can bus (``--bus INTERFACE:CHANNEL``, read by the node's own thread
+every POLL_PERIOD_S: the kernel's socket buffer holds them meanwhile) or from ``can_msgs/msg/Frame`` messages on a topic
 (``/from_can_bus``, beside ros2_socketcan). Each frame is recorded raw (can_msgs/msg/Frame on the
 raw topic), decoded (``decoder``), each decoded input recorded as the sensor message it stands for
 and handed to the monitoring core; the outputs, markers, /diagnostics and the bag are the node's
@@ -13,9 +13,7 @@ heartbeat and at shutdown. Units SI; stamps: the frames' own (µs), receive time
 
 from __future__ import annotations
 
-import threading
 import time
-from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,12 +32,14 @@ from .mapping import CanMapping
 from .sources import open_bus
 from .to_bag import RAW_TOPIC, input_record
 
-RECV_TIMEOUT_S = 0.1   # s, the reader thread looks this often whether it should stop
-# s, the node's thread takes the reader's frames this often: a timer, not a guard condition (the
-# node's spin loop, ros.spin.InputSpinner, consumes a guard condition's trigger in its own wait
-# before rclpy's executor, which runs the callback, waits for it)
-DRAIN_PERIOD_S = 0.01
-RETRY_S = 1.0          # s, wait after a receive error before the next try
+# s, the node's thread reads the bus this often, everything waiting each time. Not a reader thread:
+# its every receive releases the GIL (a system call) and waits up to the interpreter's switch
+# interval (5 ms) to get it back while the node solves, ~200 frames/s, and the socket overflows
+# (bench/bench_can.py found it); not a guard condition either (the node's spin loop,
+# ros.spin.InputSpinner, consumes its trigger before rclpy's executor would run the callback).
+POLL_PERIOD_S = 0.01
+POLL_LIMIT = 5000      # frames worked off per poll at most (then timers and services run)
+RETRY_S = 1.0          # s, a receive error is reported at most this often
 
 
 @dataclass(frozen=True)
@@ -68,43 +68,35 @@ class CanBridgeNode(LinkageMonitorNode):
         self.silence_s = source.mapping.silence_timeout_s
         self._last_frame = time.monotonic()
         self._silent = False
-        self._queue: deque[Frame | Finding] = deque()
-        self._stop = threading.Event()
-        self._reader: threading.Thread | None = None
+        self._last_error = -RETRY_S
         self.bus: can.BusABC | None = None
         if source.bus is not None:
             self.bus = open_bus(source.bus)
-            self.create_timer(DRAIN_PERIOD_S, self._take_queued)
-            self._reader = threading.Thread(target=self._read_bus, name=f"CAN {source.bus}", daemon=True)
-            self._reader.start()
+            self.create_timer(POLL_PERIOD_S, self._poll_bus)
         else:
             self._subscribe(FrameMsg, self.source_name, self._on_frame_message)
         self.create_timer(min(0.1, self.silence_s / 4), self._check_silence)
         self.get_logger().info(f"CAN frames from {self.source_name}, {len(source.mapping.inputs)} mapped input(s)")
 
-    # ---- the bus: a reader thread, the node's thread works the frames off -------------------------
-    def _read_bus(self) -> None:
+    # ---- the bus: read by the node's thread ------------------------------------------------------------
+    def _poll_bus(self) -> None:
+        """Work off the frames waiting on the bus (at most POLL_LIMIT); a receive error is a finding."""
         assert self.bus is not None
-        while not self._stop.is_set():
+        for _ in range(POLL_LIMIT):
             try:
-                msg = self.bus.recv(RECV_TIMEOUT_S)
+                msg = self.bus.recv(0.0)
             except (can.CanError, OSError) as exc:
-                self._queue.append(Finding(Code.INPUTS_LOST, f"receiving from {self.source_name} failed "
-                                           f"({type(exc).__name__}: {exc}); frames meanwhile are lost, retrying in "
-                                           f"{fmt(RETRY_S)} s"))
-                self._stop.wait(RETRY_S)
-                continue
-            if msg is not None:
-                self._queue.append(from_message(msg))
-
-    def _take_queued(self) -> None:
-        while self._queue:
-            item = self._queue.popleft()
-            now = self._now()
-            if isinstance(item, Finding):
-                self._publish(Step(now, self.source_name, (item,)), now)
-            else:
-                self._take_frame(item, to_cdr(item), now)
+                now = self._now()
+                if time.monotonic() - self._last_error >= RETRY_S:
+                    self._last_error = time.monotonic()
+                    self._publish(Step(now, self.source_name, (Finding(Code.INPUTS_LOST, (
+                        f"receiving from {self.source_name} failed ({type(exc).__name__}: {exc}); frames meanwhile "
+                        "are lost")),)), now)
+                return
+            if msg is None:
+                return
+            frame = from_message(msg)
+            self._take_frame(frame, to_cdr(frame), self._now())
 
     # ---- the topic ---------------------------------------------------------------------------------
     def _on_frame_message(self, data: bytes, info: dict) -> None:
@@ -160,13 +152,10 @@ class CanBridgeNode(LinkageMonitorNode):
         self._publish_status("can", Level.OK, counts.summary(), self._now())
 
     def close(self) -> None:
-        self._stop.set()
-        if self._reader is not None:
-            self._reader.join(timeout=2 * RECV_TIMEOUT_S + RETRY_S)
-        if self.bus is not None:
-            self.bus.shutdown()
         try:
-            self._take_queued()   # what the reader thread received is worked off: no frame left behind
+            if self.bus is not None:
+                self._poll_bus()   # what already arrived is worked off: no frame left behind
+                self.bus.shutdown()
             self._publish_counts()
             self.get_logger().info(f"CAN {self.source_name}: {self.decoder.counts.summary()}")
         except Exception as exc:  # noqa: BLE001 - the bag is finished whatever happens here
