@@ -123,3 +123,22 @@ def test_errors_are_one_line(tmp_path: Path, args: list[str], words: str) -> Non
     result = _cli(*args, cwd=tmp_path)   # nothing may be recorded: the errors come before the node starts
     assert result.returncode == 2 and not (tmp_path / "out").exists()
     assert words in result.stderr and len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
+
+
+def test_calibration_reproduces_the_shipped_tables(tmp_path: Path) -> None:
+    """can-calibrate on the shipped log and the simulator's truth gives the tables of the shipped mapping
+    (written there to 9 significant digits), each within one position step's worth of the truth: the
+    largest error is at most the angle (length) change over 0.4 %, the position's resolution."""
+    out = tmp_path / "calibrated.yaml"
+    result = _cli("can-calibrate", str(LOG), "--map", str(MAP), "--truth", str(ROOT / "bags" / "belarus_1221_can_lift_truth"),
+                  "--out", str(out))
+    assert result.returncode == 0, result.stderr
+    import yaml
+    fitted, shipped = yaml.safe_load(out.read_text())["inputs"], yaml.safe_load(MAP.read_text())["inputs"]
+    for name in ("lift_arm_angle", "lift_cylinder"):
+        assert fitted[name]["table"]["signal"] == shipped[name]["table"]["signal"]
+        assert fitted[name]["table"]["value"] == pytest.approx(shipped[name]["table"]["value"], rel=1e-8)
+        s, v = shipped[name]["table"]["signal"], shipped[name]["table"]["value"]
+        step = max(abs(v[k + 1] - v[k]) / (s[k + 1] - s[k]) for k in range(len(s) - 1)) * 0.4
+        line = next(l for l in result.stdout.splitlines() if l.startswith(f"# {name}:"))
+        assert float(line.split("truth ")[1].split()[0]) <= step
