@@ -9,6 +9,7 @@ tractor's own relation between the two, taken once from a lift where both were r
 
 from __future__ import annotations
 
+from bisect import bisect_right
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,11 +44,15 @@ class PositionTable:
             raise TableError("the values must increase strictly or decrease strictly (a monotone table)")
 
     def lookup(self, x: float) -> float | None:
-        """The value at signal ``x`` (linear between the points), None outside the table."""
-        s = self.signal
+        """The value at signal ``x`` (linear between the points), None outside the table. Plain
+        Python: numpy's interp costs ~10 µs a call on a table of tuples, ~0.5 µs here."""
+        s, v = self.signal, self.value
         if not s[0] <= x <= s[-1]:
             return None
-        return float(np.interp(x, s, self.value))
+        k = bisect_right(s, x) - 1
+        if k == len(s) - 1:
+            return v[-1]
+        return v[k] + (x - s[k]) * (v[k + 1] - v[k]) / (s[k + 1] - s[k])
 
     def span(self) -> str:
         """The table's signal range as text."""
