@@ -205,3 +205,32 @@ def test_table_fit_makes_a_noisy_lift_monotone() -> None:
     x = np.round(rng.uniform(20, 80, 2000) / 0.4) * 0.4
     table = fit_table(x, 0.5 + 0.003 * x + rng.normal(0, 0.004, x.size))
     assert np.all(np.diff(table.value) > 0) and np.all(np.diff(table.signal) > 0)
+
+
+@pytest.mark.parametrize("names, positions", [(("lift_arm_angle", "lift_cylinder"), (-2.7747, 0.535)), (("a",), (1.0,)),
+                                              (("abcd",), (2.0,)), ((), ())])
+def test_recorded_inputs_are_the_messages_rclpy_reads(names, positions) -> None:
+    """The CDR the bridge records for a decoded frame: rclpy and the replay's reader read the same
+    fields, and it is as long as rclpy's own serialization cut to the message (the padding may differ:
+    rclpy leaves it uninitialised)."""
+    from rclpy.serialization import deserialize_message, serialize_message
+    from sensor_msgs.msg import FluidPressure, JointState
+
+    from linkage_monitor.can.input_msg import fluid_pressure_cdr, joint_state_cdr
+    from linkage_monitor.wire.definitions import exact_cdr
+    from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, read_input
+
+    stamp = STAMP + 123_456_000
+    mine = joint_state_cdr(stamp, names, positions)
+    msg = deserialize_message(mine, JointState)
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (1_767_225_600, 123_456_000)
+    assert list(msg.name) == list(names) and list(msg.position) == list(positions)
+    assert list(msg.velocity) == [] and list(msg.effort) == [] and msg.header.frame_id == ""
+    reading = read_input(JOINT_STATE, mine)
+    assert (reading.stamp_ns, list(reading.names), list(reading.position)) == (stamp, list(names), list(positions))
+    reference = JointState(name=list(names), position=list(positions))
+    reference.header.stamp.sec, reference.header.stamp.nanosec = 1_767_225_600, 123_456_000
+    assert len(mine) == len(exact_cdr(JOINT_STATE, bytes(serialize_message(reference))))
+    pressure = fluid_pressure_cdr(stamp, 10.2e6)
+    assert deserialize_message(pressure, FluidPressure).fluid_pressure == 10.2e6
+    assert read_input(FLUID_PRESSURE, pressure).fluid_pressure == 10.2e6

@@ -32,9 +32,10 @@ import can
 import numpy as np
 
 from linkage_monitor.bag.writer import BagWriter
-from linkage_monitor.can.input_msg import JOINT_STATE, joint_state_cdr
+from linkage_monitor.can.input_msg import joint_state_cdr
 from linkage_monitor.mechanics import load_description
 from linkage_monitor.sim.telemetry import Noise, simulate
+from linkage_monitor.wire.sensor_messages import JOINT_STATE
 
 ROOT = Path(__file__).resolve().parent.parent
 DBC = ROOT / "config" / "can" / "isobus_hitch.dbc"

@@ -12,8 +12,6 @@ from __future__ import annotations
 import struct
 from typing import Sequence
 
-JOINT_STATE = "sensor_msgs/msg/JointState"
-FLUID_PRESSURE = "sensor_msgs/msg/FluidPressure"
 NS = 1_000_000_000
 _CDR_LE = b"\x00\x01\x00\x00"
 _HEADER = struct.Struct("<iII")    # stamp sec, nanosec, frame_id length (1: the empty string's NUL)

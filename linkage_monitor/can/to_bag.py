@@ -22,11 +22,12 @@ from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
 from linkage_monitor.monitoring.core import InputEvent, JointStateEvent, PressureEvent
 from linkage_monitor.monitoring.findings import Finding
+from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE
 
 from .decoder import CanDecoder, FrameCounts
 from .frame_msg import FRAME_TYPE, to_cdr
 from .frames import Frame
-from .input_msg import FLUID_PRESSURE, JOINT_STATE, fluid_pressure_cdr, joint_state_cdr
+from .input_msg import fluid_pressure_cdr, joint_state_cdr
 
 RAW_TOPIC = "/from_can_bus"
 """Topic of the raw frames (can_msgs/msg/Frame), ros2_socketcan's default."""
