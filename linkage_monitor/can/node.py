@@ -95,8 +95,13 @@ class CanBridgeNode(LinkageMonitorNode):
                 return
             if msg is None:
                 return
-            frame = from_message(msg)
-            self._take_frame(frame, to_cdr(frame), self._now())
+            now = self._now()
+            try:
+                frame = from_message(msg)
+                self._take_frame(frame, to_cdr(frame), now)
+            except Exception as exc:  # noqa: BLE001 - the adapter boundary: report, the next frame goes on
+                self._publish_status("internal", Level.ERROR, f"internal error while taking a frame from "
+                                     f"{self.source_name}: {type(exc).__name__}: {exc}", now)
 
     # ---- the topic ---------------------------------------------------------------------------------
     def _on_frame_message(self, data: bytes, info: dict) -> None:
