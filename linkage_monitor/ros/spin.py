@@ -8,8 +8,10 @@ monitoring step itself. ``InputSpinner`` keeps one wait set of the node's waitab
 (subscriptions, timers, services, clients, guard conditions; gathered again after every wake-up
 that is not an input's, the only time the node can create an entity) and at each wake-up:
 
-- anything else is ready (the heartbeat timer, a parameter service, /clock with use_sim_time):
-  first one ``executor.spin_once(timeout_sec=0)``, rclpy's own dispatch for these rare wake-ups
+- anything else is ready (the heartbeat timer, a parameter service, /clock with use_sim_time, a
+  guard condition): first one ``executor.spin_once(timeout_sec=0)``, rclpy's own dispatch for these
+  rare wake-ups (a guard condition's trigger is consumed by the wait that saw it, so the spinner
+  triggers it again for the executor's own wait to see)
   (first: a /clock message that arrived with an input sets the node's clock before the input is
   judged by it, as under rclpy's executor, which takes /clock first: ``make demo`` found it);
 - an input subscription is ready: ``take_inputs`` (the node's drain) takes the queued inputs
@@ -51,6 +53,7 @@ class InputSpinner:
         self._timers = [t.handle for t in node.timers]
         self._services = [s.handle for s in node.services]
         self._clients = [c.handle for c in node.clients]
+        self._guard_conditions = {g.handle.pointer: g for g in node.guards}
         self._guards = [g.handle for g in node.guards]
         context = node.context.handle
         assert context is not None, "the node's context is shut down"
@@ -75,6 +78,8 @@ class InputSpinner:
         ready = wait_set.get_ready_entities("subscription")
         inputs = sum(1 for pointer in ready if pointer in self._inputs)
         if len(ready) > inputs or any(wait_set.get_ready_entities(kind) for kind in OTHER_KINDS):
+            for pointer in wait_set.get_ready_entities("guard_condition"):
+                self._guard_conditions[pointer].trigger()   # this wait consumed the trigger
             # first, as rclpy's executor would: /clock (use_sim_time) before the inputs judged by it
             self._executor.spin_once(timeout_sec=0)
             self._gather()
