@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-LOG = ROOT / "bags" / "belarus_1221_can_lift.log"
+LOG = ROOT / "bags" / "can" / "belarus_1221_lift.log"
 MAP = ROOT / "config" / "can" / "belarus_1221.yaml"
 TICK = os.sysconf("SC_CLK_TCK")
 HEARTBEAT_S = 1.0   # the bridge repeats its frame counts this often (ros/node.py HEARTBEAT_S)

@@ -96,13 +96,13 @@ def test_errors_name_the_path_and_the_problem(tmp_path: Path) -> None:
     missing = tmp_path / "nowhere"
     with pytest.raises(BagError, match=f"{missing}.*does not exist"):
         list(read_bag(missing))
-    not_mcap = tmp_path / "notes.mcap"
-    not_mcap.write_text("SQLite format 3")
-    with pytest.raises(BagError, match=f"{not_mcap} is not an MCAP file"):
-        list(read_bag(not_mcap))
+    not_a_bag = tmp_path / "notes.mcap"
+    not_a_bag.write_text("SQLite form")   # neither magic in full
+    with pytest.raises(BagError, match=f"{not_a_bag} is neither an MCAP nor a sqlite3 rosbag2 file"):
+        list(read_bag(not_a_bag))
     empty_dir = tmp_path / "empty"
     empty_dir.mkdir()
-    with pytest.raises(BagError, match="holds no .mcap file"):
+    with pytest.raises(BagError, match="holds no .mcap or .db3 file"):
         list(read_bag(empty_dir))
     with BagWriter(tmp_path / "strings") as writer:
         writer.write("/chatter", String(data="hello"), 1)

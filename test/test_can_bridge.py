@@ -30,7 +30,7 @@ from support.ros_harness import node_bag, stop
 pytestmark = pytest.mark.ros
 
 ROOT = Path(__file__).resolve().parent.parent
-LOG = ROOT / "bags" / "belarus_1221_can_lift.log"
+LOG = ROOT / "bags" / "can" / "belarus_1221_lift.log"
 MAP = ROOT / "config" / "can" / "belarus_1221.yaml"
 OUTPUTS = ("/hinge_reactions", "/hitch_state", "/steerability")
 RATE = 600.0   # frames/s sent (the log's 120 frames/s at 5x)

@@ -17,7 +17,7 @@ from linkage_monitor.can.frames import to_message
 from linkage_monitor.can.sources import read_log
 
 ROOT = Path(__file__).resolve().parent.parent
-LOG = ROOT / "bags" / "belarus_1221_can_lift.log"
+LOG = ROOT / "bags" / "can" / "belarus_1221_lift.log"
 MAP = ROOT / "config" / "can" / "belarus_1221.yaml"
 
 
@@ -130,7 +130,7 @@ def test_calibration_reproduces_the_shipped_tables(tmp_path: Path) -> None:
     (written there to 9 significant digits), each within one position step's worth of the truth: the
     largest error is at most the angle (length) change over 0.4 %, the position's resolution."""
     out = tmp_path / "calibrated.yaml"
-    result = _cli("can-calibrate", str(LOG), "--map", str(MAP), "--truth", str(ROOT / "bags" / "belarus_1221_can_lift_truth"),
+    result = _cli("can-calibrate", str(LOG), "--map", str(MAP), "--truth", str(ROOT / "bags" / "can" / "belarus_1221_lift_truth"),
                   "--out", str(out))
     assert result.returncode == 0, result.stderr
     import yaml

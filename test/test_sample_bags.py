@@ -14,7 +14,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from linkage_monitor.offline.replay import mechanism_in_bag, replay
 
-BAGS = sorted(p for p in (Path(__file__).resolve().parent.parent / "bags").iterdir() if p.is_dir())
+BAGS = sorted(p for p in (Path(__file__).resolve().parent.parent / "bags").iterdir() if (p / "metadata.yaml").is_file())
 
 
 def test_there_are_sample_bags_for_four_presets():

@@ -1,4 +1,4 @@
-"""Generate the sample CAN log bags/belarus_1221_can_lift.log from the telemetry simulator.
+"""Generate the sample CAN log bags/can/belarus_1221_lift.log from the telemetry simulator.
 
 The demo tractor (belarus_1221, two cycles of the simulator's `lift` scenario at 50 Hz, seed 0, the
 simulator's default pressure noise) as its bus would carry them, written by python-can's candump
@@ -15,10 +15,10 @@ writer (`can.CanutilsLogWriter`):
 - SAE J1939 EEC1 (PGN 61444, engine speed) every 100 ms: a frame no DBC of the monitor knows
   (counted as unknown, not an error).
 
-Beside it bags/belarus_1221_can_lift_truth/ (rosbag2, MCAP): the simulator's true lift arm angle
+Beside it bags/can/belarus_1221_lift_truth/ (rosbag2, MCAP): the simulator's true lift arm angle
 and cylinder length (sensor_msgs/JointState, rad, m) at the same stamps, from which
 `linkage-monitor can-calibrate` fits the mapping's position tables.
-Run: `.venv/bin/python tools/make_can_log.py [--out bags]`.
+Run: `.venv/bin/python tools/make_can_log.py [--out bags/can]`.
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ from pathlib import Path
 
 import can
 import numpy as np
+import yaml
 
 from linkage_monitor.bag.writer import BagWriter
 from linkage_monitor.can.input_msg import joint_state_cdr
@@ -56,7 +57,7 @@ def _message(db, name: str, stamp_ns: int, values: dict) -> can.Message:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=ROOT / "bags", help="directory of the sample files")
+    parser.add_argument("--out", type=Path, default=ROOT / "bags" / "can", help="directory of the sample files")
     args = parser.parse_args(argv)
     import cantools
     db = cantools.database.load_file(str(DBC))
@@ -91,13 +92,15 @@ def main(argv: list[str] | None = None) -> int:
                                         data=bytes([0xF0, 0x7D, 0x7D]) + (rpm * 8).to_bytes(2, "little")
                                         + bytes([0x00, 0xF0, 0x7D])))
     args.out.mkdir(parents=True, exist_ok=True)
-    log = args.out / "belarus_1221_can_lift.log"
+    log = args.out / "belarus_1221_lift.log"
     with can.CanutilsLogWriter(str(log), channel="can0") as writer:
         for msg in messages:
             writer.on_message_received(msg)
-    truth = args.out / "belarus_1221_can_lift_truth"
+    truth = args.out / "belarus_1221_lift_truth"
     shutil.rmtree(truth, ignore_errors=True)
-    with BagWriter(truth) as bag:
+    with BagWriter(truth) as bag:   # self-describing: the mechanism recorded as the node records it
+        bag.record_mechanism(yaml.safe_dump(dict(mech.raw), sort_keys=False, allow_unicode=True),
+                             int(stream.stamps_ns[0]))
         for i, stamp in enumerate(stream.stamps_ns.tolist()):
             bag.write("/joint_states", joint_state_cdr(stamp, ("lift_arm_angle", "lift_cylinder"),
                                                        (float(angle[i]), float(length[i]))),

@@ -1,4 +1,8 @@
-"""Read rosbag2 MCAP bags (ours, `ros2 bag record -s mcap`, rosbags) back into rclpy messages.
+"""Read rosbag2 bags (ours, `ros2 bag record`, rosbags) back into rclpy messages.
+
+Every rosbag2 storage: MCAP files and sqlite3 files (`.db3`, rosbag2's default storage before
+Iron), one file or a split bag (several storage files listed in one metadata.yaml, read one after
+the other as one bag). A ROS 1 `.bag` is refused with the command that converts it.
 
 `read_bag` yields decoded messages one by one (a message that does not decode as its type is
 left out with a warning in the log); `read_bag_raw` yields their bytes undecoded (the replay
@@ -14,11 +18,12 @@ import functools
 import importlib
 import logging
 import os
+import sqlite3
 import struct
 from collections.abc import Collection, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import yaml
@@ -31,6 +36,9 @@ from linkage_monitor.wire.cdr import stamp_ns
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE
 
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
+_SQLITE_MAGIC = b"SQLite format 3\x00"
+_ROS1_MAGIC = b"#ROSBAG V"
+STORAGE_SUFFIXES = (".mcap", ".db3")
 _log = logging.getLogger(__name__)
 
 
@@ -66,28 +74,45 @@ class PressureColumns:
 _SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
-def mcap_files(path: str | os.PathLike[str]) -> list[Path]:
-    """Return the MCAP files of a bag: a rosbag2 directory (metadata.yaml order, else every
-    `*.mcap` in name order) or a single `.mcap` file. Raises BagError saying what is wrong."""
+def storage_files(path: str | os.PathLike[str]) -> list[Path]:
+    """Return the storage files of a bag, in reading order: a rosbag2 directory (metadata.yaml
+    order, else every `*.mcap` / `*.db3` in name order) or a single `.mcap` / `.db3` file. Raises
+    BagError saying what is wrong (a ROS 1 bag: the command that converts it)."""
     path = Path(path)
     if not path.exists():
-        raise BagError(f"bag {path} does not exist: give a bag directory or an .mcap file")
+        raise BagError(f"bag {path} does not exist: give a bag directory, an .mcap or a .db3 file")
     if path.is_dir():
-        files = _files_from_metadata(path) or sorted(path.glob("*.mcap"))
+        files = _files_from_metadata(path) or sorted(f for f in path.iterdir() if f.suffix in STORAGE_SUFFIXES)
         if not files:
-            raise BagError(f"bag directory {path} holds no .mcap file (is it a sqlite3 bag? "
-                           "record with storage 'mcap')")
+            ros1 = sorted(path.glob("*.bag"))
+            raise BagError(_ros1_advice(ros1[0]) if ros1 else
+                           f"bag directory {path} holds no .mcap or .db3 file: give a rosbag2 bag")
     else:
         files = [path]
     for file in files:
         if not file.is_file():
             raise BagError(f"bag file {file} listed in {path / 'metadata.yaml'} is missing")
-        with open(file, "rb") as stream:
-            head = stream.read(len(_MCAP_MAGIC))
-        if head != _MCAP_MAGIC:
-            raise BagError(f"{file} is not an MCAP file (starts with {head!r}, expected "
-                           f"{_MCAP_MAGIC!r}): give a bag recorded with storage 'mcap'")
+        _storage_of(file)
     return files
+
+
+def _storage_of(file: Path) -> str:
+    """'mcap' or 'sqlite3', from the file's first bytes; BagError for anything else."""
+    with open(file, "rb") as stream:
+        head = stream.read(len(_SQLITE_MAGIC))
+    if head.startswith(_MCAP_MAGIC):
+        return "mcap"
+    if head.startswith(_SQLITE_MAGIC):
+        return "sqlite3"
+    if head.startswith(_ROS1_MAGIC):
+        raise BagError(_ros1_advice(file))
+    raise BagError(f"{file} is neither an MCAP nor a sqlite3 rosbag2 file (starts with {head[:8]!r}): "
+                   "give a rosbag2 bag")
+
+
+def _ros1_advice(file: Path) -> str:
+    return (f"{file} is a ROS 1 bag: convert it to a rosbag2 bag with `rosbags-convert --src {file} "
+            f"--dst {file.with_suffix('')}` (rosbags, installed with linkage_monitor), then give that directory")
 
 
 def read_bag(path: str | os.PathLike[str], topics: Collection[str] | None = None,
@@ -108,7 +133,7 @@ def read_bag_raw(path: str | os.PathLike[str], topics: Collection[str] | None = 
                  ) -> Iterator[tuple[str, str, int, int, bytes]]:
     """(topic, type name `pkg/msg/Type`, publish_time, log_time (ns since the epoch), CDR bytes as
     recorded) of every message (on ``topics``), undecoded, in ``read_bag``'s order."""
-    for file in mcap_files(path):
+    for file in storage_files(path):
         for schema, channel, message in _raw_messages(file, topics):
             yield (channel.topic, schema.name if schema is not None else "", message.publish_time, message.log_time,
                    message.data)
@@ -161,7 +186,7 @@ def _files_from_metadata(directory: Path) -> list[Path]:
 
 def _messages(path: str | os.PathLike[str], topics: Collection[str] | None,
               types: Collection[str] | None) -> Iterator[tuple[str, str, int, int, Any]]:
-    for file in mcap_files(path):
+    for file in storage_files(path):
         for schema, channel, message in _raw_messages(file, topics):
             type_name = schema.name if schema is not None else ""
             if types is not None and type_name not in types:
@@ -182,7 +207,60 @@ def _messages(path: str | os.PathLike[str], topics: Collection[str] | None,
             yield channel.topic, type_name, stamp, message.log_time, msg
 
 
+class _Schema(NamedTuple):
+    """What the readers use of an MCAP schema record: the type name `pkg/msg/Type`."""
+
+    name: str
+
+
+class _Channel(NamedTuple):
+    """What the readers use of an MCAP channel record."""
+
+    topic: str
+    message_encoding: str
+
+
+class _Message(NamedTuple):
+    """What the readers use of an MCAP message record: times in ns since the epoch, CDR bytes."""
+
+    publish_time: int
+    log_time: int
+    data: bytes
+
+
 def _raw_messages(file: Path, topics: Collection[str] | None) -> Iterator[tuple[Any, Any, Any]]:
+    """(schema, channel, message) records of one storage file, in log-time order."""
+    if _storage_of(file) == "sqlite3":
+        return _sqlite3_messages(file, topics)
+    return _mcap_messages(file, topics)
+
+
+def _sqlite3_messages(file: Path, topics: Collection[str] | None) -> Iterator[tuple[Any, Any, Any]]:
+    """The records of one rosbag2 sqlite3 file (tables `topics` and `messages`, as rosbag2's
+    sqlite3 storage plugin writes them), in receive-time order (then insertion order). The
+    storage keeps one time per message, the receive time: it stands for the publish time too."""
+    query = ("SELECT topics.name, topics.type, topics.serialization_format, messages.timestamp, messages.data "
+             "FROM messages JOIN topics ON messages.topic_id = topics.id")
+    wanted = list(topics) if topics is not None else None
+    if wanted is not None:
+        query += f" WHERE topics.name IN ({', '.join('?' * len(wanted))})"
+    query += " ORDER BY messages.timestamp, messages.id"
+    try:
+        connection = sqlite3.connect(f"{file.resolve().as_uri()}?mode=ro", uri=True)
+    except sqlite3.Error as exc:
+        raise BagError(f"{file} cannot be opened as a sqlite3 bag ({exc})") from exc
+    try:
+        rows = connection.execute(query, wanted or [])
+        for topic, type_name, encoding, timestamp, data in rows:
+            yield _Schema(type_name), _Channel(topic, encoding), _Message(timestamp, timestamp, bytes(data))
+    except sqlite3.Error as exc:
+        raise BagError(f"{file} is not a readable rosbag2 sqlite3 file ({exc}): "
+                       "copy what can be read with `ros2 bag convert` or record again") from exc
+    finally:
+        connection.close()
+
+
+def _mcap_messages(file: Path, topics: Collection[str] | None) -> Iterator[tuple[Any, Any, Any]]:
     """(schema, channel, message) records of one MCAP file: indexed when it has a summary,
     else by a linear scan that stops at a truncated last record."""
     topic_list = list(topics) if topics is not None else None

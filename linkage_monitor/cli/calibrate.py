@@ -1,6 +1,6 @@
 """``linkage-monitor calibrate``: fit geometry parameters of a mechanism to a CSV file or a bag.
 
-Thin adapter: reads the data into columns (CSV header names, or a rosbag2 MCAP bag's JointState
+Thin adapter: reads the data into columns (CSV header names, or a rosbag2 bag's JointState
 and FluidPressure topics), hands them to :func:`linkage_monitor.mechanics.calibration.calibrate`
 and writes the fitted description. Column names and units: docs/calibration.md. SI units (m,
 rad, N, gauge Pa); frame x forward, z up, origin at the rear wheels' ground contact.
@@ -31,7 +31,7 @@ def add_calibrate_parser(subparsers: argparse._SubParsersAction) -> argparse.Arg
                     "the data cannot determine (docs/calibration.md).")
     add_mechanism_group(p)
     p.add_argument("--data", required=True, metavar="FILE.csv|BAG",
-                   help="CSV with a header of column names, or a rosbag2 MCAP bag (directory or .mcap)")
+                   help="CSV with a header of column names, or a rosbag2 bag (directory, .mcap or .db3)")
     p.add_argument("--free", required=True, action="append", metavar="PARAM[,PARAM...]",
                    help="parameters to fit, dotted keys: points.P05.x, points.S6.z, implement.mass, "
                         "cylinders.lift_cylinder.bore, measurements.angles.NAME.reference (repeatable)")
@@ -145,8 +145,10 @@ def run_calibrate(args: argparse.Namespace) -> int:
     """Run ``linkage-monitor calibrate``; returns the exit code (LinkageError propagates to the caller)."""
     start = mechanism_from_args(args)
     assert start is not None   # the group is required
+    from linkage_monitor.bag.reader import STORAGE_SUFFIXES   # the bag reader's imports only when needed
+
     data_path = Path(args.data)
-    if data_path.is_dir() or data_path.suffix == ".mcap":
+    if data_path.is_dir() or data_path.suffix in STORAGE_SUFFIXES:
         columns = read_bag_columns(data_path, start, args.gauge_pressure)
     else:
         columns = read_csv_columns(data_path)

@@ -29,7 +29,7 @@ def add_fleet_parser(sub: argparse._SubParsersAction) -> None:
                     "print the worst bags. A bag that cannot be read or solved gets its error in its row; the "
                     "run goes on. Column meanings: docs/fleet.md.")
     parser.add_argument("bags", nargs="+", metavar="BAG_OR_DIR",
-                        help="bag directories, .mcap files, or directories searched for them")
+                        help="bag directories, .mcap or .db3 files, or directories searched for them")
     parser.add_argument("--out", required=True, metavar="DIR", type=Path, help="output directory (created)")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="an existing Dask scheduler, e.g. tcp://host:8786 (default: a LocalCluster here)")
@@ -52,7 +52,7 @@ def run_fleet_command(args: argparse.Namespace) -> int:
         print(f"linkage-monitor: error: {missing[0]} does not exist", file=sys.stderr)
         return 2
     if not bags:
-        print(f"linkage-monitor: error: no bags (directories with metadata.yaml or .mcap files) under "
+        print(f"linkage-monitor: error: no bags (directories with metadata.yaml, .mcap or .db3 files) under "
               f"{' '.join(args.bags)}", file=sys.stderr)
         return 2
     fleet = run_fleet(bags, mechanism_from_args(args), slope=args.slope, bin_width=args.bin,

@@ -63,10 +63,12 @@ def build_parser() -> argparse.ArgumentParser:
     add_calibrate_parser(sub)
     add_simulate_parser(sub)
     replay = sub.add_parser("replay", help="re-run the monitor offline over a recorded bag",
-                            description="Replay the JointState + FluidPressure messages of a rosbag2 MCAP bag "
-                                        "(ours or from `ros2 bag record`) through the monitor, batched, and "
+                            description="Replay the JointState + FluidPressure messages of a rosbag2 bag "
+                                        "(MCAP or sqlite3, one file or split; ours or from `ros2 bag record`) "
+                                        "through the monitor, batched, and "
                                         "write the outputs to a new bag and/or a Rerun .rrd; prints a summary.")
-    replay.add_argument("bag", metavar="BAG", help="bag directory (metadata.yaml + .mcap) or .mcap file")
+    replay.add_argument("bag", metavar="BAG",
+                        help="bag directory (metadata.yaml + .mcap or .db3 files) or one .mcap / .db3 file")
     add_mechanism_group(replay, required=False, default="the one recorded in the bag")
     replay.add_argument("--out", metavar="DIR", type=new_directory,
                         help="write inputs + outputs + /diagnostics to this new bag directory")

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, TextIO
 
+from linkage_monitor.bag.reader import STORAGE_SUFFIXES
 from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.monitoring.findings import Code
 
@@ -37,12 +38,12 @@ class BagAnalysis:
 
 
 def find_bags(paths: Iterable[Path]) -> list[Path]:
-    """The bags under ``paths``: a file is a bag (.mcap), a directory with metadata.yaml is a
-    bag, any other directory is searched (sorted) for bags."""
+    """The bags under ``paths``: a file is a bag (.mcap or .db3), a directory with metadata.yaml is
+    a bag (one storage file or a split bag), any other directory is searched (sorted) for bags."""
     found: list[Path] = []
     for path in paths:
         if path.is_dir() and not (path / "metadata.yaml").exists():
-            found += find_bags(sorted(p for p in path.iterdir() if p.is_dir() or p.suffix == ".mcap"))
+            found += find_bags(sorted(p for p in path.iterdir() if p.is_dir() or p.suffix in STORAGE_SUFFIXES))
         else:
             found.append(path)
     return found
