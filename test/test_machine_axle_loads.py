@@ -12,6 +12,7 @@ from __future__ import annotations
 import copy
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -74,10 +75,42 @@ def test_steerability_limits_close_the_inequality():
     # ballast for k = 0.2 with a 2500 kg implement (heavier than the limit): balance by hand again
     heavy = _model({"implement.mass": 2500.0})
     steer = heavy.evaluate_batch(heavy.stroke_poses("lift_cylinder", np.array([0.555]))).steerability
-    mb = steer["front_ballast_needed"][0]
+    extra = steer["front_ballast_needed"][0]   # kg beyond the ballast carried (Steerability.msg)
+    mb = t.front_ballast.mass + extra
     r_a = (mb * g * t.front_ballast.x + t.mass * g * t.cg[0] + 2500.0 * g * x_s6) / t.wheelbase
     np.testing.assert_allclose(r_a / ((t.mass + mb + 2500.0) * g), 0.2, rtol=1e-9)
-    assert mb > t.front_ballast.mass
+    assert extra > 0.0
+
+
+def _manual_minimum_ballast(t_l: float, t_v: float, i_h: float, a: float, b: float, c_plus_d: float,
+                            r: float) -> float:
+    """The tractor manuals' minimum front ballast (e.g. the "ballast calculation" of John Deere and
+    Fendt operator's manuals): M_F,min = (I_H·(c + d) − T_V·b + r·T_L·b) / (a + b), kg, with T_L the
+    empty tractor's mass, T_V its front axle load (kg) without ballast, I_H the rear implement's mass,
+    a the front ballast's cg ahead of the front axle, b the wheelbase, c + d the implement's cg behind
+    the rear axle (m); r = 0.2 of the empty tractor's weight on the front axle."""
+    return (i_h * c_plus_d - t_v * b + r * t_l * b) / (a + b)
+
+
+@settings(max_examples=300, deadline=None)
+@given(t_l=st.floats(1000.0, 15000.0), x_tr_share=st.floats(0.2, 0.7), carried=st.floats(0.0, 8000.0),
+       i_h=st.floats(0.0, 6000.0), a=st.floats(0.2, 1.5), b=st.floats(1.8, 3.2), c_plus_d=st.floats(0.5, 3.0),
+       r=st.floats(0.1, 0.3))
+def test_extra_ballast_is_the_manuals_minimum_less_what_is_carried(t_l, x_tr_share, carried, i_h, a, b, c_plus_d, r):
+    """front_ballast_needed = max(0, M_F,min − ballast carried): the manuals' formula, tractor reference,
+    the implement's weight on the frame as one force at its cg (x = −(c + d) from the rear axle)."""
+    from linkage_monitor.mechanics.kernels import STEERABILITY_COLUMNS, steerability_pose
+
+    g = 9.81
+    x_tr = x_tr_share * b
+    parameters = np.array([g, b, r, t_l, x_tr, carried, b + a, 0.0])   # 0.0: ratio of the empty tractor's weight
+    row = np.empty(len(STEERABILITY_COLUMNS))
+    steerability_pose(np.array([[-c_plus_d, 0.7]]), np.array([[0.0, -i_h * g]]), i_h * g, -c_plus_d, parameters, row)
+    steer = dict(zip(STEERABILITY_COLUMNS, row))
+    expected = max(0.0, _manual_minimum_ballast(t_l, t_l * x_tr / b, i_h, a, b, c_plus_d, r) - carried)
+    assert steer["front_ballast_needed"] == pytest.approx(expected, rel=1e-9, abs=1e-9 * t_l)
+    if steer["margin"] >= 0.0:
+        assert steer["front_ballast_needed"] == 0.0
 
 
 def test_soil_forces_differ_from_whole_unit_balance_by_their_moment():

@@ -134,7 +134,7 @@ def _machine_lines(summary: dict) -> list[str]:
     if steer:
         lines.append(f"axle loads [kN]: front {steer['front_axle_load'] / 1e3:.2f}, rear {steer['rear_axle_load'] / 1e3:.2f}; "
                      f"steerability ratio {steer['ratio']:.3f} (min {steer['ratio_min']:.2f}, margin {steer['margin']:+.3f}); "
-                     f"front ballast needed {steer['front_ballast_needed']:.0f} kg")
+                     f"extra front ballast needed {steer['front_ballast_needed']:.0f} kg")
     return lines
 
 

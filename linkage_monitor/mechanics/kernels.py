@@ -989,9 +989,10 @@ def steerability_pose(points: np.ndarray, forces: np.ndarray, implement_load: fl
     L·R_A = m_tr·g·x_tr + m_cw·g·x_cw − Σ(x·Fz − z·Fx); R_B = (m_tr + m_cw)·g − ΣFz − R_A.
     Steerability (seed 003): k = R_A / W ≥ ratio_min = r, W = R_A + R_B (unit) or m_tr·g (tractor).
     By global equilibrium R_A grows by g·x/L per kg at x, so with c = 1 for the unit and 0 for the
-    tractor reference: front ballast for k = r, m_cw = m_cw0 + (r·W − R_A)/(g·(x_cw/L − r·c));
+    tractor reference: the extra front ballast for k = r (front_ballast_needed, beyond the m_cw0
+    carried) Δm_cw = max(0, (r·W − R_A)/(g·(x_cw/L − r·c))), 0 when k ≥ r;
     largest implement mass m_6 = P_6/g + (R_A − r·W)/(g·(r·c − x_S6/L)); inf where the
-    denominator is ≤ 0 (ballast or mass cannot reach the ratio), never below 0.
+    denominator is ≤ 0 and the ratio is not reached (ballast or mass cannot reach it), never below 0.
     """
     g, wheelbase, r = parameters[0], parameters[1], parameters[2]
     tractor_mass, tractor_x, ballast_mass, ballast_x = parameters[3], parameters[4], parameters[5], parameters[6]
@@ -1008,8 +1009,8 @@ def steerability_pose(points: np.ndarray, forces: np.ndarray, implement_load: fl
     total = front + rear
     ratio_unit, ratio_tractor = front / total, front / tractor_weight
     ref_weight, ratio = (total, ratio_unit) if unit else (tractor_weight, ratio_tractor)
-    ballast = (_not_negative(ballast_mass + (r * ref_weight - front) / ballast_slope) if ballast_slope > 0.0
-               else math.inf)
+    shortfall = r * ref_weight - front   # N of front axle load missing for k = r (<= 0: none missing)
+    ballast = 0.0 if shortfall <= 0.0 else (shortfall / ballast_slope if ballast_slope > 0.0 else math.inf)
     implement_slope = g * (r * c - implement_x / wheelbase)
     max_mass = (_not_negative(implement_load / g + (front - r * ref_weight) / implement_slope)
                 if implement_slope > 0.0 else math.inf)

@@ -358,7 +358,7 @@ class Monitor:
             reference = self.mechanism.tractor.steerability_reference if self.mechanism.tractor else "unit"
             findings.append(Finding(Code.STEERABILITY_LOW, f"steerability margin {margin:+.3f} < 0: the front axle "
                                     f"carries {steer['ratio']:.1%} of the {reference} weight, below ratio_min "
-                                    f"{steer['ratio_min']:.0%}; front ballast needed "
+                                    f"{steer['ratio_min']:.0%}; extra front ballast needed "
                                     f"{fmt(round(steer['front_ballast_needed']))} kg"))
         if reserve < 1.0:
             findings.append(Finding(Code.LIFT_RESERVE_LOW, f"lift reserve {reserve:.2f} < 1: implement load "
