@@ -177,3 +177,25 @@ def _reference_inputs(mech) -> Inputs:
     """Stroke and lift-arm angle of the preset's reference pose, no pressures (implement load = its weight)."""
     ref = mech.reference_inputs
     return Inputs(cylinders=ref["cylinders"], angles=ref["angles"])
+
+
+def test_a_negative_axle_load_is_an_error_on_either_axle():
+    """A tractor on its nose (1 kg tractor, 10 t of front ballast: every value inside its declared range)
+    and one on its tail (no ballast, a 9 t implement): the rear, then the front axle load is < 0 by the
+    free body's moment balance; each is an ERROR finding naming the axle, never an OK step."""
+    base = load_preset("belarus_1221")
+    ref = base.reference_inputs
+    names = ["lift_cylinder", "lift_arm_angle"]
+    values = [ref["cylinders"]["lift_cylinder"], ref["angles"]["lift_arm_angle"]]
+    cases = {"rear": {"tractor.mass": 1.0, "tractor.front_ballast.mass": 10000.0},
+             "front": {"tractor.front_ballast.mass": 0.0, "implement.mass": 9000.0}}
+    for axle, overrides in cases.items():
+        monitor = Monitor(base, MonitorConfig(mechanism="belarus_1221", overrides=overrides))
+        step = monitor.on_joint_state(names, values, [], 10**18, 10**18)
+        loads = MachineModel(apply_overrides(base, overrides), Solver(apply_overrides(base, overrides)))
+        steer = loads.evaluate(Solver(apply_overrides(base, overrides)).solve(_reference_inputs(base))).steerability
+        assert steer[f"{axle}_axle_load"] < 0.0, (axle, steer)
+        lift_off = [f for f in step.findings if f.code is Code.AXLE_LIFT_OFF]
+        assert step.level == Level.ERROR and len(lift_off) == 1 and lift_off[0].text.startswith(f"{axle} axle load")
+    light = Monitor(base, MonitorConfig(mechanism="belarus_1221")).on_joint_state(names, values, [], 10**18, 10**18)
+    assert not any(f.code is Code.AXLE_LIFT_OFF for f in light.findings)

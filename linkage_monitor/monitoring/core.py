@@ -353,6 +353,12 @@ class Monitor:
                                     f"{RESIDUAL_WARN_SHARE:.0%} of the largest force ({fmt(largest)} N): the measured "
                                     "pressures disagree"))
         margin, reserve = machine.value("margin"), machine.value("reserve")
+        for axle in ("front", "rear"):
+            load = machine.value(f"{axle}_axle_load")
+            if load < 0.0:
+                findings.append(Finding(Code.AXLE_LIFT_OFF, f"{axle} axle load {fmt(load / 1e3)} kN < 0: the machine "
+                                        f"tips over its {'rear' if axle == 'front' else 'front'} axle (check the "
+                                        "tractor, ballast and implement masses and their positions)"))
         if margin < 0.0:
             steer = machine.steerability
             reference = self.mechanism.tractor.steerability_reference if self.mechanism.tractor else "unit"

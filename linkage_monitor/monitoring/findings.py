@@ -39,6 +39,7 @@ class Code(Enum):
     SENSORS_DISAGREE = ("sensors_disagree", Level.WARN)     # redundant kinematic inputs disagree
     PRESSURES_DISAGREE = ("pressures_disagree", Level.WARN)  # redundant forces disagree (equilibrium residual)
     # machine-level limits
+    AXLE_LIFT_OFF = ("axle_lift_off", Level.ERROR)          # an axle's ground load < 0: the machine tips over
     STEERABILITY_LOW = ("steerability_low", Level.WARN)     # steerability margin < 0
     LIFT_RESERVE_LOW = ("lift_reserve_low", Level.WARN)     # lift reserve < 1
     # the monitor itself
