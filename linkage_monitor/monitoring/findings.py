@@ -29,6 +29,7 @@ class Code(Enum):
     DUPLICATE_JOINT = ("duplicate_joint", Level.ERROR)      # a joint name twice in one JointState
     OUT_OF_RANGE = ("out_of_range", Level.ERROR)            # outside the plausibility limits of the mechanism
     BAD_STAMP = ("bad_stamp", Level.ERROR)                  # zero, negative or far from the monitor's clock
+    OUT_OF_ORDER = ("out_of_order", Level.WARN)             # stamped before the reading in use: not applied
     # the inputs of a solve
     NO_VALUE_YET = ("no_value_yet", Level.WARN)             # an input has not arrived yet
     STALE_INPUT = ("stale_input", Level.WARN)               # an input is older than the staleness limit

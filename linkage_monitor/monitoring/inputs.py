@@ -4,8 +4,10 @@ No rclpy: the drivers hand in the fields of `sensor_msgs/JointState` (positions:
 angle sensors, m for cylinder lengths; velocities rad/s, m/s) and `sensor_msgs/FluidPressure`
 (Pa), with their header stamps and the monitor's receive time in ns. A message is either
 accepted whole — every value finite, every name known once, inside the mechanism's
-plausibility limits, the stamp positive and near the clock — or refused whole with a
-Finding naming the input and the reason; a refused message changes nothing. `inputs_at`
+plausibility limits, the stamp positive, near the clock and not older than the reading in use of
+any input it carries (per sensor the newest stamp wins: an older message arriving later, from a
+second publisher or a reordered bag, is refused) — or refused whole with a Finding naming the
+input and the reason; a refused message changes nothing. `inputs_at`
 assembles the inputs of one solve when every input is there and none is stale.
 """
 
@@ -131,6 +133,7 @@ class InputTracker:
                                       "a finite value is required"))
             self._check_limit(target, value, f"joint '{name}'")
             previous = self.readings.get(target)
+            self._check_order(previous, stamp_ns, f"{what} joint '{name}'")
             updates[target] = (previous.then(value, rate, stamp_ns) if previous is not None
                                else Reading(value, rate, math.nan, stamp_ns))
         if not updates:
@@ -160,8 +163,17 @@ class InputTracker:
                                   f"pressure ({fmt(absolute)} Pa) is impossible; check the sensor and the "
                                   "pressure_absolute parameter"))
         self._check_limit(sensor, absolute, f"topic '{topic}'")
+        self._check_order(self.readings.get(sensor), stamp_ns, what)
         self.readings[sensor] = Reading(absolute - cfg.atmospheric_pressure, math.nan, math.nan, stamp_ns)
         return sensor
+
+    @staticmethod
+    def _check_order(previous: Reading | None, stamp_ns: int, what: str) -> None:
+        """Refuse a reading stamped before the one in use for the same input (the newest stamp wins)."""
+        if previous is not None and stamp_ns < previous.stamp_ns:
+            raise Refused(Finding(Code.OUT_OF_ORDER, f"{what}: stamped {fmt((previous.stamp_ns - stamp_ns) / NS)} s "
+                                  "before the reading in use: not applied (a second publisher, or a bag played "
+                                  "out of order); it is recorded"))
 
     def _check_limit(self, name: str, value: float, source: str) -> None:
         limit = self.limits.get(name)
