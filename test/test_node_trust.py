@@ -215,6 +215,45 @@ def test_inputs_the_node_could_not_take_are_counted_and_reported(ros, tmp_path):
     assert [s.message for s in reported] == [s.message for s in in_bag[:len(reported)]]   # published as recorded
 
 
+def test_losses_are_reported_on_the_steady_clock_with_sim_time_stopped(ros, tmp_path):
+    """use_sim_time with /clock published once and then stopped (a paused simulation, a bag player
+    that died): a burst the node cannot take is still reported lost on /diagnostics within a couple
+    of seconds of wall time (the heartbeat runs on the steady clock), not only at shutdown."""
+    sim_ns = 2_000 * 10**9
+    proc = start_node({"mechanism": "belarus_1221", "record_dir": str(tmp_path / "bags"), "sensor_qos": "reliable",
+                       "reliable_queue_depth": 100, "pressure_topics": ["none"], "use_sim_time": True,
+                       "stamp_tolerance": 1e6}, tmp_path / "node.log")
+    client = MonitorClient(pressure_topics=())
+    clock = client.node.create_publisher(Clock, "/clock", 10)
+
+    def reported() -> list:
+        return [s for m in client.received["diagnostics"] for s in m.status
+                if s.name.endswith(": inputs") and s.level == b"\x01"]
+    try:
+        client.wait_for_node()
+        for _ in range(10):   # the simulation's clock, then it stops
+            clock.publish(Clock(clock=Time(sec=sim_ns // 10**9)))
+            client.spin_until(lambda: False, 0.05)
+        stream = _lift(sim_ns)
+        names = list(stream.joint_names)
+        first = int(stream.stamps_ns[0]) - 1_000_000
+        client.publish_joint_state(first, names, stream.joint_positions[0].tolist())
+        assert client.spin_until(lambda: client.outputs_at("hinge_reactions", first), 10)
+        sent = 0
+        for _ in range(10):
+            for i, stamp in enumerate(stream.stamps_ns.tolist()):
+                client.publish_joint_state(stamp + sent + 1, names, stream.joint_positions[i].tolist())
+                sent += 1
+        burst_end = time.monotonic()
+        assert client.spin_until(reported, 3.0), "no loss report within 3 s of wall time with /clock stopped"
+        waited = time.monotonic() - burst_end
+    finally:
+        client.close()
+        assert stop(proc) == 0
+    assert int(reported()[0].message.split(" ", 1)[0]) > 0, reported()[0].message
+    assert waited <= 3.0
+
+
 def test_a_publisher_the_node_cannot_hear_is_named_on_diagnostics(ros, tmp_path):
     """The middleware's events of the inputs (taken at the heartbeat, ros/input_events.py): a
     best-effort JointState publisher while the node subscribes reliably never reaches the node — a

@@ -27,6 +27,7 @@ import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidHandle, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -229,7 +230,8 @@ class LinkageMonitorNode(Node):
             self._subscribe(JointState, config.topics.joint_states, self.on_joint_state)
             for topic in config.pressure_topics:
                 self._subscribe(FluidPressure, topic, self._pressure_callback(topic))
-        self.create_timer(HEARTBEAT_S, self.on_heartbeat)
+        # on the steady clock: losses and the heartbeat are reported with use_sim_time and /clock stopped too
+        self.create_timer(HEARTBEAT_S, self.on_heartbeat, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_on_set_parameters_callback(self.validate_parameters)
         self.add_post_set_parameters_callback(self.apply_parameters)
         gc.freeze()   # what start-up built (modules, kernels, layouts) is left out of every later collection
