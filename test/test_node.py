@@ -229,9 +229,13 @@ def test_implement_mass_changed_at_runtime_applies_from_the_next_message(ros, tm
         assert client.spin_until(lambda: client.outputs_at("steerability", T0), 20)
         setter = client.node.create_client(SetParameters, "/linkage_monitor/set_parameters")
         assert setter.wait_for_service(timeout_sec=10)
+        refused = setter.call_async(SetParameters.Request(parameters=[
+            Parameter("implement_mass", value=-0.5).to_parameter_msg()]))   # only exactly -1 keeps the file's value
+        assert client.spin_until(refused.done, 10) and not refused.result().results[0].successful
+        assert "implement_mass = -0.5: a value must be >= 0" in refused.result().results[0].reason
         future = setter.call_async(SetParameters.Request(parameters=[
-            Parameter("implement_mass", value=3000.0).to_parameter_msg()]))
-        assert client.spin_until(future.done, 10) and future.result().results[0].successful
+            Parameter("implement_mass", value=3000).to_parameter_msg()]))   # an integer: taken as 3000.0 kg
+        assert client.spin_until(future.done, 10) and future.result().results[0].successful, future.result()
         client.publish_joint_state(T0 + 1, JOINTS, [s, angle])
         assert client.spin_until(lambda: client.outputs_at("steerability", T0 + 1), 20)
     finally:

@@ -53,10 +53,13 @@ def test_launch_file_starts_node_with_params_and_descriptors(preset, tmp_path):
 
 @pytest.mark.parametrize("param, expect", [("mechanism:=/no/such/tractor.yaml", "cannot read the file"),
                                            ("sensor_qos:=fast", "expected one of sensor_data, reliable"),
-                                           ("reliable_queue_depth:=0", "reliable_queue_depth out of range")])
+                                           ("reliable_queue_depth:=0", "reliable_queue_depth out of range"),
+                                           ("stamp_tolerance:=1000000", "of type 'INTEGER', expecting type 'DOUBLE'"),
+                                           ("tractor_mass:=-0.5", "tractor_mass = -0.5: a value must be >= 0")])
 def test_bad_parameter_exits_2_with_one_line_on_stderr(param, expect):
     proc = subprocess.run([sys.executable, "-m", "linkage_monitor.ros.node", "--ros-args", "-p", "record:=false",
                            "-p", param], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
     lines = [line for line in proc.stderr.splitlines() if line.startswith("linkage_monitor_node:")]
     assert len(lines) == 1 and expect in lines[0], proc.stderr
+    assert "Traceback" not in proc.stderr, proc.stderr

@@ -29,7 +29,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.exceptions import InvalidHandle, InvalidParameterValueException
+from rclpy.exceptions import InvalidHandle, InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -92,12 +92,12 @@ PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
     "stamp_tolerance": (10.0, "s, an input whose header stamp is farther than this from the node's clock is "
                         "refused (ERROR)", False, (0.001, 1e6)),
     "kinetostatics": (False, "Add inertia loads from JointState velocities and their change (seed 004)", True, None),
-    "implement_mass": (-1.0, "kg, implement mass; -1 keeps the mechanism file's value; applies from the next "
-                       "message", False, (-1.0, 100_000.0)),
-    "tractor_mass": (-1.0, "kg, tractor operating mass without ballast; -1 keeps the file's value", False,
+    "implement_mass": (-1.0, "kg, implement mass; -1 (exactly) keeps the mechanism file's value, other negatives "
+                       "are refused; applies from the next message", False, (-1.0, 100_000.0)),
+    "tractor_mass": (-1.0, "kg, tractor operating mass without ballast; -1 (exactly) keeps the file's value", False,
                      (-1.0, 100_000.0)),
-    "front_ballast_mass": (-1.0, "kg, front ballast; -1 keeps the file's value", False, (-1.0, 10_000.0)),
-    "ratio_min": (-1.0, "minimum share of weight on the steered axle (seed 003: 0.2); -1 keeps the file's value",
+    "front_ballast_mass": (-1.0, "kg, front ballast; -1 (exactly) keeps the file's value", False, (-1.0, 10_000.0)),
+    "ratio_min": (-1.0, "minimum share of weight on the steered axle (seed 003: 0.2); -1 (exactly) keeps the file's value",
                   False, (-1.0, 1.0)),
     "record": (True, "Record every input and output to a rosbag2 MCAP bag", True, None),
     "record_dir": ("out/bags", "Directory under which each run's bag directory is created", True, None),
@@ -131,9 +131,24 @@ def _pairs(items: list[str], what: str) -> dict[str, str]:
     return dict(name_value(item, f"parameter {what}:") for item in items if item)
 
 
+KEEP_FILE_VALUE = -1.0   # an override parameter's value that keeps the mechanism file's own value (the default)
+
+
+def override_value(name: str, value: float) -> float | None:
+    """The override that parameter ``name`` (one of OVERRIDE_KEYS) sets: its value (>= 0), or None for
+    KEEP_FILE_VALUE; ValueError naming the parameter for any other value."""
+    value = float(value)
+    if value == KEEP_FILE_VALUE:
+        return None
+    if not value >= 0.0:   # NaN too
+        raise ValueError(f"parameter {name} = {value}: a value must be >= 0, or exactly {KEEP_FILE_VALUE:g} to keep "
+                         "the mechanism file's value")
+    return value
+
+
 def monitor_config(p: dict[str, Any], mech: Mechanism, resolve: Callable[[str], str]) -> MonitorConfig:
     """The MonitorConfig of the node's parameters ``p`` (topic names resolved by ``resolve``)."""
-    overrides = {OVERRIDE_KEYS[k]: float(p[k]) for k in OVERRIDE_KEYS if float(p[k]) >= 0.0}
+    overrides = {OVERRIDE_KEYS[k]: v for k in OVERRIDE_KEYS if (v := override_value(k, p[k])) is not None}
     if list(p["pressure_topics"]) == ["none"]:
         pressure_topics: dict[str, str] = {}
     else:
@@ -232,6 +247,7 @@ class LinkageMonitorNode(Node):
                 self._subscribe(FluidPressure, topic, self._pressure_callback(topic))
         # on the steady clock: losses and the heartbeat are reported with use_sim_time and /clock stopped too
         self.create_timer(HEARTBEAT_S, self.on_heartbeat, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.add_pre_set_parameters_callback(self.as_declared_types)
         self.add_on_set_parameters_callback(self.validate_parameters)
         self.add_post_set_parameters_callback(self.apply_parameters)
         gc.freeze()   # what start-up built (modules, kernels, layouts) is left out of every later collection
@@ -391,8 +407,9 @@ class LinkageMonitorNode(Node):
         for param in params:
             if param.name in OVERRIDE_KEYS:
                 key = OVERRIDE_KEYS[param.name]
-                if float(param.value) >= 0.0:
-                    overrides[key] = float(param.value)
+                value = override_value(param.name, param.value)
+                if value is not None:
+                    overrides[key] = value
                 else:
                     overrides.pop(key, None)
             elif param.name == "staleness_limit":
@@ -400,6 +417,12 @@ class LinkageMonitorNode(Node):
             elif param.name == "stamp_tolerance":
                 config = replace(config, stamp_tolerance_s=float(param.value))
         return replace(config, overrides=overrides)
+
+    def as_declared_types(self, params: list[Parameter]) -> list[Parameter]:
+        """An integer given for a double parameter taken as that double (``implement_mass 2000``)."""
+        return [Parameter(p.name, Parameter.Type.DOUBLE, float(p.value))
+                if p.type_ == Parameter.Type.INTEGER and isinstance(PARAMETERS.get(p.name, (None,))[0], float)
+                else p for p in params]
 
     def validate_parameters(self, params: list[Parameter]) -> SetParametersResult:
         """Accept a change only if the mechanism with it is valid (nothing is applied here)."""
@@ -529,7 +552,7 @@ def main(argv: list[str] | None = None, make_node: Callable[[], LinkageMonitorNo
             spinner.spin_once(STOP_POLL_S)
     except ExternalShutdownException:   # rclpy shut down from elsewhere
         pass
-    except (LinkageError, ValueError, BagError, InvalidParameterValueException) as exc:
+    except (LinkageError, ValueError, BagError, InvalidParameterValueException, InvalidParameterTypeException) as exc:
         print(f"linkage_monitor_node: {str(exc).splitlines()[0]}", file=sys.stderr)
         return 2
     finally:
