@@ -368,3 +368,27 @@ def _spin(executor: SingleThreadedExecutor, condition, timeout: float) -> bool:
     while time.monotonic() < end and not condition():
         executor.spin_once(timeout_sec=0.02)
     return condition()
+
+
+def test_a_second_monitor_with_the_same_name_is_reported_at_start(ros, tmp_path):
+    """Two monitors named /linkage_monitor (both would solve, publish and record every input): a WARN
+    `<node>: node name` on /diagnostics names the clash and says what to do."""
+    params = {"mechanism": "belarus_1221", "sensor_qos": "reliable"}
+    first = start_node({**params, "record_dir": str(tmp_path / "a")}, tmp_path / "a.log")
+    client = MonitorClient()
+
+    def warned() -> list:
+        return [s for m in client.received["diagnostics"] for s in m.status
+                if s.name.endswith(": node name") and s.level == b"\x01"]
+    second = None
+    try:
+        client.wait_for_node()
+        second = start_node({**params, "record_dir": str(tmp_path / "b")}, tmp_path / "b.log")
+        assert client.spin_until(warned, 15.0), "no WARN about the duplicate node name"
+    finally:
+        client.close()
+        for proc in (first, second):
+            if proc is not None:
+                assert stop(proc) == 0
+    assert "another node is named /linkage_monitor" in warned()[0].message
+    assert "__node:=" in warned()[0].message

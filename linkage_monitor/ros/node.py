@@ -66,6 +66,7 @@ OUTPUT_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)   # 
 HEARTBEAT_S = 1.0  # s, /diagnostics is repeated at least this often
 STOP_POLL_S = 0.1  # s, the spin loop looks this often whether a signal asked it to stop
 DRAIN_LIMIT = 200  # input messages worked off per executor callback (then timers and services run)
+NAME_CHECK_S = 10.0  # s, how long after its start the node looks for another node of its name
 
 # name: (default, description, read_only, (min, max) for doubles)
 PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
@@ -202,6 +203,7 @@ class LinkageMonitorNode(Node):
         self.loss = LossCounter()
         self._reported: Step | None = None   # the last step the gate let through: what the heartbeat repeats
         self._last_heartbeat = 0.0
+        self._started, self._name_checked = time.monotonic(), False   # the duplicate-name check (_check_name)
         self._recording_reported = False
         self._pending_params: dict[str, Any] = {}
         self.pub_hinges = self._publisher(HingeReactions, config.topics.hinge_reactions, OUTPUT_QOS)
@@ -372,6 +374,7 @@ class LinkageMonitorNode(Node):
                 # the last reported status again (diagnostic_updater style); the bag holds it once already
                 self._publish_diagnostic(self._reported, now, record=False)
             self._take_input_events(now)
+            self._check_name(now)
             self._report_losses(f"in the last {HEARTBEAT_S:.0f} s", now)
             recorder_error = self.recorder.error if self.recorder is not None else None
             if recorder_error:
@@ -379,6 +382,21 @@ class LinkageMonitorNode(Node):
                                      "publishing go on", now)
         except Exception as exc:  # noqa: BLE001
             self.get_logger().error(f"heartbeat failed: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
+
+    def _check_name(self, now: int) -> None:
+        """During the first NAME_CHECK_S of the node, whether another node of the graph has its name: two
+        monitors on the same topics solve and record every input twice. A WARN ``<node>: node name``
+        (and the log), once."""
+        if self._name_checked or time.monotonic() - self._started > NAME_CHECK_S:
+            return
+        me = (self.get_name(), self.get_namespace())
+        if self.get_node_names_and_namespaces().count(me) > 1:
+            self._name_checked = True
+            full = f"{me[1].rstrip('/')}/{me[0]}"
+            text = (f"another node is named {full}: two monitors on the same topics solve, publish and record "
+                    f"every input twice; stop one, or give it its own name (--ros-args -r __node:=NAME)")
+            self.get_logger().warn(text)
+            self._publish_status("node name", Level.WARN, text, now)
 
     def _take_input_events(self, now: int) -> None:
         """The middleware's events of the inputs since the last take: lost samples are counted
