@@ -15,6 +15,7 @@ carry the header stamp of the triggering input; receive times come from the node
 from __future__ import annotations
 
 import gc
+import os
 import signal
 import sys
 import threading
@@ -66,6 +67,7 @@ OUTPUT_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)   # 
 HEARTBEAT_S = 1.0  # s, /diagnostics is repeated at least this often
 STOP_POLL_S = 0.1  # s, the spin loop looks this often whether a signal asked it to stop
 DRAIN_LIMIT = 200  # input messages worked off per executor callback (then timers and services run)
+ABANDONED_RERUN: list[Any] = []   # Rerun views whose sink failed (LinkageMonitorNode._rerun_failed)
 NAME_CHECK_S = 10.0  # s, how long after its start the node looks for another node of its name
 
 # name: (default, description, read_only, (min, max) for doubles)
@@ -223,6 +225,7 @@ class LinkageMonitorNode(Node):
         self.marker_gate = DisplayGate(float(p["marker_rate"]))
         self.pub_markers = self._publisher(MarkerArray, config.topics.markers, OUTPUT_QOS)
         self.rerun = None
+        self._rerun_target = p["rerun_path"] if p["rerun"] == "save" else "(viewer)"
         self.rerun_gate = DisplayGate(float(p["rerun_rate"]))
         if p["rerun"] != "off":
             from linkage_monitor.viz.rerun_view import RerunView
@@ -380,6 +383,7 @@ class LinkageMonitorNode(Node):
             if recorder_error:
                 self._publish_status("recording", Level.ERROR, f"recording failed: {recorder_error}; solving and "
                                      "publishing go on", now)
+            self._flush_rerun(now)
         except Exception as exc:  # noqa: BLE001
             self.get_logger().error(f"heartbeat failed: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
 
@@ -480,7 +484,10 @@ class LinkageMonitorNode(Node):
             self.pub_markers.publish(markers)
             self._record(topics.markers, markers, step.stamp_ns, now, OUTPUT_QOS, MARKER_ARRAY)
         if self.rerun is not None:
-            self._log_rerun(step)
+            try:
+                self._log_rerun(step)
+            except Exception as exc:  # noqa: BLE001 - a failed Rerun sink must not stop the monitor
+                self._rerun_failed(exc, now)
         if self.diagnostic_gate.due(step):
             self._reported = step
             self._publish_diagnostic(step, now)
@@ -488,6 +495,28 @@ class LinkageMonitorNode(Node):
             self.get_logger().error(step.message, throttle_duration_sec=1.0)
         elif step.level == Level.WARN:
             self.get_logger().warning(step.message, throttle_duration_sec=1.0)
+
+    def _flush_rerun(self, now: int) -> None:
+        """The Rerun recording written out (every heartbeat: a power cut loses at most about a second
+        of it); a failed sink (its disk full) is an ERROR ``<node>: recording`` naming the file, the
+        Rerun logging stops, solving, publishing and the bag go on."""
+        if self.rerun is None:
+            return
+        try:
+            self.rerun.flush()
+        except Exception as exc:  # noqa: BLE001 - rerun raises RuntimeError (and others) for a failed sink
+            self._rerun_failed(exc, now)
+
+    def _rerun_failed(self, exc: Exception, now: int) -> None:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        # a failed file sink can be neither flushed, closed nor dropped: each waits forever for its
+        # writer (rerun-sdk 0.41), so it is kept, never touched again, and main() exits past it
+        ABANDONED_RERUN.append(self.rerun)
+        text = (f"Rerun recording {self._rerun_target} failed: {reason} (disk full, or too slow?); the Rerun logging stops, "
+                "solving, publishing and the bag go on")
+        self.rerun = None
+        self.get_logger().error(text)
+        self._publish_status("recording", Level.ERROR, text, now)
 
     def _log_rerun(self, step: Step) -> None:
         """Solved poses at most at rerun_rate; every ERROR's text."""
@@ -539,7 +568,11 @@ class LinkageMonitorNode(Node):
             self.recorder.close()
             self.get_logger().info(f"bag written: {self.recorder.directory}")
         if self.rerun is not None:
-            self.rerun.close()
+            try:
+                self.rerun.close()
+            except Exception as exc:  # noqa: BLE001 - one line, no traceback: the disk may be full
+                self.get_logger().error(f"Rerun recording {self._rerun_target} not finished: "
+                                        f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}")
 
 
 def _publisher_id(info: dict) -> object:
@@ -579,6 +612,10 @@ def main(argv: list[str] | None = None, make_node: Callable[[], LinkageMonitorNo
             node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
+    if ABANDONED_RERUN:   # the bag is finished; a failed Rerun sink would hang the interpreter's exit
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(0)
     return 0
 
 

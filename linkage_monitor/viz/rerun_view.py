@@ -34,6 +34,7 @@ APPLICATION_ID = "linkage_monitor"
 TIMELINE = "ros_time"
 BOUNDS_MARGIN = 0.35
 """m: free space around the linkage in the 2D view (room for the force arrows and labels)."""
+FLUSH_TIMEOUT_S = 0.5   # s, longest wait for a flush of the live node's .rrd before it counts as failed
 FILE_BATCHING = rr.ChunkBatcherConfig(flush_tick=5.0, flush_num_bytes=64 * 2**20, flush_num_rows=100_000)
 """Chunks of a file recording: one per entity per 5 s of logging. A live file of tiny chunks (the
 default 200 ms tick; out-of-order stamps split them further) opened in the viewer 0.41 with its
@@ -154,10 +155,21 @@ class RerunView:
         recording.connect_grpc(url, default_blueprint=blueprint or default_blueprint(mechanism))
         return cls(mechanism, recording, force_scale=force_scale)
 
+    def flush(self, timeout_s: float = FLUSH_TIMEOUT_S) -> None:
+        """Write everything logged so far to the sink, waiting at most ``timeout_s`` (the live node
+        calls it every second, so that a power cut loses at most about a second of the .rrd; the
+        write of a second's poses takes well under a millisecond). RuntimeError when it is not
+        written in time: the sink has failed (its disk is full; Rerun's file writer does not say
+        so otherwise) or cannot keep up."""
+        self.recording.flush(timeout_sec=timeout_s)
+
     def close(self) -> None:
-        """Flush everything logged so far and close the sink (the .rrd file is complete afterwards)."""
-        self.recording.flush()
-        self.recording.disconnect()
+        """Flush everything logged so far and close the sink (the .rrd file is complete afterwards).
+        RuntimeError when the sink has failed (e.g. its disk is full)."""
+        try:
+            self.recording.flush()
+        finally:
+            self.recording.disconnect()
 
     # ---- live: one pose -----------------------------------------------------------------------
     def log_pose(self, stamp_ns: int, result: Result, extra: Mapping[str, float] | None = None) -> None:
