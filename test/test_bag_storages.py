@@ -156,3 +156,33 @@ def test_a_file_that_is_no_bag_says_so(tmp_path):
     junk.write_bytes(b"not a bag at all")
     with pytest.raises(BagError, match="neither an MCAP nor a sqlite3"):
         storage_files(junk)
+
+
+@pytest.mark.parametrize("payload", ["lying schema", "huge count"])
+def test_calibrate_on_a_hostile_bag_is_one_line(tmp_path, capsys, payload):
+    """3259 messages under a JointState schema that are not JointStates (a FluidPressure's bytes cut
+    short; a JointState whose name count claims 2^31 strings): calibrate refuses the bag in one line."""
+    import struct
+
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import FluidPressure, JointState
+
+    from linkage_monitor.bag.writer import BagWriter
+    from linkage_monitor.wire.sensor_messages import JOINT_STATE
+
+    if payload == "lying schema":
+        data = serialize_message(FluidPressure(fluid_pressure=1e5))[:20]
+    else:
+        good = serialize_message(JointState(name=["lift_cylinder"], position=[0.6]))
+        at = 4 + 8 + 4   # encapsulation, stamp, empty frame_id's length (an empty string: length 1 + NUL)
+        at += 4          # the frame_id's one byte, padded to 4
+        data = good[:at] + struct.pack("<I", 2**31) + good[at + 4:]
+    bag = tmp_path / "hostile"
+    with BagWriter(bag) as writer:
+        for k in range(3259):
+            writer.write("/joint_states", data, 10**18 + k, type_name=JOINT_STATE, log_time_ns=10**18 + k)
+    code = cli_main(["calibrate", "--preset", "belarus_1221", "--data", str(bag), "--free", "tractor.mass",
+                     "--out", str(tmp_path / "fit.yaml")])
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert code == 2 and len(err) == 1, err
+    assert str(bag) in err[0] and "do not decode" in err[0]

@@ -146,12 +146,18 @@ def read_inputs(path: str | os.PathLike[str]) -> dict[str, JointStateColumns | P
     """
     rows: dict[str, list[tuple[int, int, Any]]] = {}
     kinds: dict[str, str] = {}
-    for topic, type_name, stamp, log_time, msg in _messages(path, topics=None, types=(JOINT_STATE, FLUID_PRESSURE)):
+    undecoded: Undecoded = {}
+    for topic, type_name, stamp, log_time, msg in _messages(path, topics=None, types=(JOINT_STATE, FLUID_PRESSURE),
+                                                            undecoded=undecoded):
         rows.setdefault(topic, []).append((stamp, log_time, msg))
         kinds[topic] = type_name
     if not rows:
-        raise BagError(f"bag {path} holds no {JOINT_STATE} or {FLUID_PRESSURE} messages: "
-                       "nothing to replay (record the sensor topics)")
+        unreadable = sum(count for count, _ in undecoded.values())
+        raise BagError(f"bag {path} holds no {JOINT_STATE} or {FLUID_PRESSURE} messages"
+                       + (f" that decode ({unreadable} do not: {undecoded_lines(undecoded)[0]})" if undecoded else
+                          ": nothing to replay (record the sensor topics)"))
+    for line in undecoded_lines(undecoded):
+        _log.warning("%s", line)
     return {topic: (_joint_columns(r) if kinds[topic] == JOINT_STATE else _pressure_columns(r))
             for topic, r in rows.items()}
 
@@ -184,27 +190,50 @@ def _files_from_metadata(directory: Path) -> list[Path]:
                        ) from exc
 
 
+Undecoded = dict[tuple[str, str, str], tuple[int, str]]   # (file, topic, type) -> (count, the first reason)
+
+
 def _messages(path: str | os.PathLike[str], topics: Collection[str] | None,
-              types: Collection[str] | None) -> Iterator[tuple[str, str, int, int, Any]]:
+              types: Collection[str] | None, undecoded: Undecoded | None = None
+              ) -> Iterator[tuple[str, str, int, int, Any]]:
+    """The decoded messages of every storage file; those that do not decode are left out, counted in
+    ``undecoded`` when given (the caller reports them), else logged as one warning per topic."""
     for file in storage_files(path):
-        for schema, channel, message in _raw_messages(file, topics):
-            type_name = schema.name if schema is not None else ""
-            if types is not None and type_name not in types:
-                continue
-            if channel.message_encoding != "cdr":
-                raise BagError(f"{file}: topic {channel.topic!r} is encoded as "
-                               f"{channel.message_encoding!r}, only 'cdr' is supported")
-            msg_class = _message_class(type_name)   # BagError when the type's package is not installed
-            try:
-                msg: Any = deserialize_message(message.data, msg_class)
-            except Exception as exc:  # noqa: BLE001 - e.g. an input the node recorded as it came, unreadable
-                _log.warning("%s: a %d-byte message on %s (log time %d ns) does not decode as %s (%s): left out",
-                             file, len(message.data), channel.topic, message.log_time, type_name,
-                             str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
-                continue
-            header = getattr(msg, "header", None)
-            stamp = stamp_ns(header) if header is not None else message.publish_time
-            yield channel.topic, type_name, stamp, message.log_time, msg
+        left_out: Undecoded = {} if undecoded is None else undecoded
+        yield from _decoded(file, topics, types, left_out)
+        if undecoded is None:
+            for line in undecoded_lines(left_out):
+                _log.warning("%s", line)
+
+
+def undecoded_lines(undecoded: Undecoded) -> list[str]:
+    """One sentence per topic of a file whose messages did not decode."""
+    return [f"{file}: {count} message(s) on {topic} do not decode as {type_name} (the first: {reason}): left out"
+            for (file, topic, type_name), (count, reason) in undecoded.items()]
+
+
+def _decoded(file: Path, topics: Collection[str] | None, types: Collection[str] | None,
+             undecoded: Undecoded) -> Iterator[tuple[str, str, int, int, Any]]:
+    """``_messages`` of one storage file; the messages that do not decode counted in ``undecoded``."""
+    for schema, channel, message in _raw_messages(file, topics):
+        type_name = schema.name if schema is not None else ""
+        if types is not None and type_name not in types:
+            continue
+        if channel.message_encoding != "cdr":
+            raise BagError(f"{file}: topic {channel.topic!r} is encoded as "
+                           f"{channel.message_encoding!r}, only 'cdr' is supported")
+        msg_class = _message_class(type_name)   # BagError when the type's package is not installed
+        try:
+            msg: Any = deserialize_message(message.data, msg_class)
+        except Exception as exc:  # noqa: BLE001 - e.g. an input the node recorded as it came, unreadable
+            count, first = undecoded.get((str(file), channel.topic, type_name), (0, ""))
+            undecoded[(str(file), channel.topic, type_name)] = (count + 1, first or (
+                f"{len(message.data)} bytes at log time {message.log_time} ns: "
+                f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"))
+            continue
+        header = getattr(msg, "header", None)
+        stamp = stamp_ns(header) if header is not None else message.publish_time
+        yield channel.topic, type_name, stamp, message.log_time, msg
 
 
 class _Schema(NamedTuple):
