@@ -44,3 +44,21 @@ def node(ros, tmp_path):
         still_running = proc.poll() is None
         code = stop(proc)
         assert code == 0 or not still_running, f"node exit code {code}:\n" + (tmp_path / "node.log").read_text()
+
+
+@pytest.fixture
+def tmpfs(tmp_path):
+    """Mount a tmpfs of the given options at a fresh directory (the tests run as root, as CI does)."""
+    import subprocess
+
+    mounted = []
+
+    def mount(options: str):
+        where = tmp_path / f"mnt{len(mounted)}"
+        where.mkdir()
+        subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(where)], check=True)
+        mounted.append(where)
+        return where
+    yield mount
+    for where in mounted:
+        subprocess.run(["umount", str(where)], check=False)

@@ -81,24 +81,6 @@ def test_sigkill_at_200_hz_loses_at_most_about_a_second(ros, tmp_path):
     assert bag_last > 0 and time.time_ns() - bag_last < 30 * 10**9
 
 
-@pytest.fixture
-def tmpfs(tmp_path):
-    """A tmpfs of the given options at a fresh directory (the tests run as root, as CI does)."""
-    import subprocess
-
-    mounted = []
-
-    def mount(options: str):
-        where = tmp_path / f"mnt{len(mounted)}"
-        where.mkdir()
-        subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(where)], check=True)
-        mounted.append(where)
-        return where
-    yield mount
-    for where in mounted:
-        subprocess.run(["umount", str(where)], check=False)
-
-
 def test_a_full_disk_under_the_rrd_is_an_error_and_a_clean_exit(ros, tmp_path, tmpfs):
     """rerun=save onto a 64 KiB filesystem: the write fails within seconds; an ERROR `<node>: recording`
     names the .rrd on /diagnostics, solving and publishing go on (a dropped or closed failed Rerun sink

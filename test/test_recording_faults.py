@@ -5,7 +5,6 @@ by readers we did not write (mcap, rosbags) up to its last complete chunk."""
 
 from __future__ import annotations
 
-import subprocess
 from pathlib import Path
 
 import pytest
@@ -17,22 +16,6 @@ from std_msgs.msg import String
 from linkage_monitor.bag.writer import BagError, BagWriter
 
 T0 = 1_700_000_000_000_000_000  # ns, an arbitrary recording start
-
-
-@pytest.fixture
-def tmpfs(tmp_path):
-    """Mount a tmpfs of the given options at a fresh directory (the tests run as root, as CI does)."""
-    mounted = []
-
-    def mount(options: str) -> Path:
-        where = tmp_path / f"mnt{len(mounted)}"
-        where.mkdir()
-        subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(where)], check=True)
-        mounted.append(where)
-        return where
-    yield mount
-    for where in mounted:
-        subprocess.run(["umount", str(where)], check=False)
 
 
 def _count_readable(bag: Path) -> tuple[int, int]:
