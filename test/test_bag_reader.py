@@ -13,7 +13,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import String
 
 from linkage_monitor.bag.reader import (
-    JointStateColumns, PressureColumns, read_bag, read_inputs)
+    JointStateColumns, PressureColumns, read_bag, read_bag_raw, read_inputs)
 from linkage_monitor.bag.writer import BagError, BagWriter
 
 T0 = 1_700_000_000_000_000_000  # ns since the epoch
@@ -115,7 +115,6 @@ def test_a_message_that_does_not_decode_is_left_out_with_a_warning(tmp_path: Pat
     messages leave it out and say so (file, size, topic, type); the raw reader yields it."""
     from rclpy.serialization import serialize_message
 
-    from linkage_monitor.bag.reader import read_bag_raw
     from linkage_monitor.ros.messages import header
 
     good = [JointState(header=header(T0 + k), name=["lift_arm"], position=[0.1 * k]) for k in range(3)]
@@ -131,3 +130,34 @@ def test_a_message_that_does_not_decode_is_left_out_with_a_warning(tmp_path: Pat
     assert "1 message(s) on /joint_states do not decode as sensor_msgs/msg/JointState (the first: 30 bytes at " \
            "log time 1700000000000000001 ns" in caplog.text and "left out" in caplog.text
     assert [row[4] for row in read_bag_raw(tmp_path / "bag")][1] == cut
+
+
+@pytest.mark.parametrize("where", [0.5, 0.9])
+def test_a_corrupt_chunk_is_named_skipped_and_counted(tmp_path, caplog, where):
+    """A byte of a bundled bag's chunk overwritten (the bag as a damaged disk returns it): the chunk fails
+    its CRC (or no longer decompresses) and is skipped with one warning naming the file, its byte
+    offset and its message count; every other chunk reads as before; nothing of it is decoded."""
+    import shutil
+
+    from mcap.reader import make_reader
+
+    source = Path(__file__).resolve().parents[1] / "bags" / "belarus_1221_lift_transport"
+    bag = tmp_path / "damaged"
+    shutil.copytree(source, bag)
+    file = next(bag.glob("*.mcap"))
+    with open(file, "rb") as stream:
+        chunks = sorted(make_reader(stream).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)
+    victim = chunks[len(chunks) // 2]
+    at = victim.chunk_start_offset + int(victim.chunk_length * where)
+    data = bytearray(file.read_bytes())
+    data[at] ^= 0xFF
+    file.write_bytes(bytes(data))
+    before = list(read_bag_raw(source))
+    with caplog.at_level("WARNING"):
+        after = list(read_bag_raw(bag))
+    named = [r.getMessage() for r in caplog.records if f"the chunk at byte {victim.chunk_start_offset}" in r.getMessage()]
+    assert len(named) == 1 and str(file) in named[0] and "skipped" in named[0], caplog.text
+    lost = len(before) - len(after)
+    assert lost > 0 and f"({lost} messages" in named[0] or "unknown number" in named[0], (lost, named[0])
+    kept = {(r[0], r[3]) for r in after}
+    assert kept <= {(r[0], r[3]) for r in before}   # nothing made up, the rest read as before

@@ -28,7 +28,11 @@ from typing import Any, NamedTuple
 import numpy as np
 import yaml
 from mcap.exceptions import McapError
+from mcap._message_queue import make_message_queue
+from mcap.data_stream import ReadDataStream
 from mcap.reader import NonSeekingReader, SeekingReader
+from mcap.records import Chunk, ChunkIndex, Message
+from mcap.stream_reader import CRCValidationError, breakup_chunk
 from rclpy.serialization import deserialize_message
 
 from linkage_monitor.bag.writer import BagError
@@ -301,10 +305,12 @@ def _mcap_messages(file: Path, topics: Collection[str] | None) -> Iterator[tuple
             indexed = False
         if not indexed:  # stream order = write order (log-time order for BagWriter bags)
             stream.seek(0)
-            reader = NonSeekingReader(stream)
+            reader = NonSeekingReader(stream, validate_crcs=True)
         count = 0
         try:
-            for record in reader.iter_messages(topics=topic_list, log_time_order=indexed):
+            records = (_indexed_messages(file, stream, reader.get_summary(), topic_list)
+                       if isinstance(reader, SeekingReader) else reader.iter_messages(topics=topic_list))
+            for record in records:
                 count += 1
                 yield record
         except (McapError, struct.error, EOFError) as exc:  # a record cut off by a killed writer
@@ -313,6 +319,46 @@ def _mcap_messages(file: Path, topics: Collection[str] | None) -> Iterator[tuple
             raise BagError(f"{file} is damaged after {count} messages ({type(exc).__name__}: "
                            f"{str(exc).splitlines()[0] if str(exc) else 'unreadable data'}): "
                            "copy what can be read with an MCAP tool or record again") from exc
+
+
+def _indexed_messages(file: Path, stream: Any, summary: Any, topics: list[str] | None
+                      ) -> Iterator[tuple[Any, Any, Any]]:
+    """The (schema, channel, message) records of an indexed MCAP file in log-time order, as mcap's
+    SeekingReader.iter_messages yields them (its queue: chunks by their first log time, messages by
+    log time, ties by position), every chunk's CRC checked: a chunk that fails it is skipped and
+    named in one warning with the messages it held, never decoded."""
+    queue = make_message_queue(log_time_order=True)
+    for chunk_index in summary.chunk_indexes:
+        queue.push(chunk_index)
+    while queue:
+        item = queue.pop()
+        if not isinstance(item, ChunkIndex):
+            yield item[0]
+            continue
+        stream.seek(item.chunk_start_offset + 1 + 8)   # past the record's opcode and length
+        chunk = Chunk.read(ReadDataStream(stream))
+        try:
+            records = breakup_chunk(chunk, validate_crc=True)
+        except Exception as exc:  # noqa: BLE001 - a CRC mismatch, or data that does not even decompress
+            what = "fails its CRC" if isinstance(exc, CRCValidationError) else f"does not decompress ({exc})"
+            _log.warning("%s: the chunk at byte %d (%s messages, log times %d to %d ns) %s: skipped, not decoded",
+                         file, item.chunk_start_offset, _message_count(chunk), item.message_start_time,
+                         item.message_end_time, what)
+            continue
+        for position, record in enumerate(records):
+            if isinstance(record, Message):
+                channel = summary.channels[record.channel_id]
+                if topics is None or channel.topic in topics:
+                    schema = summary.schemas[channel.schema_id] if channel.schema_id else None
+                    queue.push(((schema, channel, record), item.chunk_start_offset, position))
+
+
+def _message_count(chunk: Any) -> str:
+    """How many message records a damaged chunk's bytes hold, if they can be split at all."""
+    try:
+        return str(sum(1 for record in breakup_chunk(chunk, validate_crc=False) if isinstance(record, Message)))
+    except Exception:  # noqa: BLE001 - the bytes do not even split into records
+        return "an unknown number of"
 
 
 def _joint_columns(rows: list[tuple[int, int, Any]]) -> JointStateColumns:
