@@ -66,6 +66,7 @@ def test_sigkill_at_200_hz_loses_at_most_about_a_second(ros, tmp_path):
             if time.time_ns() - t0 > 1.5e9 and len(client.received["hinge_reactions"]) > 100:
                 break
         client.spin_until(lambda: False, 0.05)
+        killed = time.time_ns()
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=10)
         last_solved = max(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
@@ -77,8 +78,9 @@ def test_sigkill_at_200_hz_loses_at_most_about_a_second(ros, tmp_path):
     assert rrd_last > 0, "the .rrd holds no pose after the power cut"
     print(f"power cut: last solved {last_solved}, last in the .rrd {rrd_last}: {(last_solved - rrd_last) / 1e9:.3f} s lost")
     assert 0 <= last_solved - rrd_last <= LOSS_LIMIT_NS, (last_solved - rrd_last) / 1e9
-    bag_last = _last_bag_input_ns(node_bag(tmp_path / "bags"))
-    assert bag_last > 0 and time.time_ns() - bag_last < 30 * 10**9
+    bag_last = _last_bag_input_ns(node_bag(tmp_path / "bags"))   # the node's receive time of its last input
+    print(f"power cut: the bag ends {(killed - bag_last) / 1e9:.3f} s before the kill")
+    assert 0 < killed - bag_last <= LOSS_LIMIT_NS, (killed - bag_last) / 1e9
 
 
 def test_a_full_disk_under_the_rrd_is_an_error_and_a_clean_exit(ros, tmp_path, tmpfs):
