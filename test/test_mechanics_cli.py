@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -12,7 +13,7 @@ from linkage_monitor.cli.main import main
 from test_mechanics_oracles import FIXTURES
 
 HITCH = str(FIXTURES / "hitch.yaml")
-PYTHON = str(Path(__file__).resolve().parents[1] / ".venv" / "bin" / "python")
+PYTHON = sys.executable   # the venv of the distribution under test (.venv or .venv-kilted)
 
 
 def test_solve_json_has_the_documented_keys(capsys) -> None:
