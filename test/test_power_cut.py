@@ -1,6 +1,7 @@
 """The ignition switched off: the node killed with SIGKILL while it works at 200 Hz. What it wrote
 before the cut is readable by readers we did not write: the .rrd (Rerun's own reader) holds the
-solved poses up to at most about a second before the kill (the recording is flushed every second),
+solved poses up to at most about a second before the kill (the recording is flushed every second)
+and the real Rerun viewer opens it,
 and so does the bag (mcap's reader: chunks closed and flushed every second)."""
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ from mcap.reader import NonSeekingReader
 from rerun.chunk import RrdReader
 
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
+from linkage_monitor.viz.drawing import CYLINDER_COLOR
+from support.rerun_shot import pixels_of, screenshot
 from support.ros_harness import MonitorClient, node_bag, start_node, stop
 
 pytestmark = pytest.mark.ros
@@ -76,6 +79,8 @@ def test_sigkill_at_200_hz_loses_at_most_about_a_second(ros, tmp_path):
         stop(proc)
     rrd_last = _last_rrd_pose_ns(rrd)
     assert rrd_last > 0, "the .rrd holds no pose after the power cut"
+    rgb = screenshot(rrd, tmp_path / "viewer")   # the real viewer opens the cut file and draws the linkage
+    assert pixels_of(rgb, CYLINDER_COLOR) > 500
     print(f"power cut: last solved {last_solved}, last in the .rrd {rrd_last}: {(last_solved - rrd_last) / 1e9:.3f} s lost")
     assert 0 <= last_solved - rrd_last <= LOSS_LIMIT_NS, (last_solved - rrd_last) / 1e9
     bag_last = _last_bag_input_ns(node_bag(tmp_path / "bags"))   # the node's receive time of its last input
