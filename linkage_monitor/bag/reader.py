@@ -336,11 +336,13 @@ def _indexed_messages(file: Path, stream: Any, summary: Any, topics: list[str] |
             yield item[0]
             continue
         stream.seek(item.chunk_start_offset + 1 + 8)   # past the record's opcode and length
-        chunk = Chunk.read(ReadDataStream(stream))
+        chunk = None
         try:
+            chunk = Chunk.read(ReadDataStream(stream))
             records = breakup_chunk(chunk, validate_crc=True)
-        except Exception as exc:  # noqa: BLE001 - a CRC mismatch, or data that does not even decompress
-            what = "fails its CRC" if isinstance(exc, CRCValidationError) else f"does not decompress ({exc})"
+        except Exception as exc:  # noqa: BLE001 - a CRC mismatch, data that does not decompress, a broken header
+            what = ("fails its CRC" if isinstance(exc, CRCValidationError) else
+                    f"is unreadable ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'damaged'})")
             _log.warning("%s: the chunk at byte %d (%s messages, log times %d to %d ns) %s: skipped, not decoded",
                          file, item.chunk_start_offset, _message_count(chunk), item.message_start_time,
                          item.message_end_time, what)
@@ -355,6 +357,8 @@ def _indexed_messages(file: Path, stream: Any, summary: Any, topics: list[str] |
 
 def _message_count(chunk: Any) -> str:
     """How many message records a damaged chunk's bytes hold, if they can be split at all."""
+    if chunk is None:
+        return "an unknown number of"
     try:
         return str(sum(1 for record in breakup_chunk(chunk, validate_crc=False) if isinstance(record, Message)))
     except Exception:  # noqa: BLE001 - the bytes do not even split into records
