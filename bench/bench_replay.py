@@ -1,4 +1,4 @@
-"""Replay throughput against the raw decode rate of the same bag (issue 6).
+"""Replay throughput against the raw decode rate of the same bag (goal: >= 0.5x the decode rate).
 
 Run: .venv/bin/python bench/bench_replay.py [BAG]   (default: the bundled belarus_1221 bag)
 Prints messages per second of

@@ -1,6 +1,6 @@
 """Solver speed: single-pose solve time (µs) and batched poses/s, against numpy's batched dense
 ``np.linalg.solve`` of the same system size timed in the same run (the floor for one linear solve
-per pose). Run: ``.venv/bin/python bench/bench_solver.py``. Goals (issue 11): batched ≥ 2 M poses/s on one core
+per pose). Run: ``.venv/bin/python bench/bench_solver.py``. Goals: batched ≥ 2 M poses/s on one core
 (≥ 10× numpy's batched solve), one pose ≤ 1× one ``np.linalg.solve``."""
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """How long the live node takes to start: process start to its "monitoring ..." log line, which it
 writes once the mechanism is loaded, the solver and the statics layouts are built and the compiled
 kernels are loaded from numba's on-disk cache (``Monitor.load_kernels``), i.e. ready for the first
-input. Goal (issue 11): a warm node starts in ≤ 2 s. Baseline in the same run: a Python process
+input. Goal: a warm node starts in ≤ 2 s. Baseline in the same run: a Python process
 that imports rclpy and exits (the floor of any rclpy node).
 
 Run: ``.venv/bin/python bench/bench_startup.py [RUNS]`` (default 5; median and range printed)

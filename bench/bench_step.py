@@ -5,7 +5,7 @@ steerability, findings) and the three output messages written (``OutputEncoder``
 belarus_1221, the simulator's lift at 100 Hz (stroke + lift-arm angle in one JointState, the
 cap pressure on its own topic: each event is a step, each step solves). Printed: the median
 and 90th percentile per step, the share of the solve alone (``Solver.solve``), against one
-15×15 ``np.linalg.solve`` timed in the same run. Goals (issue 11): step ≤ 50 µs median, the
+15×15 ``np.linalg.solve`` timed in the same run. Goals: step ≤ 50 µs median, the
 solve ≤ 1× one ``np.linalg.solve``.
 
 Run: ``.venv/bin/python bench/bench_step.py``

@@ -10,7 +10,7 @@ a profile, for docs/performance.md.
 ``--idle-ms T``: sleep T ms before every event, as a sensor stream leaves the CPU idle between
 messages (one pass). On these machines a step that follows an idle gap runs several times slower
 than in a tight loop (caches and the CPU are cold after the gap): the live node's steps are of
-that kind (docs/performance.md, fifth session).
+that kind (docs/performance.md, "A step after an idle gap").
 
 Run: ``.venv/bin/python bench/profile_step.py [--idle-ms T]``
 """

@@ -59,7 +59,7 @@ def _run(tmp_path: Path, data: Path, *extra: str) -> Path:
 def _assert_recovered(fitted_file: Path, truth: dict) -> None:
     fitted = load_mechanism(fitted_file)
     for key, expected in truth.items():
-        tol = np.radians(0.1) if key == REFERENCE else 0.001   # brief: 1 mm and 0.1 deg
+        tol = np.radians(0.1) if key == REFERENCE else 0.001   # the accuracy asked of a calibration: 1 mm and 0.1 deg
         assert parameter_value(fitted, key) == pytest.approx(expected, abs=tol), key
 
 

@@ -1,4 +1,4 @@
-"""Hostile files and arguments (issue 10's reproductions): each is refused with one line naming
+"""Hostile files and arguments: each is refused with one line naming
 the input and the reason, exit code 2 from the CLI, never a traceback or a hang."""
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ from linkage_monitor.mechanics.capacity import capacity_force, lift_cylinder, re
 from linkage_monitor.mechanics.machine import MachineModel
 from oracles.capacity_copies import capacity_copies
 
-# seed 003 Table 1 (S [m], I_S [-]) and Table 2 (G_s [kN]); REFERENCE.md section 003
+# seed 003 Table 1 (S [m], I_S [-]) and Table 2 (G_s [kN]): Popov (2009)
 TABLE_S = np.array([0.535, 0.555, 0.575, 0.595, 0.615, 0.635, 0.655, 0.675, 0.695, 0.715])
 TABLE_I_S = np.array([7.164, 6.647, 6.427, 6.343, 6.336, 6.369, 6.411, 6.426, 6.362, 6.148])
 TABLE_G_S = np.array([23.03, 24.82, 25.67, 26.01, 26.04, 25.90, 25.73, 25.67, 25.93, 26.83])
@@ -72,7 +72,7 @@ def test_table2_lift_capacity_at_the_header_cg(belarus):
     for s, ip, io, g, c in zip(TABLE_S, TABLE_I_S, i_s, TABLE_G_S, ours):
         print(f"{s:.3f}  {ip:.3f} {io:.3f}   {g:6.2f}   {165.0 / io:8.3f}   {c:9.3f}   {c - g:+.3f}")
     assert matches.all(), f"Table 1 I_S not reproduced at S = {TABLE_S[~matches]}"
-    # Table 2 itself is 165.0 kN / I_S to 4 digits (REFERENCE.md): check the paper's consistency first
+    # Table 2 itself is 165.0 kN / I_S to 4 digits (Popov 2009): check the paper's consistency first
     np.testing.assert_allclose(165.0 / TABLE_I_S, TABLE_G_S, atol=0.01)
     # p_max·η·A = 165.0 kN (preset: 19.384 MPa × 0.80 × 0.01064 m²)
     np.testing.assert_allclose(capacity_force(lift_cylinder(belarus.mech)) / 1e3, 165.0, rtol=1e-4)

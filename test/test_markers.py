@@ -95,7 +95,7 @@ def test_node_publishes_and_records_the_linkage_as_markers(node):
 @pytest.mark.parametrize("name", preset_names())
 def test_marker_bytes_are_what_rclpy_builds(name):
     """The MarkerArray bytes the package writes (wire.markers, CDR by its layout) decode with rclpy to the
-    message the former builder made field by field (oracle: test/oracles/markers.py), floats bit
+    message an rclpy builder makes field by field (oracle: test/oracles/markers.py), floats bit
     for bit, and have its exact CDR length (rclpy's buffer cut by rosbags' decoder); on every
     preset, over a simulated lift (several poses: the force scale fixed by the first)."""
     mech = load_preset(name)

@@ -129,7 +129,7 @@ def test_bytes_that_are_not_the_input_type_are_an_error_recorded_as_they_came_an
     """A publisher's bytes that are not a JointState / FluidPressure (cut short): an ERROR on the
     monitor's status naming the topic and the type, nothing published, the bytes in the bag as
     they came (read back by rosbags), the next good input solved; the replay of the node's bag
-    reports the same two errors and copies the bytes on (it crashed on such a bag before)."""
+    reports the same two errors and copies the bytes on."""
     from rclpy.serialization import serialize_message
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore

@@ -1,4 +1,4 @@
-"""Never wrong with OK, never down — the reproductions of issue 10 over real topics.
+"""Never wrong with OK, never down — the faults a tractor's sensors and network produce, over real topics.
 
 The live node runs in a child process (or, to inject a failure, in this process); inputs go
 over real rclpy pub/sub. Oracles: a fresh solver from the reference pose on the true

@@ -1,8 +1,8 @@
 """numba's cache directory when the install and the home directory cannot be written.
 
 numba refuses to define a ``cache=True`` kernel when none of its cache directories is writable
-(checked by hand in round 2, eighth session: `runuser -u nobody` with HOME=/nonexistent on the
-root-owned checkout: "RuntimeError: cannot cache function 'lu_factor': no locator available").
+(as `runuser -u nobody` with HOME=/nonexistent on a root-owned checkout shows: "RuntimeError:
+cannot cache function 'lu_factor': no locator available").
 As root every real directory is writable, so "unwritable" here is a path below a regular file
 (no one can create a directory there).
 """

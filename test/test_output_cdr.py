@@ -1,6 +1,6 @@
 """The outputs written as CDR bytes (wire.outputs.OutputEncoder) are the messages rclpy builds
-and serializes field by field (oracle: test/oracles/output_messages.py, the package's former
-builders), for every preset and fixture, OK and WARN steps, NaN fields and a reconfigured monitor
+and serializes field by field (oracle: test/oracles/output_messages.py, builders that fill
+rclpy's message classes), for every preset and fixture, OK and WARN steps, NaN fields and a reconfigured monitor
 (arbitrary values: test/test_wire.py); and they decode with readers we did not write (rclpy, rosbags).
 
 How each check compares: rclpy's ``deserialize_message`` of our bytes equals the oracle

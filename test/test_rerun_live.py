@@ -1,5 +1,5 @@
 """The live node's own .rrd (rerun=save), opened in the real viewer: the side view draws the
-linkage (issue 14: a live file once opened with an empty side view while the replay's drew).
+linkage, as the replay's file does (the side view is not empty).
 
 The stream is what a tractor sends: a pressure and a JointState with the same header stamp
 (two solves per stamp), stamps arriving slightly out of order, at 50 Hz for 4 s."""

@@ -1,6 +1,6 @@
 """Seed 003 (Popov 2009, Belarus-1221 + ZhSK-4V header): the preset against the paper's Tables 1-2.
 
-Every expected number is typed from REFERENCE.md section 003 (Table 1, Table 2). Ours come from
+Every expected number is typed from Popov (2009), Table 1 and Table 2. Ours come from
 the real solver (``seed003_values``: batched solve driven by the cylinder length S, frame
 conversion X = -x, Y = z, phi6 = 180 deg - our mast angle, R34/R05 halved to the paper's per-side
 values, G_s from ``mechanics.machine`` lift capacity at the header cg).
@@ -20,7 +20,7 @@ from seed003_table import PAPER_TABLE_1, PAPER_TABLE_2, seed003_values  # tools/
 
 REPO = Path(__file__).resolve().parent.parent
 
-# The paper's tables, typed once from REFERENCE.md section 003 (with the docs generator):
+# The paper's tables, typed once from Popov (2009) (with the docs generator):
 # Table 1: S [m], Y56 [m], XS6 [m], YS6 [m], phi6 [deg], I_S [-]
 TABLE_1 = PAPER_TABLE_1
 # Table 2: S [m], G_s, R34 (per side), R03, R05 (per side), R07, F_pr [kN], P2 [MPa]

@@ -35,7 +35,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--bag", type=Path, default=DEFAULT_BAG, help="input bag (default: the bundled one)")
     parser.add_argument("--rate", type=float, default=1.0,
                         help="playback speed, times real time (default 1; on a 2-core x86 machine the node took and "
-                             "solved every input at 10x, ~930 msg/s, refusing none (2026-11-24); faster, it can fall "
+                             "solved every input at 10x, ~930 msg/s, refusing none; faster, it can fall "
                              "behind and refuse inputs stamped too far behind its clock, saying so)")
     parser.add_argument("--out", type=Path, default=Path("out"), help="output directory (default out/)")
     args = parser.parse_args(argv)
