@@ -39,7 +39,14 @@ ANGLE, CYLINDER, RRR = 0, 1, 2
 #   ANGLE:    B, a_parent (the hinge on P), a_body (the hinge on B), input column, sign
 #   CYLINDER: B, a_parent (pivot on P), a_body (pivot on B), a_end (cylinder end on B), a_other (end on Q), input column
 #   RRR:      B1, a_parent1, a_body1, a_joint1 (H on B1), B2, a_parent2, a_body2, a_joint2 (H on B2)
-CHAIN_INT = 10
+# then the hinges the step closes (indices into mech.hinges): ANGLE / CYLINDER: the pivot B–P in
+# STEP_HINGE; RRR: B1–P1 in STEP_HINGE, B2–P2 in STEP_HINGE2, the joint B1–B2 (bodies[0] = B1) in STEP_JOINT
+KIND, BODY, A_PARENT, A_BODY = 0, 1, 2, 3
+ANGLE_INPUT, ANGLE_SIGN = 4, 5                                              # ANGLE
+A_END, A_OTHER, CYLINDER_INPUT = 4, 5, 6                                    # CYLINDER
+A_JOINT1, BODY2, A_PARENT2, A_BODY2, A_JOINT2 = 4, 5, 6, 7, 8               # RRR
+STEP_HINGE, STEP_HINGE2, STEP_JOINT = 10, 11, 12
+CHAIN_INT = 13
 # float fields: CYLINDER: side, φ0 (direction pivot → end on B at θ = 0, rad), ρ (m); ANGLE: reference (rad);
 #               RRR: side, φ1_0, ρ1, φ2_0, ρ2
 CHAIN_FLOAT = 5
@@ -120,7 +127,7 @@ def decompose(mech: Mechanism, body_index: dict[str, int], hinge_att: np.ndarray
                 row = [CYLINDER, body_index[body], a_parent, a_body, a_end, a_other, k]
                 floats.append([side, phi0, rho] + [0.0] * (CHAIN_FLOAT - 3))
                 lines.append(f"{body} about {mech.hinges[h].name} by cylinder {cylinders[k].name}")
-            ints.append(row + [-1] * (CHAIN_INT - len(row)))
+            ints.append(row + [-1] * (STEP_HINGE - len(row)) + [h, -1, -1])   # the pivot B–P
             placed.add(body)
             drivers.remove(driver)
             progress = True
@@ -134,7 +141,7 @@ def decompose(mech: Mechanism, body_index: dict[str, int], hinge_att: np.ndarray
             phi_x, rho_x = _polar(att_ref[a_x] - att_ref[px[2]])
             phi_y, rho_y = _polar(att_ref[a_y] - att_ref[py[2]])
             side = _cross_sign(att_position[px[1]], att_position[py[1]], att_position[a_x])
-            ints.append([RRR, body_index[x], px[1], px[2], a_x, body_index[y], py[1], py[2], a_y, -1])
+            ints.append([RRR, body_index[x], px[1], px[2], a_x, body_index[y], py[1], py[2], a_y, -1, px[0], py[0], k])
             floats.append([side, phi_x, rho_x, phi_y, rho_y])
             lines.append(f"RRR({x}, {y}) at {mech.hinges[k].name}")
             placed |= {x, y}

@@ -21,6 +21,9 @@ from typing import Any
 import numpy as np
 from numba import njit, prange
 
+from .chain import (A_BODY, A_BODY2, A_END, A_JOINT1, A_JOINT2, A_OTHER, A_PARENT, A_PARENT2, ANGLE, ANGLE_INPUT,
+                    ANGLE_SIGN, BODY, BODY2, CYLINDER, CYLINDER_INPUT, KIND, RRR, STEP_HINGE, STEP_HINGE2, STEP_JOINT)
+
 TWO_PI = 2.0 * math.pi
 PARALLEL_MIN = 512  # poses: smaller batches stay on the calling thread (no thread-pool wake-up)
 _threads = {"allowed": False}
@@ -419,26 +422,27 @@ def _place_chain(q: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_ref: np
     """``chain_pose`` into q (every body the chain places is written); False when a step is out of reach."""
     for k in range(chain_int.shape[0]):
         row, f = chain_int[k], chain_float[k]
-        if row[0] == 0:     # ANGLE: θ_B = θ_P + sign·(s − reference), about the hinge point
-            parent = att_body[row[2]]
+        if row[KIND] == ANGLE:         # θ_B = θ_P + sign·(s − reference), about the hinge point
+            parent = att_body[row[A_PARENT]]
             theta_p = q[3 * parent + 2] if parent >= 0 else 0.0
-            px, pz = _point(q, row[2], att_body, att_ref)
-            _place(q, row[1], theta_p + row[5] * (s[row[4]] - f[0]), px, pz, row[3], att_ref)
-        elif row[0] == 1:   # CYLINDER: the end on B at ρ from the pivot and s from the other end
-            px, pz = _point(q, row[2], att_body, att_ref)
-            ox, oz = _point(q, row[5], att_body, att_ref)
-            ex, ez, ok = _circles(px, pz, f[2], ox, oz, s[row[6]], f[0])
+            px, pz = _point(q, row[A_PARENT], att_body, att_ref)
+            _place(q, row[BODY], theta_p + row[ANGLE_SIGN] * (s[row[ANGLE_INPUT]] - f[0]), px, pz, row[A_BODY],
+                   att_ref)
+        elif row[KIND] == CYLINDER:    # the end on B at ρ from the pivot and s from the other end
+            px, pz = _point(q, row[A_PARENT], att_body, att_ref)
+            ox, oz = _point(q, row[A_OTHER], att_body, att_ref)
+            ex, ez, ok = _circles(px, pz, f[2], ox, oz, s[row[CYLINDER_INPUT]], f[0])
             if not ok:
                 return False
-            _place(q, row[1], math.atan2(ez - pz, ex - px) - f[1], px, pz, row[3], att_ref)
-        else:               # RRR: the joint at ρ1 from B1's pivot and ρ2 from B2's
-            p1x, p1z = _point(q, row[2], att_body, att_ref)
-            p2x, p2z = _point(q, row[6], att_body, att_ref)
+            _place(q, row[BODY], math.atan2(ez - pz, ex - px) - f[1], px, pz, row[A_BODY], att_ref)
+        else:                          # RRR: the joint at ρ1 from B1's pivot and ρ2 from B2's
+            p1x, p1z = _point(q, row[A_PARENT], att_body, att_ref)
+            p2x, p2z = _point(q, row[A_PARENT2], att_body, att_ref)
             hx, hz, ok = _circles(p1x, p1z, f[2], p2x, p2z, f[4], f[0])
             if not ok:
                 return False
-            _place(q, row[1], math.atan2(hz - p1z, hx - p1x) - f[1], p1x, p1z, row[3], att_ref)
-            _place(q, row[5], math.atan2(hz - p2z, hx - p2x) - f[3], p2x, p2z, row[7], att_ref)
+            _place(q, row[BODY], math.atan2(hz - p1z, hx - p1x) - f[1], p1x, p1z, row[A_BODY], att_ref)
+            _place(q, row[BODY2], math.atan2(hz - p2z, hx - p2x) - f[3], p2x, p2z, row[A_BODY2], att_ref)
     return True
 
 
@@ -462,11 +466,11 @@ def chain_fit(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray, 
     drivers = np.empty(chain_int.shape[0], dtype=np.int64)   # the input column of each ANGLE / CYLINDER step
     d = 0
     for k in range(chain_int.shape[0]):
-        if chain_int[k, 0] == 0:
-            drivers[d] = chain_int[k, 4]
+        if chain_int[k, KIND] == ANGLE:
+            drivers[d] = chain_int[k, ANGLE_INPUT]
             d += 1
-        elif chain_int[k, 0] == 1:
-            drivers[d] = chain_int[k, 6]
+        elif chain_int[k, KIND] == CYLINDER:
+            drivers[d] = chain_int[k, CYLINDER_INPUT]
             d += 1
     q = np.zeros(n)
     if d == 0 or not _place_chain(q, s, att_body, att_ref, chain_int, chain_float):
@@ -769,15 +773,22 @@ def equilibrium_matrix(p: np.ndarray, axes: np.ndarray, lc: float, n_eq: int, n_
     a_mat = np.zeros((n_eq, n_unknowns))
     col = np.zeros(3)
     for t in range(t_col.shape[0]):
-        if t_member[t] >= 0:
-            fx, fz = t_sign[t] * axes[t_member[t], 0], t_sign[t] * axes[t_member[t], 1]
-        else:
-            fx, fz = t_const[t, 0], t_const[t, 1]
+        fx, fz = _term_force(t, axes, t_const, t_member, t_sign)
         col[:] = 0.0
         _add_generalized(col, 0, p[t_att[t], 0], p[t_att[t], 1], fx, fz, lc)
         for j in range(3):
             a_mat[3 * t_body[t] + j, t_col[t]] += col[j]
     return a_mat
+
+
+@njit(cache=True)
+def _term_force(t: int, axes: np.ndarray, t_const: np.ndarray, t_member: np.ndarray, t_sign: np.ndarray
+                ) -> tuple[float, float]:
+    """The force (N per unit of its column's unknown) of column term t: t_sign times the axis of
+    member t_member ≥ 0, else t_const."""
+    if t_member[t] >= 0:
+        return t_sign[t] * axes[t_member[t], 0], t_sign[t] * axes[t_member[t], 1]
+    return t_const[t, 0], t_const[t, 1]
 
 
 def solve_statics(p: np.ndarray, member_force: np.ndarray, accel: np.ndarray, alpha: np.ndarray,
@@ -813,29 +824,11 @@ def _statics_pose(i, u_out, residual, cond, axes, lengths, p, member_force, acce
                   end_member, end_sign, member_att, mass_att, mass_body, mass, inertia):
     """Pose i of ``solve_statics``, written into the output arrays."""
     n_unknowns = u_out.shape[1]
-    n_const = const_force.shape[0]
-    for k in range(member_att.shape[1]):
-        a, b = member_att[0, k], member_att[1, k]
-        dx, dz = p[i, b, 0] - p[i, a, 0], p[i, b, 1] - p[i, a, 1]
-        length = math.sqrt(dx * dx + dz * dz)
-        lengths[i, k] = length
-        axes[i, k, 0], axes[i, k, 1] = dx / length, dz / length
+    _member_axes(i, axes, lengths, p, member_att)
     a_mat = equilibrium_matrix(p[i], axes[i], lc, n_eq, n_unknowns, t_col, t_att, t_body, t_const, t_member, t_sign)
     b = np.zeros(n_eq)
-    for k in range(n_const):
-        att = known_att[k]
-        _add_generalized(b, 3 * known_body[k], p[i, att, 0], p[i, att, 1], const_force[k, 0], const_force[k, 1], lc)
-    for e in range(end_member.shape[0]):
-        att = known_att[n_const + e]
-        f = end_sign[e] * member_force[i, end_member[e]]
-        _add_generalized(b, 3 * known_body[n_const + e], p[i, att, 0], p[i, att, 1],
-                         f * axes[i, end_member[e], 0], f * axes[i, end_member[e], 1], lc)
-    if has_accel:
-        for k in range(mass_att.shape[0]):
-            att = mass_att[k]
-            _add_generalized(b, 3 * mass_body[k], p[i, att, 0], p[i, att, 1], -mass[k] * accel[i, k, 0],
-                             -mass[k] * accel[i, k, 1], lc)
-            b[3 * mass_body[k] + 2] -= inertia[k] * alpha[i, k] / lc
+    _known_loads(b, i, p, axes, member_force, accel, alpha, has_accel, lc, const_force, known_att, known_body,
+                 end_member, end_sign, mass_att, mass_body, mass, inertia)
     if n_unknowns == n_eq:
         lu, piv, c = factor_and_condition(a_mat)
         u = -lu_solve(lu, piv, b) if math.isfinite(c) else np.full(n_unknowns, np.nan)
@@ -854,6 +847,42 @@ def _statics_pose(i, u_out, residual, cond, axes, lengths, p, member_force, acce
 
 
 @njit(cache=True)
+def _member_axes(i: int, axes: np.ndarray, lengths: np.ndarray, p: np.ndarray, member_att: np.ndarray) -> None:
+    """Unit axes (from end a to end b) and lengths (m) of the members (springs then cylinders) of pose i."""
+    for k in range(member_att.shape[1]):
+        a, b = member_att[0, k], member_att[1, k]
+        dx, dz = p[i, b, 0] - p[i, a, 0], p[i, b, 1] - p[i, a, 1]
+        length = math.sqrt(dx * dx + dz * dz)
+        lengths[i, k] = length
+        axes[i, k, 0], axes[i, k, 1] = dx / length, dz / length
+
+
+@njit(cache=True)
+def _known_loads(b: np.ndarray, i: int, p: np.ndarray, axes: np.ndarray, member_force: np.ndarray,
+                 accel: np.ndarray, alpha: np.ndarray, has_accel: bool, lc: float, const_force: np.ndarray,
+                 known_att: np.ndarray, known_body: np.ndarray, end_member: np.ndarray, end_sign: np.ndarray,
+                 mass_att: np.ndarray, mass_body: np.ndarray, mass: np.ndarray, inertia: np.ndarray) -> None:
+    """The known loads of pose i as generalized forces into b (n_eq,) ([Fx, Fz, M/lc] per body,
+    ``solve_statics``' layout): constant loads, the ends of members of known force, and with
+    ``has_accel`` the inertia loads −m·a at each cg and −I·α (seed 004)."""
+    n_const = const_force.shape[0]
+    for k in range(n_const):
+        att = known_att[k]
+        _add_generalized(b, 3 * known_body[k], p[i, att, 0], p[i, att, 1], const_force[k, 0], const_force[k, 1], lc)
+    for e in range(end_member.shape[0]):
+        att = known_att[n_const + e]
+        f = end_sign[e] * member_force[i, end_member[e]]
+        _add_generalized(b, 3 * known_body[n_const + e], p[i, att, 0], p[i, att, 1],
+                         f * axes[i, end_member[e], 0], f * axes[i, end_member[e], 1], lc)
+    if has_accel:
+        for k in range(mass_att.shape[0]):
+            att = mass_att[k]
+            _add_generalized(b, 3 * mass_body[k], p[i, att, 0], p[i, att, 1], -mass[k] * accel[i, k, 0],
+                             -mass[k] * accel[i, k, 1], lc)
+            b[3 * mass_body[k] + 2] -= inertia[k] * alpha[i, k] / lc
+
+
+@njit(cache=True)
 def _statics_serial(n_pose, *args):
     for i in range(n_pose):
         _statics_pose(i, *args)
@@ -863,6 +892,208 @@ def _statics_serial(n_pose, *args):
 def _statics_parallel(n_pose, *args):
     for i in prange(n_pose):
         _statics_pose(i, *args)
+
+
+# ---- reduced coordinates: transmission and statics along the chain of dyads (chain.py) ---------------
+@njit(cache=True)
+def _sine_between(ux: float, uz: float, vx: float, vz: float) -> float:
+    """|sin| of the angle between two vectors: |u × v| / (|u|·|v|) (NaN when either is zero)."""
+    return abs(ux * vz - uz * vx) / (math.sqrt(ux * ux + uz * uz) * math.sqrt(vx * vx + vz * vz))
+
+
+@njit(cache=True)
+def step_transmission(p: np.ndarray, row: np.ndarray) -> float:
+    """The transmission measure of one chain step at attachment positions p (K, 2) m, in [0, 1]:
+    RRR: |sin μ|, μ the transmission angle between its two links at their common hinge H (the
+    angle A1–H–A2, A1 and A2 the links' pivots on placed bodies); CYLINDER: |sin| of the angle
+    between the cylinder's line and the arm's radius from the pivot to the cylinder end (the
+    cylinder's moment arm about the pivot over that radius); ANGLE: NaN (no transmission)."""
+    if row[KIND] == RRR:
+        hx, hz = p[row[A_JOINT1], 0], p[row[A_JOINT1], 1]
+        return _sine_between(hx - p[row[A_PARENT], 0], hz - p[row[A_PARENT], 1],
+                             hx - p[row[A_PARENT2], 0], hz - p[row[A_PARENT2], 1])
+    if row[KIND] == CYLINDER:
+        ex, ez = p[row[A_END], 0], p[row[A_END], 1]
+        return _sine_between(ex - p[row[A_PARENT], 0], ez - p[row[A_PARENT], 1],
+                             ex - p[row[A_OTHER], 0], ez - p[row[A_OTHER], 1])
+    return math.nan
+
+
+@njit(cache=True)
+def transmission_pose(p: np.ndarray, chain_int: np.ndarray, sine: np.ndarray) -> int:
+    """Each step's ``step_transmission`` at positions p (K, 2) into sine (S,); returns the step
+    with the smallest (the pose's measure), −1 when no step has one (angle-driven steps only)."""
+    weakest = -1
+    for k in range(chain_int.shape[0]):
+        sine[k] = step_transmission(p, chain_int[k])
+        if not math.isnan(sine[k]) and (weakest < 0 or sine[k] < sine[weakest]):
+            weakest = k
+    return weakest
+
+
+@njit(cache=True)
+def transmission_batch(p: np.ndarray, chain_int: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``transmission_pose`` of N poses p (N, K, 2): per step |sin| (N, S), the weakest step (N,)."""
+    sine = np.empty((p.shape[0], chain_int.shape[0]))
+    weakest = np.empty(p.shape[0], dtype=np.int64)
+    for i in range(p.shape[0]):
+        weakest[i] = transmission_pose(p[i], chain_int, sine[i])
+    return sine, weakest
+
+
+@njit(cache=True)
+def _wrench_about(g: np.ndarray, body: int, ax: float, az: float, lc: float) -> tuple[float, float, float]:
+    """The loads on ``body`` gathered in g ([Fx, Fz, M/lc] per body, M about the origin) as (Fx, Fz) N
+    and their moment (N·m) about the point (ax, az) m: M − (a × F)."""
+    fx, fz = g[3 * body], g[3 * body + 1]
+    return fx, fz, g[3 * body + 2] * lc - (ax * fz - az * fx)
+
+
+@njit(cache=True)
+def _hinge_force(u: np.ndarray, hinge_cols: np.ndarray, att_body: np.ndarray, hinge_att: np.ndarray, h: int,
+                 body: int, fx: float, fz: float) -> None:
+    """Hinge h's force (fx, fz) N on ``body`` into u, as the statics report it: on bodies[1] from bodies[0]."""
+    sign = 1.0 if att_body[hinge_att[1, h]] == body else -1.0
+    u[hinge_cols[h, 0]], u[hinge_cols[h, 1]] = sign * fx, sign * fz
+
+
+@njit(cache=True)
+def _pivot_reaction(g: np.ndarray, u: np.ndarray, p: np.ndarray, lc: float, att_body: np.ndarray,
+                    hinge_att: np.ndarray, hinge_cols: np.ndarray, h: int, body: int, a_parent: int, fx: float,
+                    fz: float) -> None:
+    """``body``'s loads summing to (fx, fz) N are held at hinge h by its placed parent: the hinge's
+    force on ``body`` is −(fx, fz) (ΣF = 0), and (fx, fz) goes on to the parent at ``a_parent``."""
+    _hinge_force(u, hinge_cols, att_body, hinge_att, h, body, -fx, -fz)
+    parent = att_body[a_parent]
+    if parent >= 0:
+        _add_generalized(g, 3 * parent, p[a_parent, 0], p[a_parent, 1], fx, fz, lc)
+
+
+@njit(cache=True, error_model="numpy")
+def _reverse_pass(g: np.ndarray, u: np.ndarray, p: np.ndarray, axes: np.ndarray, lc: float, att_body: np.ndarray,
+                  hinge_att: np.ndarray, chain_int: np.ndarray, hinge_cols: np.ndarray, step_col: np.ndarray,
+                  step_member: np.ndarray, step_sign: np.ndarray) -> float:
+    """Equilibrium of one pose step by step from the outermost step inward (reverse placement
+    order), for the loads g (n_eq,) ([Fx, Fz, M/lc] per body; the reactions found are added to the
+    placed bodies as they are found): the step's unknowns into u (the statics layout's columns).
+
+    - RRR (B1 pivoted at A1, B2 at A2, hinged to each other at H): moments about A1 of B1 and
+      about A2 of B2 give the joint force J on B1 (2×2, Cramer):
+      (H − A1) × J = −M1, (H − A2) × J = M2, det = (H − A1) × (H − A2) = |HA1|·|HA2|·sin μ;
+      then the pivots' forces from ΣF: −(F1 + J) on B1, −(F2 − J) on B2 (seed 003's hand solution,
+      the moment about each dyad's hinges).
+    - CYLINDER with an unknown force (B pivoted at A, the cylinder on B's end E): the moment about A,
+      M + (E − A) × f·e = 0, e the unit force on B per newton: f = −M / ((E − A) × e); its other end
+      takes −f·e; the pivot's force from ΣF.
+    - ANGLE, or CYLINDER with a measured force (already among the known loads): the pivot's force
+      from ΣF; the moment about the pivot is left over (no actuator holds it): returned, the
+      closing equation ``_reduced_pose`` makes vanish.
+
+    Returns the closing step's moment (N·m), 0 without one (at most one: ``ReducedStatics``' rule).
+    """
+    closing = 0.0
+    for k in range(chain_int.shape[0] - 1, -1, -1):
+        row = chain_int[k]
+        body = row[BODY]
+        ax, az = p[row[A_BODY], 0], p[row[A_BODY], 1]
+        fx, fz, moment = _wrench_about(g, body, ax, az, lc)
+        if row[KIND] == RRR:
+            body2 = row[BODY2]
+            a2x, a2z = p[row[A_BODY2], 0], p[row[A_BODY2], 1]
+            f2x, f2z, moment2 = _wrench_about(g, body2, a2x, a2z, lc)
+            r1x, r1z = p[row[A_JOINT1], 0] - ax, p[row[A_JOINT1], 1] - az
+            r2x, r2z = p[row[A_JOINT2], 0] - a2x, p[row[A_JOINT2], 1] - a2z
+            det = r1x * r2z - r1z * r2x
+            jx = (-moment * r2x - r1x * moment2) / det
+            jz = (-r1z * moment2 - r2z * moment) / det
+            _hinge_force(u, hinge_cols, att_body, hinge_att, row[STEP_JOINT], body, jx, jz)
+            _pivot_reaction(g, u, p, lc, att_body, hinge_att, hinge_cols, row[STEP_HINGE], body, row[A_PARENT],
+                            fx + jx, fz + jz)
+            _pivot_reaction(g, u, p, lc, att_body, hinge_att, hinge_cols, row[STEP_HINGE2], body2, row[A_PARENT2],
+                            f2x - jx, f2z - jz)
+            continue
+        if row[KIND] == CYLINDER and step_col[k] >= 0:
+            ex, ez = step_sign[k] * axes[step_member[k], 0], step_sign[k] * axes[step_member[k], 1]
+            force = -moment / ((p[row[A_END], 0] - ax) * ez - (p[row[A_END], 1] - az) * ex)
+            u[step_col[k]] = force
+            fx, fz = fx + force * ex, fz + force * ez
+            other = row[A_OTHER]
+            if att_body[other] >= 0:
+                _add_generalized(g, 3 * att_body[other], p[other, 0], p[other, 1], -force * ex, -force * ez, lc)
+        else:
+            closing = moment
+        _pivot_reaction(g, u, p, lc, att_body, hinge_att, hinge_cols, row[STEP_HINGE], body, row[A_PARENT], fx, fz)
+    return closing
+
+
+def solve_reduced_statics(p: np.ndarray, member_force: np.ndarray, accel: np.ndarray, alpha: np.ndarray,
+                          has_accel: bool, n_unknowns: int, layout: tuple, reduced: tuple) -> tuple[np.ndarray, ...]:
+    """``solve_statics`` in reduced coordinates: the same unknowns u (N, n_unknowns) for the same
+    loads (arguments as there; ``layout``: ``StaticsLayout.program``), found along the chain of
+    dyads (``_reverse_pass``) with no linear system. ``reduced``: ``ReducedStatics.program``.
+
+    Returns u, the equilibrium residual (N,) N·m (the closing equation's moment left over; 0
+    without one), each step's transmission |sin| (N, S) and the weakest step (N,)
+    (``transmission_pose``), member unit axes (N, M, 2) and lengths (N, M) m.
+    """
+    n_pose = p.shape[0]
+    n_members = member_force.shape[1]
+    chain_int = reduced[2]
+    out = (np.empty((n_pose, n_unknowns)), np.empty(n_pose), np.empty((n_pose, chain_int.shape[0])),
+           np.empty(n_pose, dtype=np.int64), np.empty((n_pose, n_members, 2)), np.empty((n_pose, n_members)))
+    driver = _reduced_parallel if _parallel(n_pose) else _reduced_serial
+    driver(n_pose, *out, p, member_force, accel, alpha, has_accel, *layout, *reduced)
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _reduced_pose(i, u_out, residual, sine, weakest, axes, lengths, p, member_force, accel, alpha, has_accel,
+                  lc, n_eq, t_col, t_att, t_body, t_const, t_member, t_sign, const_force, known_att, known_body,
+                  end_member, end_sign, member_att, mass_att, mass_body, mass, inertia,
+                  att_body, hinge_att, chain_int, hinge_cols, step_col, step_member, step_sign, free_col):
+    """Pose i of ``solve_reduced_statics``, written into the output arrays.
+
+    The statics are linear in the loads: with a free load λ (``free_col`` ≥ 0: a contact's normal
+    force, the implement's vertical load, a cylinder that drives no step), the chain is solved for
+    the known loads and for λ = 1 alone (superposition), and λ makes the closing step's moment
+    vanish: λ = −M_known / M_unit.
+    """
+    _member_axes(i, axes, lengths, p, member_att)
+    n_cases = 2 if free_col >= 0 else 1
+    loads = np.zeros((n_cases, n_eq))
+    _known_loads(loads[0], i, p, axes, member_force, accel, alpha, has_accel, lc, const_force, known_att, known_body,
+                 end_member, end_sign, mass_att, mass_body, mass, inertia)
+    if free_col >= 0:
+        for t in range(t_col.shape[0]):
+            if t_col[t] == free_col:
+                fx, fz = _term_force(t, axes[i], t_const, t_member, t_sign)
+                _add_generalized(loads[1], 3 * t_body[t], p[i, t_att[t], 0], p[i, t_att[t], 1], fx, fz, lc)
+    u = np.zeros((n_cases, u_out.shape[1]))
+    closing = np.zeros(n_cases)
+    for c in range(n_cases):
+        closing[c] = _reverse_pass(loads[c], u[c], p[i], axes[i], lc, att_body, hinge_att, chain_int, hinge_cols,
+                                   step_col, step_member, step_sign)
+    if free_col >= 0:
+        free = -closing[0] / closing[1]
+        u_out[i] = u[0] + free * u[1]
+        u_out[i, free_col] = free
+        residual[i] = abs(closing[0] + free * closing[1])
+    else:
+        u_out[i] = u[0]
+        residual[i] = 0.0
+    weakest[i] = transmission_pose(p[i], chain_int, sine[i])
+
+
+@njit(cache=True)
+def _reduced_serial(n_pose, *args):
+    for i in range(n_pose):
+        _reduced_pose(i, *args)
+
+
+@njit(cache=True, parallel=True)
+def _reduced_parallel(n_pose, *args):
+    for i in prange(n_pose):
+        _reduced_pose(i, *args)
 
 
 # ---- lift capacity by virtual work ------------------------------------------------------------------

@@ -199,19 +199,25 @@ class StaticsLayout:
         ``accel``: accelerations (N, K, 2) m/s² of every attachment and angular accelerations (N, n_bodies)
         rad/s² of the bodies, for the inertia loads (kinetostatics, seed 004)."""
         ns = self.n_springs
-        spring_force = self.spring_forces(p)
-        member_force = np.ascontiguousarray(np.concatenate([spring_force, cylinder_force], axis=1), dtype=float)
-        member_force[:, self.unmeasured] = 0.0   # their force is an unknown (NaN on input)
-        if accel is None:
-            lin, alpha, has_accel = _NO_ACCEL_LINEAR, _NO_ACCEL_ANGULAR, False
-        else:
-            lin = np.ascontiguousarray(accel[0][:, self.mass_att])
-            alpha, has_accel = np.ascontiguousarray(accel[1][:, self.mass_body]), True
+        member_force, lin, alpha, has_accel = self.kernel_loads(p, cylinder_force, accel)
         u, residual, cond, axes, length = kernels.solve_statics(np.ascontiguousarray(p, dtype=float), member_force,
                                                                 lin, alpha, has_accel, self.n_unknowns, *self.program)
         return StaticsSolution(unknowns=u, residual=residual, condition=cond,
                                cylinder_axis=axes[:, ns:], cylinder_length=length[:, ns:],
-                               spring_force=spring_force, spring_axis=axes[:, :ns])
+                               spring_force=member_force[:, :ns], spring_axis=axes[:, :ns])
+
+    def kernel_loads(self, p: np.ndarray, cylinder_force: np.ndarray, accel: tuple[np.ndarray, np.ndarray] | None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+        """``solve``'s arguments as the kernels take them: member forces (N, M) N (springs from their
+        length, measured cylinders as given, the unknown ones 0), the cgs' accelerations (N, n_mass,
+        2) m/s², the angular ones (N, n_mass) rad/s², and whether there are any."""
+        member_force = np.ascontiguousarray(np.concatenate([self.spring_forces(p), cylinder_force], axis=1),
+                                            dtype=float)
+        member_force[:, self.unmeasured] = 0.0   # their force is an unknown (NaN on input)
+        if accel is None:
+            return member_force, _NO_ACCEL_LINEAR, _NO_ACCEL_ANGULAR, False
+        return (member_force, np.ascontiguousarray(accel[0][:, self.mass_att]),
+                np.ascontiguousarray(accel[1][:, self.mass_body]), True)
 
     def _check_observable(self) -> UnobservableError | None:
         """Structural rank check; the error names the undetermined unknowns.
