@@ -933,11 +933,14 @@ def transmission_pose(p: np.ndarray, chain_int: np.ndarray, sine: np.ndarray) ->
 
 @njit(cache=True)
 def transmission_batch(p: np.ndarray, chain_int: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``transmission_pose`` of N poses p (N, K, 2): per step |sin| (N, S), the weakest step (N,)."""
-    sine = np.empty((p.shape[0], chain_int.shape[0]))
+    """``transmission_pose`` of N poses p (N, K, 2): per step |sin| (N, S + 1) in
+    ``solve_reduced_statics``' layout (the free load's column NaN: it depends on the statics), the
+    weakest step (N,)."""
+    n_steps = chain_int.shape[0]
+    sine = np.full((p.shape[0], n_steps + 1), math.nan)
     weakest = np.empty(p.shape[0], dtype=np.int64)
     for i in range(p.shape[0]):
-        weakest[i] = transmission_pose(p[i], chain_int, sine[i])
+        weakest[i] = transmission_pose(p[i], chain_int, sine[i, :n_steps])
     return sine, weakest
 
 
@@ -1033,13 +1036,14 @@ def solve_reduced_statics(p: np.ndarray, member_force: np.ndarray, accel: np.nda
     dyads (``_reverse_pass``) with no linear system. ``reduced``: ``ReducedStatics.program``.
 
     Returns u, the equilibrium residual (N,) N·m (the closing equation's moment left over; 0
-    without one), each step's transmission |sin| (N, S) and the weakest step (N,)
-    (``transmission_pose``), member unit axes (N, M, 2) and lengths (N, M) m.
+    without one), the transmission (N, S + 1): each step's |sin| (``step_transmission``) then the
+    free load's (``_reduced_pose``; NaN without one), the weakest of them (N,) (S: the free load;
+    −1: none), member unit axes (N, M, 2) and lengths (N, M) m.
     """
     n_pose = p.shape[0]
     n_members = member_force.shape[1]
     chain_int = reduced[2]
-    out = (np.empty((n_pose, n_unknowns)), np.empty(n_pose), np.empty((n_pose, chain_int.shape[0])),
+    out = (np.empty((n_pose, n_unknowns)), np.empty(n_pose), np.empty((n_pose, chain_int.shape[0] + 1)),
            np.empty(n_pose, dtype=np.int64), np.empty((n_pose, n_members, 2)), np.empty((n_pose, n_members)))
     driver = _reduced_parallel if _parallel(n_pose) else _reduced_serial
     driver(n_pose, *out, p, member_force, accel, alpha, has_accel, *layout, *reduced)
@@ -1050,38 +1054,57 @@ def solve_reduced_statics(p: np.ndarray, member_force: np.ndarray, accel: np.nda
 def _reduced_pose(i, u_out, residual, sine, weakest, axes, lengths, p, member_force, accel, alpha, has_accel,
                   lc, n_eq, t_col, t_att, t_body, t_const, t_member, t_sign, const_force, known_att, known_body,
                   end_member, end_sign, member_att, mass_att, mass_body, mass, inertia,
-                  att_body, hinge_att, chain_int, hinge_cols, step_col, step_member, step_sign, free_col):
+                  att_body, hinge_att, chain_int, hinge_cols, step_col, step_member, step_sign, free_col,
+                  closing_step):
     """Pose i of ``solve_reduced_statics``, written into the output arrays.
 
     The statics are linear in the loads: with a free load λ (``free_col`` ≥ 0: a contact's normal
     force, the implement's vertical load, a cylinder that drives no step), the chain is solved for
     the known loads and for λ = 1 alone (superposition), and λ makes the closing step's moment
     vanish: λ = −M_known / M_unit.
+
+    The free load's transmission, as a cylinder step's: its moment arm about the closing step's
+    pivot A over the radius from A to its point P (to the farther of its points on moving bodies),
+    |sin| = |M_unit| / (|e|·|P − A|), e its force per unit λ — for a load on the closing step's own
+    body the sine of the angle between its line and that radius; through the chain M_unit is the
+    load's virtual work per unit rotation of the closing step (1 when larger than the radius). At
+    0 the load does no work on the motion the closing equation balances, and it is not determined:
+    a static dead centre of the general path that no link's transmission shows.
     """
     _member_axes(i, axes, lengths, p, member_att)
-    n_cases = 2 if free_col >= 0 else 1
+    n_steps = chain_int.shape[0]
+    n_cases = 2 if free_col >= 0 else 1    # the known loads; λ = 1 alone
     loads = np.zeros((n_cases, n_eq))
     _known_loads(loads[0], i, p, axes, member_force, accel, alpha, has_accel, lc, const_force, known_att, known_body,
                  end_member, end_sign, mass_att, mass_body, mass, inertia)
+    size, radius = 0.0, 0.0   # |e| N per unit λ; |P − A| m
     if free_col >= 0:
+        pivot = chain_int[closing_step, A_BODY]
         for t in range(t_col.shape[0]):
             if t_col[t] == free_col:
                 fx, fz = _term_force(t, axes[i], t_const, t_member, t_sign)
-                _add_generalized(loads[1], 3 * t_body[t], p[i, t_att[t], 0], p[i, t_att[t], 1], fx, fz, lc)
+                px, pz = p[i, t_att[t], 0], p[i, t_att[t], 1]
+                _add_generalized(loads[1], 3 * t_body[t], px, pz, fx, fz, lc)
+                size = math.sqrt(fx * fx + fz * fz)
+                radius = max(radius, math.hypot(px - p[i, pivot, 0], pz - p[i, pivot, 1]))
     u = np.zeros((n_cases, u_out.shape[1]))
     closing = np.zeros(n_cases)
     for c in range(n_cases):
         closing[c] = _reverse_pass(loads[c], u[c], p[i], axes[i], lc, att_body, hinge_att, chain_int, hinge_cols,
                                    step_col, step_member, step_sign)
+    weakest[i] = transmission_pose(p[i], chain_int, sine[i, :n_steps])
     if free_col >= 0:
         free = -closing[0] / closing[1]
         u_out[i] = u[0] + free * u[1]
         u_out[i, free_col] = free
         residual[i] = abs(closing[0] + free * closing[1])
+        sine[i, n_steps] = min(abs(closing[1]) / (size * radius), 1.0)
+        if weakest[i] < 0 or not sine[i, n_steps] >= sine[i, weakest[i]]:
+            weakest[i] = n_steps
     else:
         u_out[i] = u[0]
         residual[i] = 0.0
-    weakest[i] = transmission_pose(p[i], chain_int, sine[i])
+        sine[i, n_steps] = math.nan
 
 
 @njit(cache=True)

@@ -30,7 +30,6 @@ SI units: m, N, N·m.
 
 from __future__ import annotations
 
-import math
 from functools import cached_property
 from typing import NamedTuple
 
@@ -41,14 +40,20 @@ from .kinematics import Kinematics
 from .statics import StaticsLayout
 
 DEAD_CENTRE_TRANSMISSION_DEG = 1.0
-"""Degrees: a pose whose smallest transmission angle is below this is a dead centre. Placeholder
-until the sweep (tools/transmission_sweep.py) sets it."""
+"""Degrees: a pose whose smallest transmission angle (its steps' and its free load's) is below this
+is a dead centre. From tools/transmission_sweep.py: on dense sweeps of every preset, driven through
+each of its dead centres, the poses the condition-number verdict (cond > 1e6) flags all have a
+smallest angle of at most 0.033° (ksu1_mower_adapter, ttz1080_base_change; 0.006° to 0.027° for the
+others); 1° flags every one of them, with a margin of 30× for mechanisms beyond the presets
+(test_reduced_coordinates.py holds the claim on a smaller sweep)."""
 
 
 class Transmission(NamedTuple):
-    """Transmission of N poses along the chain: per step |sin| (N, S) in [0, 1] (NaN for an
-    angle-driven step), the step that attains the smallest (N,) (−1: no step has a measure), and
-    the pose's measure as an angle (N,) rad in [0, π/2] (π/2 when no step has one)."""
+    """Transmission of N poses along the chain: |sin| (N, S + 1) in [0, 1] per step (NaN for an
+    angle-driven step) and, last, the free load's (``kernels._reduced_pose``; NaN without one or
+    without the statics); which of these attains the smallest (N,) (−1: none has a measure); the
+    pose's measure as an angle (N,) rad in [0, π/2] (π/2 when none has one, 0 when the free
+    load's is undefined: it does no work on any motion)."""
 
     sine: np.ndarray
     weakest: np.ndarray
@@ -73,7 +78,7 @@ def transmission_angle(sine: np.ndarray, weakest: np.ndarray) -> np.ndarray:
     """The pose's measure (N,) rad in [0, π/2]: arcsin of its weakest step's |sin|, π/2 without one."""
     smallest = np.ones(weakest.shape[0])
     has = weakest >= 0
-    smallest[has] = sine[has, weakest[has]]
+    smallest[has] = np.nan_to_num(sine[has, weakest[has]], nan=0.0)
     return np.arcsin(np.minimum(smallest, 1.0))
 
 
@@ -116,7 +121,8 @@ class ReducedStatics:
         self.step_member = np.full(n_steps, -1, dtype=np.int64)   # CYLINDER: member index (springs then cylinders)
         self.step_sign = np.zeros(n_steps)                        # CYLINDER: +1 rod end on B, −1 base on B
         cylinder_index = {c.name: k for k, c in enumerate(mech.cylinders)}
-        closing_steps, solved = [], set()
+        closing_steps: list[int] = []
+        solved: set[int] = set()
         for k, row in enumerate(rows):
             hinges = [h for h in row[[chain.STEP_HINGE, chain.STEP_HINGE2, chain.STEP_JOINT]] if h >= 0]
             solved |= {int(c) for h in hinges for c in layout.hinge_cols[h]}
@@ -147,6 +153,9 @@ class ReducedStatics:
                            f"(the reduced path takes at most one)")
         else:
             self.reason = ""
+        free_name = (f"{layout.columns[self.free_col]} through {self.step_names[self.closing_step]}"
+                     if self.free_col >= 0 and self.closing_step >= 0 else "no free load")
+        self.measure_names = [*self.step_names, free_name]   # a name per column of Transmission.sine
 
     @property
     def served(self) -> bool:
@@ -157,10 +166,10 @@ class ReducedStatics:
     def program(self) -> tuple:
         """What ``kernels.solve_reduced_statics`` takes beyond the statics layout: attachment bodies,
         hinge attachments, the chain, the hinges' columns, per step the column / member / sign of
-        its cylinder, the free load's column (−1: none)."""
+        its cylinder, the free load's column and its closing step (−1: none)."""
         kin, layout = self.kin, self.layout
         return (kin.geometry[0], kin.hinge_att, kin.chain_int, np.ascontiguousarray(layout.hinge_cols, dtype=np.int64),
-                self.step_col, self.step_member, self.step_sign, self.free_col)
+                self.step_col, self.step_member, self.step_sign, self.free_col, self.closing_step)
 
     def describe(self) -> str:
         """Which path this layout takes and why, for people (``linkage-monitor solve --explain``)."""
@@ -186,7 +195,3 @@ class ReducedStatics:
                                cylinder_axis=axes[:, ns:], cylinder_length=length[:, ns:],
                                spring_force=member_force[:, :ns], spring_axis=axes[:, :ns])
 
-
-def dead_centre_threshold() -> float:
-    """DEAD_CENTRE_TRANSMISSION_DEG as |sin| (the measure's own scale)."""
-    return math.sin(math.radians(DEAD_CENTRE_TRANSMISSION_DEG))
