@@ -19,17 +19,22 @@ T0 = 1_700_000_000_000_000_000  # ns, an arbitrary recording start
 
 
 def _count_readable(bag: Path) -> tuple[int, int]:
-    """Messages read back by mcap (linear scan) and by rosbags."""
-    with open(next(bag.glob("*.mcap")), "rb") as f:
-        by_mcap = sum(1 for _ in NonSeekingReader(f).iter_messages())
+    """Messages read back by mcap (linear scan of every file) and by rosbags."""
+    by_mcap = 0
+    for file in bag.glob("*.mcap"):
+        with open(file, "rb") as f:
+            by_mcap += sum(1 for _ in NonSeekingReader(f).iter_messages())
     with AnyReader([bag], default_typestore=get_typestore(Stores.EMPTY)) as reader:
         by_rosbags = sum(1 for _ in reader.messages())
     return by_mcap, by_rosbags
 
 
-def test_full_disk_is_reported_and_the_bag_stays_readable(tmpfs):
+@pytest.mark.parametrize("split", [0, 48 * 1024], ids=["one file", "split by size"])
+def test_full_disk_is_reported_and_the_bag_stays_readable(tmpfs, split):
+    """Split by size, the disk fills while the fourth or so file is written: the files before are
+    finished, the last one cut back to its last complete chunk; all of them read as one bag."""
     disk = tmpfs("size=256k")
-    writer = BagWriter(disk / "run", chunk_size=16 * 1024, flush_period_s=0.05)
+    writer = BagWriter(disk / "run", chunk_size=16 * 1024, flush_period_s=0.05, max_bag_size=split)
     payload = "x" * 2000   # incompressible enough: 2 kB per message
     written = 0
     import random
@@ -45,6 +50,8 @@ def test_full_disk_is_reported_and_the_bag_stays_readable(tmpfs):
     writer.close()   # never raises
     by_mcap, by_rosbags = _count_readable(disk / "run")
     assert 0 < by_mcap == by_rosbags <= written
+    assert len(list((disk / "run").glob("*.mcap"))) == (1 if not split else len(writer.paths)) and \
+        (not split or len(writer.paths) >= 3)
 
 
 def test_read_only_directory_is_one_clear_error(tmpfs):

@@ -1,4 +1,4 @@
-"""rosbag2-compatible MCAP bag writer: `<dir>/metadata.yaml` + `<dir>/<name>_0.mcap`.
+"""rosbag2-compatible MCAP bag writer: `<dir>/metadata.yaml` + `<dir>/<name>_0.mcap` (`_1.mcap`, ... when split).
 
 What `ros2 bag record -s mcap` writes (rosbag2_storage_mcap, foxglove registry.md): profile
 `ros2`, schema name `pkg/msg/Type` with encoding `ros2msg` (msg_schema.message_definition),
@@ -10,6 +10,14 @@ and the file is made to end in a valid DataEnd + Footer (no summary), so a proce
 with SIGKILL leaves a bag that footer-reading readers (rosbags, mcap SeekingReader, Rerun)
 open and that holds everything written up to the last flush. `metadata.yaml` is rewritten
 at the same time.
+
+Splitting (``max_bag_size``, ``max_bag_duration_s``; off by default), as ``ros2 bag record
+--max-bag-size --max-bag-duration`` does: when the file being written has reached the size (bytes,
+counted at the message about to be written, chunks uncompressed) or holds messages spanning the
+duration (receive time), it is finished (summary, indexes, the ``rosbag2`` metadata record) and the
+next message starts `<name>_<k+1>.mcap` with the same schemas, channels and attachments, so every
+file is readable on its own; `metadata.yaml` lists every file with its span. The crash safety and
+the cut-back on a full disk below hold for the file being written.
 
 Off the caller's path: `write` queues the message (its bytes, times and channel) and returns;
 the background thread writes the queue into the MCAP chunk every WRITE_PERIOD_S, in order (a
@@ -25,7 +33,7 @@ import os
 import struct
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -146,9 +154,10 @@ class _TailedFile:
 
 @dataclass
 class _Topic:
+    """A recorded topic: its type, offered QoS (rosbag2 v9 form) and messages written in all files."""
+
     name: str
     type_name: str
-    channel_id: int
     qos: dict[str, Any]
     count: int = 0
 
@@ -160,12 +169,71 @@ class _Span:
     start: int | None = None
     end: int | None = None
     count: int = 0
-    topics: dict[str, _Topic] = field(default_factory=dict)
 
     def add(self, log_time_ns: int) -> None:
         self.start = log_time_ns if self.start is None else min(self.start, log_time_ns)
         self.end = log_time_ns if self.end is None else max(self.end, log_time_ns)
         self.count += 1
+
+    def information(self) -> dict[str, Any]:
+        """rosbag2's starting_time, duration and message_count of this span."""
+        start = self.start or 0
+        return {"starting_time": {"nanoseconds_since_epoch": start},
+                "duration": {"nanoseconds": (self.end or start) - start},
+                "message_count": self.count}
+
+
+@dataclass
+class _Attachment:
+    name: str
+    data: bytes
+    media_type: str
+    log_time_ns: int
+
+
+class _StorageFile:
+    """One MCAP file of the bag being written: its tailed file, MCAP writer, the schema and channel
+    ids registered in it, and the span of its messages."""
+
+    def __init__(self, path: Path, chunk_size: int, compression: CompressionType) -> None:
+        self.path = path
+        self.file = _TailedFile(path)
+        self.writer = Writer(self.file, chunk_size=chunk_size,  # type: ignore[arg-type]  # file-like: write/tell/flush
+                             compression=compression)
+        self.writer.start(profile="ros2", library="linkage_monitor.bag.writer")
+        self.file.enable_tail()
+        self.file.write(b"")  # end the header in a valid tail right away
+        self.schemas: dict[str, int] = {}
+        self.channels: dict[str, int] = {}
+        self.span = _Span()
+        self.pending_bytes = 0      # message bytes given to the writer since the file last grew
+        self._end_seen = self.file.tell()
+
+    def size(self) -> int:
+        """Bytes in the file plus the messages still in the open chunk (uncompressed), B."""
+        if self.file.tell() != self._end_seen:
+            self._end_seen, self.pending_bytes = self.file.tell(), 0
+        return self._end_seen + self.pending_bytes
+
+    def channel(self, topic: _Topic) -> int:
+        """The channel id of ``topic`` in this file, its schema and channel registered at first use."""
+        channel_id = self.channels.get(topic.name)
+        if channel_id is None:
+            schema_id = self.schemas.get(topic.type_name)
+            if schema_id is None:
+                schema_id = self.writer.register_schema(
+                    name=topic.type_name, encoding="ros2msg",
+                    data=message_definition(topic.type_name).encode("utf-8"))
+                self.schemas[topic.type_name] = schema_id
+            channel_id = self.writer.register_channel(
+                topic=topic.name, message_encoding="cdr", schema_id=schema_id,
+                metadata={"offered_qos_profiles": yaml.safe_dump([topic.qos], sort_keys=False)})
+            self.channels[topic.name] = channel_id
+        return channel_id
+
+    def attach(self, item: _Attachment) -> None:
+        self.writer.add_attachment(create_time=item.log_time_ns, log_time=item.log_time_ns, name=item.name,
+                                   media_type=item.media_type, data=item.data)
 
 
 class BagError(RuntimeError):
@@ -179,43 +247,58 @@ class BagWriter:
     A background thread writes the queued messages every WRITE_PERIOD_S and flushes every
     `flush_period_s` seconds, so a killed process loses at most that much. Use as a context
     manager or call `close()`.
+
+    max_bag_size: B, start a new file once the current one has reached this size; 0: never.
+    max_bag_duration_s: s, start a new file once the current one's messages span this long; 0: never.
     """
 
     def __init__(self, directory: str | os.PathLike[str], name: str | None = None, *,
                  chunk_size: int = 1 << 20, flush_period_s: float = 1.0,
-                 compression: CompressionType = CompressionType.ZSTD) -> None:
+                 compression: CompressionType = CompressionType.ZSTD,
+                 max_bag_size: int = 0, max_bag_duration_s: float = 0.0) -> None:
         self.directory = Path(directory)
         self.name = name or self.directory.name
-        self.mcap_path = self.directory / f"{self.name}_0.mcap"
-        if (self.directory / "metadata.yaml").exists() or self.mcap_path.exists():
+        first = self._file_path(0)
+        if (self.directory / "metadata.yaml").exists() or first.exists():
             raise BagError(f"bag directory {self.directory} already holds a bag: "
                            "choose a new directory or remove the old bag")
         if flush_period_s <= 0:
             raise ValueError(f"flush_period_s must be > 0 s, got {flush_period_s}")
+        if not max_bag_size >= 0 or not max_bag_duration_s >= 0:
+            raise ValueError(f"max_bag_size ({max_bag_size} B) and max_bag_duration_s ({max_bag_duration_s} s) "
+                             "must be >= 0 (0: no splitting)")
+        self._chunk_size, self._compression = chunk_size, compression
+        self._max_size = int(max_bag_size)
+        self._max_duration_ns = int(max_bag_duration_s * 1e9)
         self._lock = threading.Lock()         # the MCAP writer, the file, the span, the error state
         self._queue_lock = threading.Lock()   # _queued and closing (held for an append or a swap only)
         self._queued: list[tuple[_Topic, bytes, int, int]] = []   # (topic, CDR, log time, publish time)
         self._flush_period_s = flush_period_s
-        self._span = _Span()
-        self._schemas: dict[str, int] = {}
+        self._span = _Span()                     # all files
+        self._topics: dict[str, _Topic] = {}
+        self._attachments: list[_Attachment] = []
+        self._finished: list[tuple[str, _Span]] = []   # files written and closed: (name, span)
         self._dirty = False
         self._closed = threading.Event()
         self.error: str | None = None   # set at the first I/O error: what failed, on which path
         self.unwritten = 0              # messages not recorded because of that error
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
-            self._file = _TailedFile(self.mcap_path)
-            self._writer = Writer(self._file, chunk_size=chunk_size,  # type: ignore[arg-type]  # file-like: write/tell/flush
-                                  compression=compression)
-            self._writer.start(profile="ros2", library="linkage_monitor.bag.writer")
-            self._file.enable_tail()
-            self._file.write(b"")  # end the header in a valid tail right away
+            self._current = _StorageFile(first, chunk_size, compression)
             self._write_metadata_yaml()
         except OSError as exc:
             raise BagError(f"cannot record into {exc.filename or self.directory}: {exc.strerror or exc} "
                            "(choose a writable directory, e.g. with the record_dir parameter)") from None
         self._flusher = threading.Thread(target=self._write_loop, name=f"BagWriter {self.name}", daemon=True)
         self._flusher.start()
+
+    def _file_path(self, index: int) -> Path:
+        return self.directory / f"{self.name}_{index}.mcap"
+
+    @property
+    def paths(self) -> list[Path]:
+        """The bag's MCAP files, in order (the last one being written until ``close``)."""
+        return [self.directory / name for name, _ in self._finished] + [self._current.path]
 
     def __enter__(self) -> BagWriter:
         return self
@@ -247,9 +330,9 @@ class BagWriter:
         # MCAP times are unsigned 64-bit: a stamp that is not (negative, absurd) is stored as 0
         log_time = time.time_ns() if log_time_ns is None or not 0 <= log_time_ns < _U64 else int(log_time_ns)
         publish_time = int(stamp_ns) if 0 <= stamp_ns < _U64 else 0
-        entry = self._span.topics.get(topic)
+        entry = self._topics.get(topic)
         if entry is None or entry.type_name != type_name:
-            with self._lock:   # a new topic: its channel is registered now (another type: BagError)
+            with self._lock:   # a new topic (another type: BagError)
                 self._check_open()
                 entry = self._topic(topic, type_name, qos) if self.error is None else None
         with self._queue_lock:
@@ -273,8 +356,12 @@ class BagWriter:
             log_time = max(log_time, self._span.end or 0)
             if self.error is None:
                 try:
-                    self._writer.add_message(entry.channel_id, log_time=log_time, data=data,
-                                             publish_time=publish_time, sequence=entry.count % (1 << 32))
+                    if self._split_due(log_time):
+                        self._next_file()
+                    current = self._current
+                    current.writer.add_message(current.channel(entry), log_time=log_time, data=data,
+                                               publish_time=publish_time, sequence=entry.count % (1 << 32))
+                    current.pending_bytes += len(data)
                 except OSError as exc:
                     self._fail(exc)
             if self.error is not None:
@@ -283,7 +370,32 @@ class BagWriter:
                 return
             entry.count += 1
             self._span.add(log_time)
+            self._current.span.add(log_time)
             self._dirty = True
+
+    def _split_due(self, log_time_ns: int) -> bool:
+        """True when the file being written is full by size or duration (and holds a message)."""
+        span = self._current.span
+        if span.start is None:
+            return False
+        return ((self._max_size > 0 and self._current.size() >= self._max_size)
+                or (self._max_duration_ns > 0 and log_time_ns - span.start >= self._max_duration_ns))
+
+    def _next_file(self) -> None:
+        """Finish the file being written (under ``_lock``) and start the next one; OSError as writing."""
+        self._finish_file()
+        self._current.file.close()
+        self._finished.append((self._current.path.name, self._current.span))
+        self._current = _StorageFile(self._file_path(len(self._finished)), self._chunk_size, self._compression)
+        for item in self._attachments:
+            self._current.attach(item)
+        self._write_metadata_yaml()
+
+    def _finish_file(self) -> None:
+        """The current file's ``rosbag2`` metadata record, summary and indexes (the file left open)."""
+        self._current.writer.add_metadata("rosbag2", {
+            "serialized_metadata": yaml.safe_dump(self._bag_information(), sort_keys=False)})
+        self._current.writer.finish()
 
     def record_mechanism(self, mechanism_yaml: str, stamp_ns: int) -> None:
         """Store the mechanism description: a std_msgs/String on MECHANISM_TOPIC
@@ -299,11 +411,11 @@ class BagWriter:
     def attach(self, name: str, data: bytes, media_type: str, log_time_ns: int | None = None
                ) -> None:
         """Add an MCAP attachment (a file stored in the bag, e.g. the mechanism YAML)."""
-        stamp = time.time_ns() if log_time_ns is None else int(log_time_ns)
+        item = _Attachment(name, data, media_type, time.time_ns() if log_time_ns is None else int(log_time_ns))
         with self._lock:
             self._check_open()
-            self._writer.add_attachment(create_time=stamp, log_time=stamp, name=name,
-                                        media_type=media_type, data=data)
+            self._attachments.append(item)   # every later file of a split bag carries it too
+            self._current.attach(item)
 
     def flush(self) -> None:
         """Write everything recorded so far to disk in a readable form (chunk + footer +
@@ -316,14 +428,15 @@ class BagWriter:
             if not self._dirty or self.error is not None:
                 return
             try:
-                self._writer.flush()
+                self._current.writer.flush()
                 self._write_metadata_yaml()
             except OSError as exc:
                 self._fail(exc)
                 return
             self._dirty = False
+            current = self._current.file
         try:
-            self._file.fsync()
+            current.fsync()
         except (OSError, ValueError) as exc:   # ValueError: closed meanwhile
             if isinstance(exc, OSError):
                 with self._lock:
@@ -340,14 +453,11 @@ class BagWriter:
             self._write_queued()
             if self.error is None:
                 try:
-                    info = self._bag_information()
-                    self._writer.add_metadata("rosbag2", {
-                        "serialized_metadata": yaml.safe_dump(info, sort_keys=False)})
-                    self._writer.finish()
+                    self._finish_file()
                 except OSError as exc:
                     self._fail(exc)
             try:   # after an error the file keeps its last valid tail (readable without a summary)
-                self._file.close(keep_tail=self.error is not None)
+                self._current.file.close(keep_tail=self.error is not None)
                 self._write_metadata_yaml()
             except OSError as exc:
                 self.error = self.error or f"{self.directory}: {exc.strerror or exc}"
@@ -356,64 +466,43 @@ class BagWriter:
     def _fail(self, exc: OSError) -> None:
         """Enter the error state (under the lock): no more writing, the file stays readable."""
         if self.error is None:
-            self.error = (f"{exc.filename or self.mcap_path}: {exc.strerror or exc} — the bag holds what was "
+            self.error = (f"{exc.filename or self._current.path}: {exc.strerror or exc} — the bag holds what was "
                           "written before; free space or fix the disk, then restart the recording")
 
     def _check_open(self) -> None:
         if self._closed.is_set():
             raise BagError(f"bag {self.directory} is closed: open a new BagWriter")
 
-    def _topic(self, topic: str, type_name: str, qos: QoSProfile | None) -> _Topic | None:
-        """The topic's entry, its schema and channel registered at its first message (under
-        ``_lock``); BagError for a second type on a topic; None when the disk fails (``error``)."""
-        entry = self._span.topics.get(topic)
+    def _topic(self, topic: str, type_name: str, qos: QoSProfile | None) -> _Topic:
+        """The topic's entry, made at its first message (under ``_lock``; its channel is registered in
+        each file as the file's first message on it is written); BagError for a second type on a topic."""
+        entry = self._topics.get(topic)
         if entry is not None:   # (write() looked without the lock: another thread may have registered it)
             if entry.type_name != type_name:
                 raise BagError(f"topic {topic!r} in bag {self.directory} holds {entry.type_name},"
                                f" cannot also record {type_name}: use another topic")
             return entry
-        qos_dict = qos_to_dict(qos if qos is not None else QoSProfile(depth=10))
-        try:
-            schema_id = self._schemas.get(type_name)
-            if schema_id is None:
-                schema_id = self._writer.register_schema(
-                    name=type_name, encoding="ros2msg",
-                    data=message_definition(type_name).encode("utf-8"))
-                self._schemas[type_name] = schema_id
-            channel_id = self._writer.register_channel(
-                topic=topic, message_encoding="cdr", schema_id=schema_id,
-                metadata={"offered_qos_profiles": yaml.safe_dump([qos_dict], sort_keys=False)})
-        except OSError as exc:
-            self._fail(exc)
-            return None
-        entry = _Topic(topic, type_name, channel_id, qos_dict)
-        self._span.topics[topic] = entry
+        entry = _Topic(topic, type_name, qos_to_dict(qos if qos is not None else QoSProfile(depth=10)))
+        self._topics[topic] = entry
         return entry
 
     def _bag_information(self) -> dict[str, Any]:
         """rosbag2 `rosbag2_bagfile_information` (metadata version 9) of what is written."""
-        span = self._span
-        start = span.start or 0
-        duration = (span.end - span.start) if span.start is not None and span.end is not None else 0
+        files = [*self._finished, (self._current.path.name, self._current.span)]
         return {
             "version": ROSBAG2_VERSION,
             "storage_identifier": "mcap",
-            "duration": {"nanoseconds": duration},
-            "starting_time": {"nanoseconds_since_epoch": start},
-            "message_count": span.count,
+            **self._span.information(),
             "topics_with_message_count": [
                 {"topic_metadata": {"name": t.name, "type": t.type_name,
                                     "serialization_format": "cdr",
                                     "offered_qos_profiles": [t.qos]},
                  "message_count": t.count}
-                for t in span.topics.values()],
+                for t in self._topics.values()],
             "compression_format": "",
             "compression_mode": "",
-            "relative_file_paths": [self.mcap_path.name],
-            "files": [{"path": self.mcap_path.name,
-                       "starting_time": {"nanoseconds_since_epoch": start},
-                       "duration": {"nanoseconds": duration},
-                       "message_count": span.count}],
+            "relative_file_paths": [name for name, _ in files],
+            "files": [{"path": name, **span.information()} for name, span in files],
             "custom_data": None,
             "ros_distro": os.environ.get("ROS_DISTRO", "kilted"),
         }
