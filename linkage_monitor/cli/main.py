@@ -59,6 +59,10 @@ def build_parser() -> argparse.ArgumentParser:
                        help="override a scalar of the file, e.g. implement.mass=1530 or "
                             "cylinders.lift_cylinder.bore=0.11 (repeatable)")
     solve.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    solve.add_argument("--explain", action="store_true",
+                       help="print whether reduced coordinates (along the chain of dyads) serve the statics of "
+                            "each set of measured cylinder forces, or only the general linear system does, and why; "
+                            "then exit")
     add_capacity_parser(sub)
     add_calibrate_parser(sub)
     add_simulate_parser(sub)
@@ -164,6 +168,10 @@ def _solve(args: argparse.Namespace) -> int:
     if overrides:
         mech = apply_overrides(mech, overrides)
     solver = Solver(mech)
+    if args.explain:
+        print("\n".join([f"{mech.name}: chain {'; '.join(solver.kin.chain_steps) or 'none (not a chain of dyads)'}",
+                          *solver.explain()]))
+        return 0
     res = solver.solve(_inputs(mech, args))
     summary = machine_summary(solver, res)
     if args.json:

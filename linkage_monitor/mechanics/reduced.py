@@ -172,13 +172,15 @@ class ReducedStatics:
                 self.step_col, self.step_member, self.step_sign, self.free_col, self.closing_step)
 
     def describe(self) -> str:
-        """Which path this layout takes and why, for people (``linkage-monitor solve --explain``)."""
+        """Whether the reduced path serves this layout and why, for people (``linkage-monitor solve --explain``)."""
         known = ", ".join(sorted(self.layout.force_known)) or "none"
+        if self.layout.null_space_error is not None:
+            return f"cylinder forces measured: {known}: the statics are not determined (no path solves them)"
         if not self.served:
-            return f"cylinder forces measured: {known}: general path ({self.reason})"
+            return f"cylinder forces measured: {known}: general path only ({self.reason})"
         free = (f"; free load {self.layout.columns[self.free_col]} from the moment of step "
                 f"'{self.step_names[self.closing_step]}'" if self.free_col >= 0 else "")
-        return f"cylinder forces measured: {known}: reduced path, steps {'; '.join(self.step_names)}{free}"
+        return f"cylinder forces measured: {known}: reduced coordinates serve it, steps {'; '.join(self.step_names)}{free}"
 
     def solve(self, p: np.ndarray, cylinder_force: np.ndarray, accel: tuple[np.ndarray, np.ndarray] | None
               ) -> ReducedSolution:

@@ -16,6 +16,7 @@ from .constants import ATMOSPHERIC_PRESSURE   # a gauge pressure below −1 atm 
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
 from .kinematics import Kinematics, KinematicState
 from .model import Cylinder, Mechanism
+from .reduced import ReducedStatics
 from .results import BatchResult, Result, ResultNames, Status
 from .statics import StaticsLayout
 
@@ -130,6 +131,12 @@ class Solver:
             return replace(res, state=ks), None
         raise {Status.INPUT: InputError, Status.ASSEMBLY: AssemblyError, Status.DEAD_CENTRE: DeadCentreError}[Status(code)](
             res.message)
+
+    def explain(self) -> list[str]:
+        """Whether reduced coordinates serve the statics of each set of measured cylinder forces and
+        why, a line each (``reduced.ReducedStatics.describe``; the rule in reduced.py's docstring).
+        ``solve`` itself still takes the general path."""
+        return [ReducedStatics(self.kin, layout).describe() for layout in self._layouts.values()]
 
     def solve_batch(self, cylinders: ArrayMap | None = None, angles: ArrayMap | None = None,
                     pressures: ArrayMap | None = None, rates: ArrayMap | None = None,
