@@ -6,11 +6,13 @@ moment of each step's bodies about its pivots gives the step's unknowns — a 2�
 RRR dyad, a scalar per cylinder — and the force sums give the pivots' reactions
 (``kernels.solve_reduced_statics``). The same pass yields each step's transmission measure
 (``kernels.step_transmission``): |sin μ| of an RRR dyad's transmission angle μ, the sine of the
-angle between a driving cylinder and its arm's radius; the pose's measure is the smallest, and the
-monitor calls a pose a dead centre when its angle falls below DEAD_CENTRE_TRANSMISSION_DEG.
+angle between a driving cylinder and its arm's radius, and the free load's (below: its moment arm
+about the closing step's pivot over its radius; without it a contact or implement load that
+stops being determined would go unseen). The pose's measure is the smallest; a pose whose angle
+is below DEAD_CENTRE_TRANSMISSION_DEG is a dead centre (``Solver`` still takes the general path
+and its condition-number verdict; ``Solver.explain`` says which layouts this module serves).
 
-Which path a mechanism takes (``ReducedStatics.reason`` is '' when the reduced path serves it):
-the reduced path serves a set of force-measured cylinders when
+``ReducedStatics.reason`` is '' when the reduced path serves a set of force-measured cylinders:
 
 1. the mechanism decomposes into a chain (a class-III group does not: triad.yaml);
 2. every hinge is closed by a step (none joins two bodies placed already);
