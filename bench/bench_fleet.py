@@ -1,4 +1,4 @@
-"""Fleet analysis on Dask: 40 bags (10 copies of each bundled sample bag) through
+"""Fleet analysis on Dask: 60 bags (10 copies of each of the six bundled sample bags) through
 `offline.fleet.run_fleet` on a LocalCluster of 1 and of 2 worker processes, against the same
 bags analysed one after the other in this process (`analyse_bag`, no Dask) — the baseline of
 the same run. Prints wall times, bags/s, the 2-worker speed-up beside the ideal (2.0 on 2
@@ -24,7 +24,7 @@ SAMPLES = Path(__file__).resolve().parent.parent / "bags"
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--copies", type=int, default=10, help="copies of each sample bag (default 10: 40 bags)")
+    parser.add_argument("--copies", type=int, default=10, help="copies of each sample bag (default 10: 60 bags)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(args.copies):
