@@ -78,15 +78,18 @@ def _assert_replay_equals(live: Path, source: Path, out: Path) -> None:
     assert comparison.equal, comparison.differences[:5]
 
 
-@pytest.mark.parametrize("case", ["default", "gauge_pressure", "namespaced_pressure"])
+@pytest.mark.parametrize("case", ["default", "gauge_pressure", "namespaced_pressure", "split_bag"])
 def test_replay_of_the_nodes_bag_equals_its_outputs(ros, tmp_path, case):
     params, topic, gauge = {
         "default": ({}, "pressure/lift_cap_pressure", False),
+        "split_bag": ({"max_bag_duration": 0.5}, "pressure/lift_cap_pressure", False),
         "gauge_pressure": ({"pressure_absolute": False}, "pressure/lift_cap_pressure", True),
         "namespaced_pressure": ({"pressure_topics": ["/ns/pressure/lift=lift_cap_pressure"]}, "/ns/pressure/lift",
                                 False),
     }[case]
     live = _run_node(tmp_path, params, topic, gauge)
+    if case == "split_bag":   # a new file every 0.5 s of the run: the replay reads them as one bag
+        assert len(list(live.glob("*.mcap"))) >= 3
     _assert_replay_equals(live, live, tmp_path / "offline")
 
 

@@ -105,6 +105,10 @@ PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
     "record": (True, "Record every input and output to a rosbag2 MCAP bag", True, None),
     "record_dir": ("out/bags", "Directory under which each run's bag directory is created", True, None),
     "record_name": ("", "Name of this run's bag directory; empty: <mechanism>_<YYYYmmdd_HHMMSS>", True, None),
+    "max_bag_size": (0, "B, the bag starts a new file once the current one has reached this size (as ros2 bag "
+                     "record --max-bag-size); 0: one file", True, (0, 1 << 50)),
+    "max_bag_duration": (0.0, "s, the bag starts a new file once the current one spans this long (as ros2 bag "
+                         "record --max-bag-duration); 0: one file", True, (0.0, 1e9)),
     "rerun": ("off", "Rerun logging: 'off', 'save' (to rerun_path) or 'connect' (to a running viewer)", True,
               None),
     "rerun_path": ("out/linkage_monitor.rrd", "The .rrd file written when rerun = 'save'", True, None),
@@ -198,7 +202,8 @@ class LinkageMonitorNode(Node):
         self.monitor = Monitor(description, config)
         self.encoder = OutputEncoder()
         bag_dir = Path(p["record_dir"]) / (p["record_name"] or time.strftime(f"{description.name}_%Y%m%d_%H%M%S"))
-        self.recorder = BagWriter(bag_dir) if p["record"] else None   # BagError: one line at start
+        self.recorder = (BagWriter(bag_dir, max_bag_size=p["max_bag_size"], max_bag_duration_s=p["max_bag_duration"])
+                         if p["record"] else None)   # BagError: one line at start
 
         self.status_name = f"{NODE_NAME}: {description.name}"
         self.diagnostic_gate = DiagnosticGate()
