@@ -24,7 +24,7 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "test"))
 
 from linkage_monitor.mechanics import load_preset  # noqa: E402
-from linkage_monitor.monitoring.core import JointStateEvent  # noqa: E402
+from linkage_monitor.monitoring.events import JointStateEvent  # noqa: E402
 from linkage_monitor.sim.faults import fuzz_stream  # noqa: E402
 from support.fuzz_check import FuzzTally, check_in_process  # noqa: E402
 

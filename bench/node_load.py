@@ -41,7 +41,8 @@ def solved_outputs() -> tuple[bytes, bytes, bytes]:
     from linkage_monitor.mechanics import load_preset
     from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
     from linkage_monitor.monitoring.config import MonitorConfig
-    from linkage_monitor.monitoring.core import Event, JointStateEvent, Monitor, PressureEvent
+    from linkage_monitor.monitoring.core import Monitor
+    from linkage_monitor.monitoring.events import Event, JointStateEvent, PressureEvent
     from linkage_monitor.wire.outputs import OutputEncoder
 
     sys.path.insert(0, str(Path(__file__).parent))

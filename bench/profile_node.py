@@ -7,7 +7,7 @@ Usage: .venv/bin/python bench/profile_node.py [--rate HZ] [--seconds S] [--top N
 
 --stages: instead of cProfile (which inflates Python code several times), the node's stages
 timed on its own thread's CPU clock (``time.thread_time``): per input the whole callback
-(``_guarded``), the monitoring step, the outputs (three publishes + recording + markers), each
+(``on_input``), the monitoring step, the outputs (three publishes + recording + markers), each
 recording call and the HitchState publish; and the process CPU per input (every thread: rclpy's,
 the middleware's, the bag writer's).
 """
@@ -124,15 +124,15 @@ def _time_stages(node: Any) -> dict[str, list]:
 
     spent: dict[str, list] = {}
     monitor = node.monitor
-    for owner, name, label in ((node, "_guarded", "input callback (whole)"), (monitor, "step", "  monitoring step"),
+    for owner, name, label in ((node, "on_input", "input callback (whole)"), (monitor, "step", "  monitoring step"),
                                (monitor, "_accept", "    acceptance"),
                                (monitor.machine, "solve", "    solve with the machine level"),
                                (monitor.solver, "solve_with_machine", "      the solver's part"),
                                (monitor, "_finish", "    findings"),
                                (node, "_publish", "  outputs: encode, publish, record"),
                                (node.encoder, "outputs", "    encode the three outputs"),
-                               (node.markers, "markers", "    a MarkerArray (marker_rate)"),
-                               (node, "_record", "  a recording call (BagWriter.write)"),
+                               (node.messenger.markers, "markers", "    a MarkerArray (marker_rate)"),
+                               (node.recorder.writer, "write", "  a recording call (BagWriter.write)"),
                                (node.pub_hitch, "publish", "  a publish (HitchState)")):
         setattr(owner, name, timed(spent, label, getattr(owner, name), time.thread_time))
     return spent

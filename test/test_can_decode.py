@@ -19,7 +19,7 @@ from linkage_monitor.can.mapping import load_mapping, mapping_from_text
 from linkage_monitor.can.position_table import fit_table
 from linkage_monitor.mechanics import InputError, load_description
 from linkage_monitor.monitoring.config import MonitorConfig
-from linkage_monitor.monitoring.core import JointStateEvent, PressureEvent
+from linkage_monitor.monitoring.events import JointStateEvent, PressureEvent
 from linkage_monitor.monitoring.findings import Code
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -226,11 +226,11 @@ def test_recorded_inputs_are_the_messages_rclpy_reads(names, positions) -> None:
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (1_767_225_600, 123_456_000)
     assert list(msg.name) == list(names) and list(msg.position) == list(positions)
     assert list(msg.velocity) == [] and list(msg.effort) == [] and msg.header.frame_id == ""
-    reading = read_input(JOINT_STATE, mine)
-    assert (reading.stamp_ns, list(reading.names), list(reading.position)) == (stamp, list(names), list(positions))
+    reading = read_input(JOINT_STATE, mine, "/joint_states", stamp)
+    assert (reading.stamp_ns, list(reading.names), list(reading.positions)) == (stamp, list(names), list(positions))
     reference = JointState(name=list(names), position=list(positions))
     reference.header.stamp.sec, reference.header.stamp.nanosec = 1_767_225_600, 123_456_000
     assert len(mine) == len(exact_cdr(JOINT_STATE, bytes(serialize_message(reference))))
     pressure = fluid_pressure_cdr(stamp, 10.2e6)
     assert deserialize_message(pressure, FluidPressure).fluid_pressure == 10.2e6
-    assert read_input(FLUID_PRESSURE, pressure).fluid_pressure == 10.2e6
+    assert read_input(FLUID_PRESSURE, pressure, "/pressure", stamp).fluid_pressure == 10.2e6

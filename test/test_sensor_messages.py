@@ -54,10 +54,10 @@ def _rclpy_joint_state(data: bytes) -> tuple | None:
 
 def _ours_joint_state(data: bytes) -> tuple | None:
     try:
-        r = read_joint_state(data)
+        r = read_joint_state(data, "/joint_states", 0)
     except CdrError:
         return None
-    return r.stamp_ns, r.names, _bits(r.position), _bits(r.velocity)
+    return r.stamp_ns, r.names, _bits(r.positions), _bits(r.velocities)
 
 
 def _rclpy_fluid_pressure(data: bytes) -> tuple | None:
@@ -70,7 +70,7 @@ def _rclpy_fluid_pressure(data: bytes) -> tuple | None:
 
 def _ours_fluid_pressure(data: bytes) -> tuple | None:
     try:
-        r = read_fluid_pressure(data)
+        r = read_fluid_pressure(data, "/pressure", 0)
     except CdrError:
         return None
     return r.stamp_ns, _bits([r.fluid_pressure])
@@ -133,4 +133,4 @@ def test_a_damaged_fluid_pressure_fares_as_in_rclpy(data, how):
 ])
 def test_a_refusal_says_what_is_wrong(data, words):
     with pytest.raises(CdrError, match=words):
-        read_joint_state(data)
+        read_joint_state(data, "/joint_states", 0)

@@ -24,7 +24,7 @@ from cantools.database import Database
 
 from linkage_monitor.mechanics import InputError, Mechanism
 from linkage_monitor.monitoring.config import MonitorConfig
-from linkage_monitor.monitoring.core import InputEvent, JointStateEvent, PressureEvent
+from linkage_monitor.monitoring.events import InputEvent, JointStateEvent, PressureEvent
 from linkage_monitor.monitoring.findings import Code, Finding, fmt
 
 from .frames import Frame

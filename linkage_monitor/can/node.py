@@ -22,6 +22,7 @@ import can
 from can_msgs.msg import Frame as FrameMsg
 
 from linkage_monitor.monitoring.core import Step
+from linkage_monitor.monitoring.events import UnreadableEvent
 from linkage_monitor.monitoring.findings import Code, Finding, Level, fmt
 from linkage_monitor.ros.node import LinkageMonitorNode, _publisher_id
 
@@ -112,8 +113,10 @@ class CanBridgeNode(LinkageMonitorNode):
         except Exception as exc:  # noqa: BLE001 - rclpy raises its own errors for bytes that are not the type
             self.decoder.counts.received += 1
             self.decoder.counts.refused += 1
-            self._record(self.source.raw_topic, data, now, now, self.input_qos, FRAME_TYPE)
-            self._publish(self.monitor.on_unreadable(self.source_name, FRAME_TYPE, len(data), str(exc), now), now)
+            event = UnreadableEvent(topic=self.source_name, type_name=FRAME_TYPE, size=len(data), reason=str(exc),
+                                    receive_ns=now)
+            self._record_input(self.source.raw_topic, FRAME_TYPE, data, event.stamp_ns, now)
+            self._publish(self.monitor.step(event), now)
             return
         self._take_frame(frame, data, now)
 
@@ -124,17 +127,13 @@ class CanBridgeNode(LinkageMonitorNode):
         if self._silent:
             self._silent = False
             self.get_logger().info(f"CAN frames again on {self.source_name}")
-        try:
-            self._record(self.source.raw_topic, raw, frame.stamp_ns, now, self.input_qos, FRAME_TYPE)
-        except Exception as exc:  # noqa: BLE001 - a recording fault must not stop the monitoring
-            self._publish_status("recording", Level.ERROR, f"recording failed for {self.source.raw_topic}: "
-                                 f"{type(exc).__name__}: {exc}; solving and publishing go on", now)
+        self._record_input(self.source.raw_topic, FRAME_TYPE, raw, frame.stamp_ns, now)
         decoded = self.decoder.decode(frame, now)
         if decoded.finding is not None:
             self._publish(Step(frame.stamp_ns, self.source_name, (decoded.finding,)), now)
         for event in decoded.events:
             type_name, data = input_record(event)
-            self._record(event.topic, data, frame.stamp_ns, now, self.input_qos, type_name)
+            self._record_input(event.topic, type_name, data, event.stamp_ns, now)
             self._publish(self.monitor.step(event), now)
 
     def _check_silence(self) -> None:

@@ -14,13 +14,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable
 
-import yaml
-from std_msgs.msg import String
-
+from linkage_monitor.bag.step_recorder import StepRecorder
 from linkage_monitor.bag.writer import BagWriter
 from linkage_monitor.mechanics import Mechanism
-from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
-from linkage_monitor.monitoring.core import InputEvent, JointStateEvent, PressureEvent
+from linkage_monitor.monitoring.config import MonitorConfig
+from linkage_monitor.monitoring.events import InputEvent, JointStateEvent, PressureEvent
 from linkage_monitor.monitoring.findings import Finding
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE
 
@@ -54,19 +52,18 @@ def can_to_bag(frames: Iterable[Frame], decoder: CanDecoder, description: Mechan
     """Write ``frames`` (raw and decoded) with the mechanism and configuration into a new bag ``out``."""
     refusals: list[Finding] = []
     with BagWriter(out) as writer:
+        recorder = StepRecorder(writer, config.topics)
         started = False
         for frame in frames:
             stamp = frame.stamp_ns
             if not started:
-                writer.record_mechanism(yaml.safe_dump(dict(description.raw), sort_keys=False, allow_unicode=True),
-                                        stamp)
-                writer.write(CONFIG_TOPIC, String(data=config.to_yaml()), stamp, log_time_ns=stamp)
+                recorder.begin(description, config, stamp)
                 started = True
-            writer.write(raw_topic, to_cdr(frame), stamp, type_name=FRAME_TYPE, log_time_ns=stamp)
+            recorder.input(raw_topic, FRAME_TYPE, to_cdr(frame), stamp, stamp)
             decoded = decoder.decode(frame, stamp)
             for event in decoded.events:
                 type_name, data = input_record(event)
-                writer.write(event.topic, data, stamp, type_name=type_name, log_time_ns=stamp)
+                recorder.input(event.topic, type_name, data, event.stamp_ns, stamp)
             if decoded.finding is not None:
                 refusals.append(decoded.finding)
     return Converted(decoder.counts, refusals)

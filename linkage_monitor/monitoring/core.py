@@ -1,6 +1,6 @@
 """The monitoring core: sensor events in, domain results and findings out (no rclpy).
 
-One core, two drivers. The live node calls ``on_joint_state`` / ``on_pressure`` per message
+One core, two drivers. The live node hands each input event (``monitoring.events``) to ``step``
 (each solve warm-starts from the last solved pose, which the core holds explicitly); the
 replay hands a whole recording to ``run``, which takes every event through the same
 acceptance stage, solves the due poses of each configuration segment in one batch, and
@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Iterable, Mapping, Sequence, Union
+from typing import Iterable, Sequence
 
 import numpy as np
 
@@ -24,6 +24,7 @@ from linkage_monitor.mechanics import (AssemblyError, BatchResult, DeadCentreErr
 from linkage_monitor.mechanics.machine import MachineBatch, MachineModel, MachineResult
 
 from .config import MonitorConfig
+from .events import ConfigEvent, Event, InputEvent, JointStateEvent, PressureEvent, UnreadableEvent
 from .findings import Code, Finding, Level, fmt
 from .inputs import InputTracker, Refused
 
@@ -34,9 +35,7 @@ from .inputs import InputTracker, Refused
 # stroke sensor (the simulator's default noise) the misfit's sigma is ~0.55 mm on belarus_1221, and
 # an angle sensor off by 1° adds only 1.8-2.6 mm (the stroke predicts the angle closely): at 1.5 mm
 # a simulated lift WARNs on 2 of 252 healthy poses, on 219 of 252 with the angle off by 1°, on every
-# pose with 2° (test_redundant_sensors.py). (1 mm until the fit closed the hinges: the old least
-# squares hid part of the disagreement in open hinges; on the bundled bag 18 of 1630 poses then,
-# 14 now.)
+# pose with 2° (test_redundant_sensors.py); on the bundled bag it WARNs on 14 of 1630 poses.
 CONSISTENCY_WARN_M = 1.5e-3
 ASSEMBLY_LIMIT_M = 20e-3
 # With more measured forces than needed (e.g. two cylinder pressures), equilibrium is met in
@@ -103,52 +102,6 @@ class Step:
     def message(self) -> str:
         """The findings' sentences joined, or 'ok'."""
         return MESSAGE_JOIN.join(f.text for f in self.findings) or "ok"
-
-
-@dataclass(frozen=True)
-class JointStateEvent:
-    """A sensor_msgs/JointState: positions rad / m, velocities rad/s / m/s (may be empty),
-    header stamp and receive time (ns)."""
-
-    topic: str
-    names: Sequence[str]
-    positions: Sequence[float]
-    velocities: Sequence[float]
-    stamp_ns: int
-    receive_ns: int
-
-
-@dataclass(frozen=True)
-class PressureEvent:
-    """A sensor_msgs/FluidPressure: Pa, header stamp and receive time (ns)."""
-
-    topic: str
-    fluid_pressure: float
-    stamp_ns: int
-    receive_ns: int
-
-
-@dataclass(frozen=True)
-class UnreadableEvent:
-    """An input message whose bytes are not its type (``reason``: what is wrong, where); stamped
-    with its receive time (ns), the header being unreadable."""
-
-    topic: str
-    type_name: str
-    size: int
-    reason: str
-    receive_ns: int
-
-
-@dataclass(frozen=True)
-class ConfigEvent:
-    """The configuration changed (runtime parameters); applies to the events after it."""
-
-    config: MonitorConfig
-
-
-InputEvent = Union[JointStateEvent, PressureEvent, UnreadableEvent]
-Event = Union[InputEvent, ConfigEvent]
 
 
 @dataclass(frozen=True)
@@ -229,20 +182,17 @@ class Monitor:
     # ---- the live path: one event at a time ------------------------------------------------------
     def on_joint_state(self, names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
                        stamp_ns: int, receive_ns: int, topic: str = "joint_states") -> Step:
-        """A JointState arrived: accept, solve (warm start from the last solved pose), finish."""
+        """``step`` of the JointStateEvent of these values."""
         return self.step(JointStateEvent(topic, names, positions, velocities, stamp_ns, receive_ns))
 
     def on_pressure(self, topic: str, fluid_pressure: float, stamp_ns: int, receive_ns: int) -> Step:
-        """A FluidPressure arrived on ``topic``: accept, solve, finish."""
+        """``step`` of the PressureEvent of these values."""
         return self.step(PressureEvent(topic, fluid_pressure, stamp_ns, receive_ns))
 
-    def on_unreadable(self, topic: str, type_name: str, size: int, reason: str, receive_ns: int) -> Step:
-        """An input on ``topic`` whose bytes cannot be read as ``type_name``: an ERROR step (the
-        last solved pose stays the warm start)."""
-        return self.step(UnreadableEvent(topic, type_name, size, reason, receive_ns))
-
     def step(self, event: InputEvent) -> Step:
-        """One input event end to end; never raises (an internal failure is an ERROR Step)."""
+        """One input event end to end: accept, solve (warm start from the last solved pose), finish.
+        Never raises (an internal failure is an ERROR Step); an UnreadableEvent is an ERROR Step and
+        the last solved pose stays the warm start."""
         try:
             due = self._accept(event)
             if isinstance(due, Step):
@@ -309,7 +259,7 @@ class Monitor:
         """Take the event's values (or refuse it whole); the due solve, or the Step that ends here."""
         tracker = self.tracker
         if isinstance(event, UnreadableEvent):
-            return Step(event.receive_ns, event.topic, (Finding(Code.MALFORMED_INPUT, (
+            return Step(event.stamp_ns, event.topic, (Finding(Code.MALFORMED_INPUT, (
                 f"input on {event.topic} ({event.size} bytes) cannot be read as {event.type_name}: {event.reason}; "
                 "recorded, not solved")),))
         try:
@@ -333,10 +283,9 @@ class Monitor:
 
     def _internal_error(self, event: InputEvent, exc: Exception) -> Step:
         self.warm = None
-        stamp = event.receive_ns if isinstance(event, UnreadableEvent) else event.stamp_ns
-        text = (f"internal error while processing {event.topic} (stamp {stamp} ns): "
+        text = (f"internal error while processing {event.topic} (stamp {event.stamp_ns} ns): "
                 f"{type(exc).__name__}: {exc}; the input was recorded, the monitor goes on")
-        return Step(stamp, event.topic, (Finding(Code.INTERNAL_ERROR, text),))
+        return Step(event.stamp_ns, event.topic, (Finding(Code.INTERNAL_ERROR, text),))
 
     def _finish(self, due: _Due, result: Result, machine: MachineResult) -> Step:
         """Findings and key-values of one solved pose with its machine-level results."""

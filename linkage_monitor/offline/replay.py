@@ -19,26 +19,34 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Iterator, TextIO
+from typing import Iterator, NamedTuple, TextIO
 
-import yaml
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 from tqdm import tqdm
 
 from linkage_monitor.bag.reader import read_bag, read_bag_raw
+from linkage_monitor.bag.step_recorder import StepRecorder
 from linkage_monitor.bag.writer import MECHANISM_TOPIC, BagError, BagWriter
 from linkage_monitor.mechanics import Mechanism, mechanism_from_text
 from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
-from linkage_monitor.monitoring.core import (ConfigEvent, Event, JointStateEvent, Monitor, PressureEvent, Run, Step,
-                                            UnreadableEvent)
+from linkage_monitor.monitoring.core import Monitor, Run, Step
+from linkage_monitor.monitoring.events import ConfigEvent, Event
 from linkage_monitor.monitoring.findings import Level
-from linkage_monitor.wire.cdr import CdrError
-from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, JointStateReading, read_input
+from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, input_event
 
-STRING = "std_msgs/msg/String"
-RawInput = tuple[str, str, int, int, bytes]   # topic, type name, header stamp (ns), receive time (ns), CDR bytes
 ENCODE_BLOCK = 4096   # steps whose output messages are encoded at once (held in memory until written)
+
+
+class RecordedInput(NamedTuple):
+    """An input message as the bag holds it: its CDR bytes as they arrived on ``topic``; ``stamp_ns``:
+    its header stamp (its receive time when unreadable), ``receive_ns``: its log time (ns)."""
+
+    topic: str
+    type_name: str
+    stamp_ns: int
+    receive_ns: int
+    data: bytes
 
 
 @dataclass
@@ -126,15 +134,13 @@ def _default_config(bag: Path, description: Mechanism) -> MonitorConfig:
     return replace(config, pressure_topics={t: s for t, s in config.pressure_topics.items() if t in held})
 
 
-def _events(path: Path, config: MonitorConfig, raw: list[RawInput]) -> Iterator[Event]:
-    """The bag's input and configuration events in recording order; inputs also appended to ``raw``
-    as (topic, type name, header stamp, receive time, CDR bytes as recorded). The inputs are read
-    from their bytes as the node reads them (``wire.sensor_messages``); bytes that are not their
-    type (the node records them as they came) are an UnreadableEvent, as in the node."""
+def _events(path: Path, config: MonitorConfig, raw: list[RecordedInput]) -> Iterator[Event]:
+    """The bag's input and configuration events in recording order; inputs also appended to ``raw``.
+    The inputs are read from their bytes as the node reads them (``wire.sensor_messages``); bytes
+    that are not their type (the node records them as they came) are an UnreadableEvent, as in the node."""
     wanted = [config.topics.joint_states, *config.pressure_topics, CONFIG_TOPIC]
     first_config = True
-    for topic, type_name, publish_time, log_time, data in read_bag_raw(path, topics=wanted):
-        event: Event
+    for topic, type_name, _, log_time, data in read_bag_raw(path, topics=wanted):
         if topic == CONFIG_TOPIC:
             if not first_config:
                 try:
@@ -151,15 +157,8 @@ def _events(path: Path, config: MonitorConfig, raw: list[RawInput]) -> Iterator[
         if not ((type_name == JOINT_STATE and topic == config.topics.joint_states)
                 or (type_name == FLUID_PRESSURE and topic in config.pressure_topics)):
             continue
-        try:
-            reading = read_input(type_name, data)
-            event = (JointStateEvent(topic, reading.names, reading.position, reading.velocity, reading.stamp_ns, log_time)
-                     if isinstance(reading, JointStateReading) else
-                     PressureEvent(topic, reading.fluid_pressure, reading.stamp_ns, log_time))
-            stamp = reading.stamp_ns
-        except CdrError as exc:   # bytes that are not their type's CDR: as in the node
-            event, stamp = UnreadableEvent(topic, type_name, len(data), str(exc), log_time), publish_time
-        raw.append((topic, type_name, stamp, log_time, data))
+        event = input_event(type_name, data, topic, log_time)
+        raw.append(RecordedInput(topic, type_name, event.stamp_ns, log_time, data))
         yield event
 
 
@@ -190,12 +189,12 @@ def replay(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None
     else:
         summary.notes.append("note: configuration given instead of the recorded one")
     monitor = Monitor(description, config)
-    raw: list[RawInput] = []
+    raw: list[RecordedInput] = []
     run = monitor.run(_events(bag, config, raw))
     if not raw:
         raise BagError(f"bag {bag} holds no {JOINT_STATE} on {config.topics.joint_states} or {FLUID_PRESSURE} on "
                        f"{', '.join(config.pressure_topics) or '(none configured)'}: nothing to replay")
-    summary.inputs, summary.start_ns = len(raw), raw[0][2]
+    summary.inputs, summary.start_ns = len(raw), raw[0].stamp_ns
     for step in run.steps:
         _account(summary, step)
     if out_dir is not None:
@@ -207,47 +206,36 @@ def replay(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None
 
 
 def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: MonitorConfig,
-               raw: list[RawInput], run: Run, rate: float | None, progress: TextIO | None) -> None:
+               raw: list[RecordedInput], run: Run, rate: float | None, progress: TextIO | None) -> None:
     """Inputs (their recorded bytes, unchanged), outputs and diagnostics in recording order, as the
-    node records them."""
-    from linkage_monitor.wire.diagnostics import DIAGNOSTIC_ARRAY, DiagnosticGate, diagnostic_array
-    from linkage_monitor.wire.markers import DEFAULT_RATE_HZ, MARKER_ARRAY, DisplayGate, LinkageMarkers
-    from linkage_monitor.wire.outputs import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputEncoder, Outputs
+    node records them (``bag.step_recorder``)."""
+    from linkage_monitor.wire.markers import DEFAULT_RATE_HZ
+    from linkage_monitor.wire.outputs import OutputEncoder, Outputs
+    from linkage_monitor.wire.step_messages import StepMessenger
 
     writer = BagWriter(out_dir)
     try:
-        first = raw[0][3]
-        writer.record_mechanism(yaml.safe_dump(dict(description.raw), sort_keys=False, allow_unicode=True), first)
-        writer.write(CONFIG_TOPIC, String(data=config.to_yaml()), first, log_time_ns=first)
-        gate, name, encoder = DiagnosticGate(), f"linkage_monitor: {description.name}", OutputEncoder()
+        recorder = StepRecorder(writer, config.topics)
+        first = raw[0].receive_ns
+        recorder.begin(description, config, first)
+        messenger = StepMessenger(description, f"linkage_monitor: {description.name}", DEFAULT_RATE_HZ)
+        encoder = OutputEncoder()
 
-        def encoded() -> Iterator[tuple[RawInput, Step, Outputs | None]]:
+        def encoded() -> Iterator[tuple[RecordedInput, Step, Outputs | None]]:
             """The steps with their outputs, encoded ENCODE_BLOCK steps at once (as the node's encoder writes them)."""
             for start in range(0, len(raw), ENCODE_BLOCK):
                 steps = run.steps[start:start + ENCODE_BLOCK]
                 yield from zip(raw[start:start + ENCODE_BLOCK], steps, encoder.outputs_of(monitor, steps))
-        markers, marker_gate = LinkageMarkers(monitor.mechanism), DisplayGate(DEFAULT_RATE_HZ)
         pace_start = time.perf_counter()
-        topics = config.topics
-        for (topic, type_name, stamp, receive, data), step, out in tqdm(
-                encoded(), total=len(raw), desc="replay", unit="msg", file=progress, disable=progress is None,
-                mininterval=0.5):
+        for recorded, step, out in tqdm(encoded(), total=len(raw), desc="replay", unit="msg", file=progress,
+                                        disable=progress is None, mininterval=0.5):
+            receive = recorded.receive_ns
             if rate:
                 delay = (receive - first) * 1e-9 / rate - (time.perf_counter() - pace_start)
                 if delay > 0:
                     time.sleep(delay)
-            writer.write(topic, data, stamp, type_name=type_name, log_time_ns=receive)
-            if out is not None:
-                for out_topic, out_data, out_type in ((topics.hinge_reactions, out.hinge_reactions, HINGE_REACTIONS),
-                                                      (topics.hitch_state, out.hitch_state, HITCH_STATE),
-                                                      (topics.steerability, out.steerability, STEERABILITY)):
-                    writer.write(out_topic, out_data, step.stamp_ns, type_name=out_type, log_time_ns=receive)
-            if step.pose is not None and marker_gate.due(step.stamp_ns):
-                writer.write(topics.markers, markers.markers(step.stamp_ns, step.pose.result), step.stamp_ns,
-                             type_name=MARKER_ARRAY, log_time_ns=receive)
-            if gate.due(step):
-                writer.write(topics.diagnostics, diagnostic_array(step, name, description.name, receive),
-                             step.stamp_ns, type_name=DIAGNOSTIC_ARRAY, log_time_ns=receive)
+            recorder.input(recorded.topic, recorded.type_name, recorded.data, recorded.stamp_ns, receive)
+            recorder.step(messenger.messages(step, out, receive), receive)
     finally:
         writer.close()
 

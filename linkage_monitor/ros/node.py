@@ -25,7 +25,6 @@ from pathlib import Path
 from typing import Any, Callable
 
 import rclpy
-import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.clock import Clock, ClockType
@@ -40,26 +39,26 @@ from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
+from linkage_monitor.bag.step_recorder import StepRecorder, mechanism_yaml
 from linkage_monitor.bag.writer import BagError, BagWriter
 from linkage_monitor.mechanics import LinkageError, Mechanism, apply_overrides, load_description
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
 from linkage_monitor.mechanics.warm import compiled_kernels
-from linkage_monitor.monitoring.config import CONFIG_TOPIC, OVERRIDE_KEYS, MonitorConfig, Topics
+from linkage_monitor.monitoring.config import OVERRIDE_KEYS, MonitorConfig, Topics
 from linkage_monitor.monitoring.core import Monitor, Step
 from linkage_monitor.monitoring.findings import Level
 from linkage_monitor.monitoring.inputs import InputTracker
 from linkage_monitor.monitoring.loss import LossCounter
 from linkage_monitor.monitoring.name_value import name_value
 from linkage_monitor.msg import HingeReactions, HitchState, Steerability
-from linkage_monitor.wire.diagnostics import DIAGNOSTIC_ARRAY, DiagnosticGate, diagnostic_array, status_array
-from linkage_monitor.wire.markers import DEFAULT_RATE_HZ as DEFAULT_MARKER_RATE_HZ
-from linkage_monitor.wire.markers import MARKER_ARRAY, DisplayGate, LinkageMarkers
-from linkage_monitor.wire.cdr import CdrError
-from linkage_monitor.ros.spin import InputSpinner
 from linkage_monitor.ros.input_events import INCOMPATIBLE_QOS, LOST, InputEvents
-from linkage_monitor.wire.outputs import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputEncoder
-from linkage_monitor.wire.sensor_messages import (FLUID_PRESSURE, JOINT_STATE, FluidPressureReading, JointStateReading,
-                                                 read_input)
+from linkage_monitor.ros.spin import InputSpinner
+from linkage_monitor.wire.diagnostics import status_array
+from linkage_monitor.wire.markers import DEFAULT_RATE_HZ as DEFAULT_MARKER_RATE_HZ
+from linkage_monitor.wire.markers import DisplayGate
+from linkage_monitor.wire.outputs import OutputEncoder
+from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, input_event
+from linkage_monitor.wire.step_messages import StepMessenger
 
 NODE_NAME = "linkage_monitor"
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -184,8 +183,8 @@ class LinkageMonitorNode(Node):
     """Subscribes to the sensors, solves on every message, publishes results and diagnostics.
 
     A driver that brings its own inputs (the CAN bridge, ``linkage_monitor.can.node``) subclasses
-    it with ``subscribes_sensors = False`` and hands its decoded inputs to ``_record`` / ``monitor``
-    / ``_publish`` as the sensor callbacks do.
+    it with ``subscribes_sensors = False`` and hands its decoded inputs to ``_record_input`` /
+    ``monitor`` / ``_publish`` as the sensor callbacks do.
     """
 
     subscribes_sensors = True
@@ -201,12 +200,15 @@ class LinkageMonitorNode(Node):
         config = monitor_config(p, description, self.resolve_topic_name)
         self.monitor = Monitor(description, config)
         self.encoder = OutputEncoder()
+        self.input_qos = (qos_profile_sensor_data if p["sensor_qos"] == "sensor_data" else
+                          QoSProfile(depth=int(p["reliable_queue_depth"]), reliability=ReliabilityPolicy.RELIABLE))
         bag_dir = Path(p["record_dir"]) / (p["record_name"] or time.strftime(f"{description.name}_%Y%m%d_%H%M%S"))
-        self.recorder = (BagWriter(bag_dir, max_bag_size=p["max_bag_size"], max_bag_duration_s=p["max_bag_duration"])
+        self.recorder = (StepRecorder(BagWriter(bag_dir, max_bag_size=p["max_bag_size"],
+                                                max_bag_duration_s=p["max_bag_duration"]),
+                                      config.topics, self.input_qos, OUTPUT_QOS)
                          if p["record"] else None)   # BagError: one line at start
 
-        self.status_name = f"{NODE_NAME}: {description.name}"
-        self.diagnostic_gate = DiagnosticGate()
+        self.messenger = StepMessenger(description, f"{NODE_NAME}: {description.name}", float(p["marker_rate"]))
         self.loss = LossCounter()
         self._reported: Step | None = None   # the last step the gate let through: what the heartbeat repeats
         self._last_heartbeat = 0.0
@@ -218,16 +220,11 @@ class LinkageMonitorNode(Node):
         self.pub_steer = self._publisher(Steerability, config.topics.steerability, OUTPUT_QOS)
         self.pub_diag = self._publisher(DiagnosticArray, config.topics.diagnostics, OUTPUT_QOS)
         self.pub_mech = self._publisher(String, "mechanism_description", LATCHED)
-        mechanism_yaml = yaml.safe_dump(dict(description.raw), sort_keys=False, allow_unicode=True)
-        self.pub_mech.publish(String(data=mechanism_yaml))
-        now = self._now()
+        self.pub_mech.publish(String(data=mechanism_yaml(description)))
         if self.recorder is not None:
-            self.recorder.record_mechanism(mechanism_yaml, now)
-            self._record_config(config, now)
+            self.recorder.begin(description, config, self._now())
             self.get_logger().info(f"recording to {bag_dir}")
 
-        self.markers = LinkageMarkers(description)
-        self.marker_gate = DisplayGate(float(p["marker_rate"]))
         self.pub_markers = self._publisher(MarkerArray, config.topics.markers, OUTPUT_QOS)
         self.rerun = None
         self._rerun_target = p["rerun_path"] if p["rerun"] == "save" else "(viewer)"
@@ -247,14 +244,13 @@ class LinkageMonitorNode(Node):
                 f"numba compiled {compiled} physics kernel(s) in {time.monotonic() - loading:.0f} s at this start: its "
                 "on-disk cache (beside linkage_monitor/mechanics/kernels.py, or NUMBA_CACHE_DIR) was cold or not "
                 "writable; `python -m linkage_monitor.mechanics.warm` compiles them ahead of the next start")
-        self.input_qos = (qos_profile_sensor_data if p["sensor_qos"] == "sensor_data" else
-                          QoSProfile(depth=int(p["reliable_queue_depth"]), reliability=ReliabilityPolicy.RELIABLE))
         self._inputs: list[tuple[Any, Callable[[bytes, dict], None]]] = []   # (subscription, its callback)
         self.input_events = InputEvents()   # taken at the heartbeat (ros/input_events.py)
         if self.subscribes_sensors:
-            self._subscribe(JointState, config.topics.joint_states, self.on_joint_state)
+            self._subscribe(JointState, config.topics.joint_states, self._input_callback(config.topics.joint_states,
+                                                                                          JOINT_STATE))
             for topic in config.pressure_topics:
-                self._subscribe(FluidPressure, topic, self._pressure_callback(topic))
+                self._subscribe(FluidPressure, topic, self._input_callback(topic, FLUID_PRESSURE))
         # on the steady clock: losses and the heartbeat are reported with use_sim_time and /clock stopped too
         self.create_timer(HEARTBEAT_S, self.on_heartbeat, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_pre_set_parameters_callback(self.as_declared_types)
@@ -264,9 +260,9 @@ class LinkageMonitorNode(Node):
         self.get_logger().info(f"monitoring '{description.name}': {config.topics.joint_states} + "
                                f"{', '.join(config.pressure_topics) or 'no pressures'}")
 
-    def _pressure_callback(self, topic: str) -> Callable[[bytes, dict], None]:
+    def _input_callback(self, topic: str, type_name: str) -> Callable[[bytes, dict], None]:
         def callback(data: bytes, info: dict) -> None:
-            self.on_pressure(topic, data, info)
+            self.on_input(topic, type_name, data, info)
         return callback
 
     def _publisher(self, msg_type: type, topic: str, qos: QoSProfile) -> Any:
@@ -333,40 +329,16 @@ class LinkageMonitorNode(Node):
         return self.get_clock().now().nanoseconds
 
     # ---- callbacks: record first, then the core; never raise -------------------------------------
-    def on_joint_state(self, data: bytes, info: dict) -> None:
-        """Record the serialized JointState, read it, solve, publish."""
-        topic = self.monitor.config.topics.joint_states
-
-        def solve(msg: JointStateReading, now: int) -> Step:
-            return self.monitor.on_joint_state(msg.names, msg.position, msg.velocity, msg.stamp_ns, now, topic)
-        self._guarded(topic, data, info, JOINT_STATE, solve)
-
-    def on_pressure(self, topic: str, data: bytes, info: dict) -> None:
-        """Record the serialized FluidPressure, read it, solve, publish."""
-        def solve(msg: FluidPressureReading, now: int) -> Step:
-            return self.monitor.on_pressure(topic, msg.fluid_pressure, msg.stamp_ns, now)
-        self._guarded(topic, data, info, FLUID_PRESSURE, solve)
-
-    def _guarded(self, topic: str, data: bytes, info: dict, type_name: str, solve: Callable[[Any, int], Step]) -> None:
-        """Read the input from its CDR bytes (``wire.sensor_messages``), record the bytes as they came,
-        then solve and publish — or, for bytes that are not the topic's type, an ERROR saying why."""
+    def on_input(self, topic: str, type_name: str, data: bytes, info: dict) -> None:
+        """An input message's CDR bytes (``type_name``) arrived on ``topic``: read them into an input
+        event (``wire.sensor_messages``; bytes that are not the type: an UnreadableEvent, an ERROR step
+        saying why), record the bytes as they came, solve, publish."""
         now = self._now()
         self.loss.on_message(topic, _publisher_id(info), info.get("publication_sequence_number"))
-        msg: Any = None
-        stamp, unreadable = now, ""
+        event = input_event(type_name, data, topic, now)
+        self._record_input(topic, type_name, data, event.stamp_ns, now)
         try:
-            msg = read_input(type_name, data)
-            stamp = msg.stamp_ns
-        except CdrError as exc:   # bytes the middleware took that are not this type's CDR
-            unreadable = str(exc)
-        try:
-            self._record(topic, data, stamp, now, self.input_qos, type_name)
-        except Exception as exc:  # noqa: BLE001 - a recording fault must not stop the monitoring
-            self._publish_status("recording", Level.ERROR, f"recording failed for {topic}: {type(exc).__name__}: "
-                                 f"{exc}; solving and publishing go on", now)
-        try:
-            self._publish(solve(msg, now) if msg is not None else
-                          self.monitor.on_unreadable(topic, type_name, len(data), unreadable, now), now)
+            self._publish(self.monitor.step(event), now)
         except Exception as exc:  # noqa: BLE001 - the adapter boundary: report and go on
             self.get_logger().error(f"internal error on {topic}: {type(exc).__name__}: {exc}",
                                     throttle_duration_sec=1.0)
@@ -380,11 +352,11 @@ class LinkageMonitorNode(Node):
             now = self._now()
             if self._reported is not None and time.monotonic() - self._last_heartbeat >= HEARTBEAT_S:
                 # the last reported status again (diagnostic_updater style); the bag holds it once already
-                self._publish_diagnostic(self._reported, now, record=False)
+                self._send_diagnostic(self.messenger.diagnostic(self._reported, now))
             self._take_input_events(now)
             self._check_name(now)
             self._report_losses(f"in the last {HEARTBEAT_S:.0f} s", now)
-            recorder_error = self.recorder.error if self.recorder is not None else None
+            recorder_error = self.recorder.writer.error if self.recorder is not None else None
             if recorder_error:
                 self._publish_status("recording", Level.ERROR, f"recording failed: {recorder_error}; solving and "
                                      "publishing go on", now)
@@ -468,34 +440,32 @@ class LinkageMonitorNode(Node):
             if config != self.monitor.config:
                 self.monitor.reconfigure(config)
                 if self.recorder is not None:
-                    self._record_config(config, self._now())
+                    self.recorder.config(config, self._now())
                 self.get_logger().info(f"configuration changed: {config.describe()}")
         except Exception as exc:  # noqa: BLE001
             self.get_logger().error(f"parameter change not applied: {type(exc).__name__}: {exc}")
 
     # ---- outputs ----------------------------------------------------------------------------------
     def _publish(self, step: Step, now: int) -> None:
-        out = self.encoder.outputs(self.monitor, step)
-        topics = self.monitor.config.topics
+        """Publish and record what ``step`` sends (``wire.step_messages``), log it to Rerun."""
+        messages = self.messenger.messages(step, self.encoder.outputs(self.monitor, step), now)
+        out = messages.outputs
         if out is not None:   # serialized: published and recorded as they are
-            for topic, pub, data, type_name in (
-                    (topics.hinge_reactions, self.pub_hinges, out.hinge_reactions, HINGE_REACTIONS),
-                    (topics.hitch_state, self.pub_hitch, out.hitch_state, HITCH_STATE),
-                    (topics.steerability, self.pub_steer, out.steerability, STEERABILITY)):
-                pub.publish(data)
-                self._record(topic, data, step.stamp_ns, now, OUTPUT_QOS, type_name)
-        if step.pose is not None and self.marker_gate.due(step.stamp_ns):
-            markers = self.markers.markers(step.stamp_ns, step.pose.result)
-            self.pub_markers.publish(markers)
-            self._record(topics.markers, markers, step.stamp_ns, now, OUTPUT_QOS, MARKER_ARRAY)
+            self.pub_hinges.publish(out.hinge_reactions)
+            self.pub_hitch.publish(out.hitch_state)
+            self.pub_steer.publish(out.steerability)
+        if messages.markers is not None:
+            self.pub_markers.publish(messages.markers)
+        if messages.diagnostic is not None:
+            self._reported = step
+            self._send_diagnostic(messages.diagnostic)
+        if self.recorder is not None:
+            self.recorder.step(messages, now)
         if self.rerun is not None:
             try:
                 self._log_rerun(step)
             except Exception as exc:  # noqa: BLE001 - a failed Rerun sink must not stop the monitor
                 self._rerun_failed(exc, now)
-        if self.diagnostic_gate.due(step):
-            self._reported = step
-            self._publish_diagnostic(step, now)
         if step.level == Level.ERROR:
             self.get_logger().error(step.message, throttle_duration_sec=1.0)
         elif step.level == Level.WARN:
@@ -535,30 +505,29 @@ class LinkageMonitorNode(Node):
         elif step.level == Level.ERROR:
             self.rerun.log_status(step.stamp_ns, step.message)
 
-    def _publish_diagnostic(self, step: Step, now: int, record: bool = True) -> None:
-        msg = diagnostic_array(step, self.status_name, self.monitor.mechanism.name, now)
-        self.pub_diag.publish(msg)
-        if record:
-            self._record(self.monitor.config.topics.diagnostics, msg, step.stamp_ns, now, OUTPUT_QOS, DIAGNOSTIC_ARRAY)
+    def _send_diagnostic(self, diagnostic: bytes) -> None:
+        """Publish a step's DiagnosticArray; the heartbeat repeats the last one HEARTBEAT_S after."""
+        self.pub_diag.publish(diagnostic)
         self._last_heartbeat = time.monotonic()
 
     def _publish_status(self, part: str, level: Level, message: str, now: int) -> None:
         """A separate DiagnosticStatus ``<node>: <part>`` (input stream, recording, internal)."""
         msg = status_array(self.get_clock().now().nanoseconds, level, f"{NODE_NAME}: {part}", message,
                            self.monitor.mechanism.name, {"part": part})
-        if part != "recording":
-            self._record(self.monitor.config.topics.diagnostics, msg, now, now, OUTPUT_QOS, DIAGNOSTIC_ARRAY)
+        if part != "recording" and self.recorder is not None:
+            self.recorder.status(msg, now, now)
         self.pub_diag.publish(msg)
 
-    def _record(self, topic: str, msg: Any, stamp: int, now: int, qos: QoSProfile, type_name: str | None = None
-                ) -> None:
-        """Record a message object, or its CDR bytes with ``type_name``."""
-        if self.recorder is not None:
-            self.recorder.write(topic, msg, stamp, type_name=type_name, qos=qos, log_time_ns=now)
-
-    def _record_config(self, config: MonitorConfig, now: int) -> None:
-        assert self.recorder is not None
-        self.recorder.write(CONFIG_TOPIC, String(data=config.to_yaml()), now, qos=LATCHED, log_time_ns=now)
+    def _record_input(self, topic: str, type_name: str, data: bytes, stamp_ns: int, now: int) -> None:
+        """Record an input's CDR bytes as they came (``StepRecorder.input``); a recording fault is an
+        ERROR ``<node>: recording`` and the monitoring goes on."""
+        if self.recorder is None:
+            return
+        try:
+            self.recorder.input(topic, type_name, data, stamp_ns, now)
+        except Exception as exc:  # noqa: BLE001 - a recording fault must not stop the monitoring
+            self._publish_status("recording", Level.ERROR, f"recording failed for {topic}: {type(exc).__name__}: "
+                                 f"{exc}; solving and publishing go on", now)
 
     def close(self) -> None:
         """Report the inputs lost since the last heartbeat, finish the bag and the Rerun recording."""
@@ -570,8 +539,8 @@ class LinkageMonitorNode(Node):
         except Exception as exc:  # noqa: BLE001 - the bag is finished whatever happens here
             self.get_logger().error(f"final loss report failed: {type(exc).__name__}: {exc}")
         if self.recorder is not None:
-            self.recorder.close()
-            self.get_logger().info(f"bag written: {self.recorder.directory}")
+            self.recorder.writer.close()
+            self.get_logger().info(f"bag written: {self.recorder.writer.directory}")
         if self.rerun is not None:
             try:
                 self.rerun.close()

@@ -33,7 +33,7 @@ def recorded_inputs(bag: Path) -> list[tuple[str, str, int, int, bytes]]:
     for topic, type_name, publish_time, log_time, data in read_bag_raw(bag):
         if type_name in (JOINT_STATE, FLUID_PRESSURE):
             try:
-                stamp = read_input(type_name, data).stamp_ns
+                stamp = read_input(type_name, data, topic, log_time).stamp_ns
             except CdrError:
                 stamp = publish_time
             rows.append((topic, type_name, stamp, log_time, data))

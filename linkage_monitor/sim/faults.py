@@ -21,7 +21,7 @@ import numpy as np
 from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
 from linkage_monitor.mechanics.limits import Limit, input_limits
-from linkage_monitor.monitoring.core import JointStateEvent, PressureEvent
+from linkage_monitor.monitoring.events import JointStateEvent, PressureEvent
 from linkage_monitor.sim.telemetry import Noise, simulate
 
 NS = 1_000_000_000

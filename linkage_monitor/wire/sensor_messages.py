@@ -1,61 +1,55 @@
-"""The monitor's two input messages read straight from their CDR bytes (live node and replay).
+"""The monitor's two input messages read straight from their CDR bytes into the core's input
+events (live node and replay).
 
 sensor_msgs/JointState (positions: rad for revolute joints, m for cylinder strokes; velocities
-rad/s, m/s) and sensor_msgs/FluidPressure (Pa) are read field by field by their layouts
-(``wire.read``) instead of rclpy's ``deserialize_message``: the same values (test_sensor_messages.py compares
-both on generated and on damaged messages), without building an rclpy message object, which
-costs 12 µs in a loop and 170–240 µs after the few milliseconds of idle between two sensor
-messages on these machines (docs/performance.md, ninth session). A message that is not the
-CDR of its type raises ``CdrError`` naming the field and the byte. The rare XCDR2 payload
-(alignment and headers of its own) is left to rclpy, imported then (the wire layer does not import
-rclpy otherwise).
+rad/s, m/s) becomes a ``JointStateEvent``, sensor_msgs/FluidPressure (Pa) a ``PressureEvent``
+(``monitoring.events``). They are read field by field by their layouts (``wire.read``) instead
+of rclpy's ``deserialize_message``: the same values (test_sensor_messages.py compares both on
+generated and on damaged messages), without building an rclpy message object, which costs
+12 µs in a loop and 170–240 µs after the few milliseconds of idle between two sensor messages
+(docs/performance.md). A message that is not the CDR of its type raises ``CdrError`` naming the
+field and the byte (``input_event`` makes it an ``UnreadableEvent``). The rare XCDR2 payload
+(alignment and headers of its own) is left to rclpy, imported then (the wire layer does not
+import rclpy otherwise).
 """
 
 from __future__ import annotations
 
 import importlib
-from typing import Any, Callable, NamedTuple
+from typing import Any, Callable, Union
+
+from linkage_monitor.monitoring.events import InputEvent, JointStateEvent, PressureEvent, UnreadableEvent
 
 from .cdr import CdrError, is_xcdr1, stamp_ns
 from .read import read_message
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 FLUID_PRESSURE = "sensor_msgs/msg/FluidPressure"
+SensorEvent = Union[JointStateEvent, PressureEvent]
 
 
-class JointStateReading(NamedTuple):
-    """A sensor_msgs/JointState: header stamp (ns since the epoch), joint names, positions
-    (rad / m) and velocities (rad/s / m/s; may be empty). Efforts are read (checked) but not kept."""
-
-    stamp_ns: int
-    names: list[str]
-    position: tuple[float, ...]
-    velocity: tuple[float, ...]
-
-
-class FluidPressureReading(NamedTuple):
-    """A sensor_msgs/FluidPressure: header stamp (ns since the epoch) and fluid_pressure (Pa)."""
-
-    stamp_ns: int
-    fluid_pressure: float
-
-
-def read_joint_state(data: bytes) -> JointStateReading:
-    """The JointState in ``data`` (its CDR bytes); CdrError if they are not one."""
+def read_joint_state(data: bytes, topic: str, receive_ns: int) -> JointStateEvent:
+    """The JointState in ``data`` (its CDR bytes), received on ``topic`` at ``receive_ns`` (ns);
+    CdrError if the bytes are not one. Efforts are read (checked) but not kept."""
     if len(data) >= 4 and not is_xcdr1(data):
         msg = _rclpy(data, JOINT_STATE)
-        return JointStateReading(stamp_ns(msg.header), list(msg.name), tuple(msg.position), tuple(msg.velocity))
+        return JointStateEvent(topic=topic, names=list(msg.name), positions=tuple(msg.position),
+                               velocities=tuple(msg.velocity), stamp_ns=stamp_ns(msg.header), receive_ns=receive_ns)
     m = read_message(JOINT_STATE, data)
-    return JointStateReading(m["header.stamp"], m["name"], m["position"], m["velocity"])
+    return JointStateEvent(topic=topic, names=m["name"], positions=m["position"], velocities=m["velocity"],
+                           stamp_ns=m["header.stamp"], receive_ns=receive_ns)
 
 
-def read_fluid_pressure(data: bytes) -> FluidPressureReading:
-    """The FluidPressure in ``data`` (its CDR bytes); CdrError if they are not one."""
+def read_fluid_pressure(data: bytes, topic: str, receive_ns: int) -> PressureEvent:
+    """The FluidPressure in ``data`` (its CDR bytes), received on ``topic`` at ``receive_ns`` (ns);
+    CdrError if the bytes are not one."""
     if len(data) >= 4 and not is_xcdr1(data):
         msg = _rclpy(data, FLUID_PRESSURE)
-        return FluidPressureReading(stamp_ns(msg.header), float(msg.fluid_pressure))
+        return PressureEvent(topic=topic, fluid_pressure=float(msg.fluid_pressure), stamp_ns=stamp_ns(msg.header),
+                             receive_ns=receive_ns)
     m = read_message(FLUID_PRESSURE, data)
-    return FluidPressureReading(m["header.stamp"], m["fluid_pressure"])
+    return PressureEvent(topic=topic, fluid_pressure=m["fluid_pressure"], stamp_ns=m["header.stamp"],
+                         receive_ns=receive_ns)
 
 
 def _rclpy(data: bytes, type_name: str) -> Any:
@@ -69,17 +63,26 @@ def _rclpy(data: bytes, type_name: str) -> Any:
                        f"(encapsulation {bytes(data[:2]).hex() or '(none)'})") from None
 
 
-def read_input(type_name: str, data: bytes) -> JointStateReading | FluidPressureReading:
-    """The input message of type ``type_name`` (JOINT_STATE or FLUID_PRESSURE) in ``data``; CdrError
-    for bytes that do not read as it, whatever the reason (an unexpected one named by its type)."""
+def read_input(type_name: str, data: bytes, topic: str, receive_ns: int) -> SensorEvent:
+    """The input message of type ``type_name`` (JOINT_STATE or FLUID_PRESSURE) in ``data``, received on
+    ``topic`` at ``receive_ns`` (ns); CdrError for bytes that do not read as it, whatever the reason
+    (an unexpected one named by its type)."""
     read = _READERS[type_name]
     try:
-        return read(data)
+        return read(data, topic, receive_ns)
     except CdrError:
         raise
     except Exception as exc:  # noqa: BLE001 - bytes that break the reader otherwise: the input's fault all the same
         raise CdrError(f"{type(exc).__name__}: {exc}") from exc
 
 
-_READERS: dict[str, Callable[[bytes], JointStateReading | FluidPressureReading]] = {
+def input_event(type_name: str, data: bytes, topic: str, receive_ns: int) -> InputEvent:
+    """``read_input``, or for bytes that do not read as ``type_name`` the UnreadableEvent saying why."""
+    try:
+        return read_input(type_name, data, topic, receive_ns)
+    except CdrError as exc:
+        return UnreadableEvent(topic=topic, type_name=type_name, size=len(data), reason=str(exc), receive_ns=receive_ns)
+
+
+_READERS: dict[str, Callable[[bytes, str, int], SensorEvent]] = {
     JOINT_STATE: read_joint_state, FLUID_PRESSURE: read_fluid_pressure}

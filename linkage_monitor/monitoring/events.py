@@ -1,0 +1,65 @@
+"""The events the monitoring core takes: one type per input message, and a configuration change.
+
+The drivers build them: the live node and the replay read them from the inputs' CDR bytes
+(``wire.sensor_messages``), the CAN bridge decodes them from frames (``can.decoder``), the tests
+and benches write them directly. Every input event carries its topic, its header stamp and its
+receive time (ns since the epoch, the monitor's clock); values in SI units.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence, Union
+
+from .config import MonitorConfig
+
+
+@dataclass(frozen=True)
+class JointStateEvent:
+    """A sensor_msgs/JointState: joint names, positions (rad for revolute joints, m for cylinder
+    lengths), velocities (rad/s, m/s; may be empty), header stamp and receive time (ns)."""
+
+    topic: str
+    names: Sequence[str]
+    positions: Sequence[float]
+    velocities: Sequence[float]
+    stamp_ns: int
+    receive_ns: int
+
+
+@dataclass(frozen=True)
+class PressureEvent:
+    """A sensor_msgs/FluidPressure: fluid_pressure (Pa), header stamp and receive time (ns)."""
+
+    topic: str
+    fluid_pressure: float
+    stamp_ns: int
+    receive_ns: int
+
+
+@dataclass(frozen=True)
+class UnreadableEvent:
+    """An input message whose bytes are not its type: ``size`` (bytes), ``reason`` (what is wrong,
+    where). The header being unreadable, its stamp is its receive time (ns)."""
+
+    topic: str
+    type_name: str
+    size: int
+    reason: str
+    receive_ns: int
+
+    @property
+    def stamp_ns(self) -> int:
+        """The receive time (ns): the stamp of an input whose header cannot be read."""
+        return self.receive_ns
+
+
+@dataclass(frozen=True)
+class ConfigEvent:
+    """The configuration changed (runtime parameters); applies to the events after it."""
+
+    config: MonitorConfig
+
+
+InputEvent = Union[JointStateEvent, PressureEvent, UnreadableEvent]
+Event = Union[InputEvent, ConfigEvent]
