@@ -36,7 +36,7 @@ from .to_bag import RAW_TOPIC, input_record
 # s, the node's thread reads the bus this often, everything waiting each time. Not a reader thread:
 # its every receive releases the GIL (a system call) and waits up to the interpreter's switch
 # interval (5 ms) to get it back while the node solves, ~200 frames/s, and the socket overflows
-# (bench/bench_can.py found it); not a guard condition either (the node's spin loop,
+# (bench/bench_can.py shows it); not a guard condition either (the node's spin loop,
 # ros.spin.InputSpinner, consumes its trigger before rclpy's executor would run the callback).
 POLL_PERIOD_S = 0.01
 POLL_LIMIT = 5000      # frames worked off per poll at most (then timers and services run)

@@ -4,14 +4,13 @@ Two events tell what the node cannot see in the messages themselves: samples los
 middleware knows it missed them) and a publisher offering a QoS the subscription cannot match.
 rclpy attaches such events to a subscription as event handlers (three per subscription by
 default), and its executor adds every handler to its wait set and asks it whether it is ready at
-every wake-up — for every input message. Measured on this machine
-(docs/performance.md, thirteenth session): ~60-150 µs of the executor's Python per input message
-for the node's six handlers. The events are rare and reported at the heartbeat anyway, so the
-node subscribes without handlers and takes the events' status from the middleware once per
-heartbeat: the status carries the count changed since the last take, nothing is missed between
-two takes (test_node_trust.py). (rclpy's third default event, a publisher of another type on the
-topic, is never raised by this machine's middleware, rmw_fastrtps, with a waited handler either:
-tried with a String publisher on a FluidPressure topic.)
+every wake-up — for every input message: ~60-150 µs of the executor's Python per input message
+for the node's six handlers (docs/performance.md). The events are rare and reported at the
+heartbeat anyway, so the node subscribes without handlers and takes the events' status from the
+middleware once per heartbeat: the status carries the count changed since the last take, nothing
+is missed between two takes (test_node_trust.py). (rclpy's third default event, a publisher of another type on the
+topic, is never raised by the middleware, rmw_fastrtps, with a waited handler either: a String
+publisher on a FluidPressure topic raises none.)
 """
 
 from __future__ import annotations

@@ -2,18 +2,19 @@
 
 rclpy's SingleThreadedExecutor gathers the node's entities and builds a new wait set in Python at
 every wake-up (``Executor._wait_for_ready_callbacks``: a context manager per entity, a readiness
-check per waitable): ~250-300 µs of CPU per wake-up on this machine, for a node whose callback does
-nothing (docs/performance.md, thirteenth session) — once per input message, as much as the
-monitoring step itself. ``InputSpinner`` keeps one wait set of the node's waitable handles
-(subscriptions, timers, services, clients, guard conditions; gathered again after every wake-up
-that is not an input's, the only time the node can create an entity) and at each wake-up:
+check per waitable): ~250-300 µs of CPU per wake-up for a node whose callback does nothing
+(docs/performance.md) — once per input message, as much as the monitoring step itself.
+``InputSpinner`` keeps one wait set of the node's waitable handles (subscriptions, timers,
+services, clients, guard conditions; gathered again after every wake-up that is not an input's,
+the only time the node can create an entity) and at each wake-up:
 
 - anything else is ready (the heartbeat timer, a parameter service, /clock with use_sim_time, a
   guard condition): first one ``executor.spin_once(timeout_sec=0)``, rclpy's own dispatch for these
   rare wake-ups (a guard condition's trigger is consumed by the wait that saw it, so the spinner
   triggers it again for the executor's own wait to see)
   (first: a /clock message that arrived with an input sets the node's clock before the input is
-  judged by it, as under rclpy's executor, which takes /clock first: ``make demo`` found it);
+  judged by it, as under rclpy's executor, which takes /clock first; ``make demo`` replays with
+  use_sim_time and depends on it);
 - an input subscription is ready: ``take_inputs`` (the node's drain) takes the queued inputs
   itself, in arrival order;
 - nothing within the timeout: it returns, so that the caller's loop (and a signal handler) runs.
