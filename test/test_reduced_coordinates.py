@@ -151,7 +151,7 @@ def test_the_transmission_measure_is_its_definition_from_the_points(name: str) -
 
 
 def test_seed_003_cylinder_force_in_the_reference_pose() -> None:
-    """belarus_1221 at S = 0.535 m: F_pr = 107.52 kN (REFERENCE.md, seed 003 Table 2, first row;
+    """belarus_1221 at S = 0.535 m: F_pr = 107.52 kN (seed 003, Popov 2009, Table 2, first row: docs/seed003_belarus.md;
     the preset's geometry is fitted to that table within 0.1 kN)."""
     solver = SOLVERS["belarus_1221"]
     kin = solver.kin

@@ -3,8 +3,8 @@
 The one numeric path of the solver. Every function works on plain arrays that describe the
 mechanism (built once by :class:`~.kinematics.Kinematics` and :class:`~.statics.StaticsLayout`)
 and loops over poses in compiled code, so a single pose costs microseconds, not the ~150
-numpy calls of the array formulation it replaced (that formulation is kept as the test oracle,
-``test/oracles/numpy_solver.py``). Compiled once, cached on disk (``cache=True``).
+numpy calls of the array formulation that the tests keep as their oracle
+(``test/oracles/numpy_solver/``). Compiled once, cached on disk (``cache=True``).
 
 Conventions (as in kinematics.py / statics.py): q holds (x, z, θ) per moving body (m, m, rad;
 x forward, z up); an attachment is a point fixed on a body, at ``ref`` (m) from the body's
