@@ -20,6 +20,7 @@ from pathlib import Path
 import rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
+from linkage_monitor.bag.step_recorder import RecordedInput
 from linkage_monitor.mechanics import preset_names
 from linkage_monitor.msg import HingeReactions
 from linkage_monitor.ros.player import play, recorded_inputs
@@ -100,11 +101,11 @@ def main(argv: list[str] | None = None) -> int:
     return 0 if ok else 1
 
 
-def _by_topic(rows: list[tuple[str, str, int, int, bytes]]) -> dict[str, list[bytes]]:
+def _by_topic(rows: list[RecordedInput]) -> dict[str, list[bytes]]:
     """The CDR bytes of ``recorded_inputs`` rows, per topic in their order."""
     topics: dict[str, list[bytes]] = {}
-    for topic, _, _, _, data in rows:
-        topics.setdefault(topic, []).append(data)
+    for row in rows:
+        topics.setdefault(row.topic, []).append(row.data)
     return topics
 
 

@@ -10,6 +10,8 @@ replay of a node's bag writes the node's bag again, message for message.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import yaml
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
@@ -24,6 +26,17 @@ from linkage_monitor.wire.step_messages import StepMessages
 from .writer import BagWriter
 
 CONFIG_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+class RecordedInput(NamedTuple):
+    """An input message as the bag holds it: its CDR bytes as they arrived on ``topic``; ``stamp_ns``:
+    its header stamp (its receive time when unreadable), ``receive_ns``: its log time (ns)."""
+
+    topic: str
+    type_name: str
+    stamp_ns: int
+    receive_ns: int
+    data: bytes
 
 
 def mechanism_yaml(description: Mechanism) -> str:

@@ -19,14 +19,14 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Iterator, NamedTuple, TextIO
+from typing import Iterator, TextIO
 
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 from tqdm import tqdm
 
 from linkage_monitor.bag.reader import read_bag, read_bag_raw
-from linkage_monitor.bag.step_recorder import StepRecorder
+from linkage_monitor.bag.step_recorder import RecordedInput, StepRecorder
 from linkage_monitor.bag.writer import MECHANISM_TOPIC, BagError, BagWriter
 from linkage_monitor.mechanics import Mechanism, mechanism_from_text
 from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
@@ -36,17 +36,6 @@ from linkage_monitor.monitoring.findings import Level
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, input_event
 
 ENCODE_BLOCK = 4096   # steps whose output messages are encoded at once (held in memory until written)
-
-
-class RecordedInput(NamedTuple):
-    """An input message as the bag holds it: its CDR bytes as they arrived on ``topic``; ``stamp_ns``:
-    its header stamp (its receive time when unreadable), ``receive_ns``: its log time (ns)."""
-
-    topic: str
-    type_name: str
-    stamp_ns: int
-    receive_ns: int
-    data: bytes
 
 
 @dataclass

@@ -20,27 +20,20 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
 from linkage_monitor.bag.reader import message_class, read_bag_raw
-from linkage_monitor.wire.cdr import CdrError
-from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, read_input
+from linkage_monitor.bag.step_recorder import RecordedInput
+from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, input_event
 
 PLAYER_QOS = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
 
 
-def recorded_inputs(bag: Path) -> list[tuple[str, str, int, int, bytes]]:
-    """(topic, type, header stamp ns, log time ns, CDR bytes as recorded) of every sensor message, in
-    order; the stamp of bytes that do not read as their type is the recorded publish time."""
-    rows = []
-    for topic, type_name, publish_time, log_time, data in read_bag_raw(bag):
-        if type_name in (JOINT_STATE, FLUID_PRESSURE):
-            try:
-                stamp = read_input(type_name, data, topic, log_time).stamp_ns
-            except CdrError:
-                stamp = publish_time
-            rows.append((topic, type_name, stamp, log_time, data))
-    return rows
+def recorded_inputs(bag: Path) -> list[RecordedInput]:
+    """Every sensor message of ``bag`` as recorded, in order (the stamp of bytes that do not read as
+    their type: their log time)."""
+    return [RecordedInput(topic, type_name, input_event(type_name, data, topic, log_time).stamp_ns, log_time, data)
+            for topic, type_name, _, log_time, data in read_bag_raw(bag) if type_name in (JOINT_STATE, FLUID_PRESSURE)]
 
 
-def play(node: Node, messages: list[tuple[str, str, int, int, bytes]], rate: float = 1.0,
+def play(node: Node, messages: list[RecordedInput], rate: float = 1.0,
          wait_for_subscribers: float = 10.0, min_gap_s: float = 0.0) -> int:
     """Publish `messages` from `node` at `rate` × recorded speed; returns the number published.
 
@@ -52,22 +45,24 @@ def play(node: Node, messages: list[tuple[str, str, int, int, bytes]], rate: flo
     """
     publishers: dict[str, Any] = {}
     clock = node.create_publisher(Clock, "/clock", PLAYER_QOS)
-    for topic, type_name, *_ in messages:
-        if topic not in publishers:
-            publishers[topic] = node.create_publisher(message_class(type_name), topic, PLAYER_QOS)
+    for message in messages:
+        if message.topic not in publishers:
+            publishers[message.topic] = node.create_publisher(message_class(message.type_name), message.topic,
+                                                              PLAYER_QOS)
     end = time.monotonic() + wait_for_subscribers
     while time.monotonic() < end and not all(p.get_subscription_count() for p in publishers.values()):
         time.sleep(0.05)
     time.sleep(0.5)  # a publisher sees the match before the subscriber does
     if not messages:
         return 0
-    t0_log, t0_wall = messages[0][3], time.monotonic()
+    t0_log, t0_wall = messages[0].receive_ns, time.monotonic()
     due = -min_gap_s
-    for topic, _, stamp, log_time, data in messages:
-        due = max((log_time - t0_log) * 1e-9 / rate, due + min_gap_s)
+    for message in messages:
+        due = max((message.receive_ns - t0_log) * 1e-9 / rate, due + min_gap_s)
         delay = due - (time.monotonic() - t0_wall)
         if delay > 0:
             time.sleep(delay)
-        clock.publish(Clock(clock=Time(sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000)))
-        publishers[topic].publish(data)
+        sec, nanosec = divmod(message.stamp_ns, 1_000_000_000)
+        clock.publish(Clock(clock=Time(sec=sec, nanosec=nanosec)))
+        publishers[message.topic].publish(message.data)
     return len(messages)
