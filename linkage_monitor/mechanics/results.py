@@ -5,6 +5,7 @@ SI units, global frame (x forward, z up, origin at the rear wheels' ground conta
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from enum import IntEnum
 from functools import cached_property
@@ -131,6 +132,8 @@ class Result:
     status: str
     message: str = ""
     state: object = field(default=None, repr=False)  # the solver's pose, to warm-start the next solve
+    transmission_angle: float = math.nan
+    weakest_transmission: str = ""
 
     @cached_property
     def hinge_magnitude(self) -> np.ndarray:
@@ -170,7 +173,8 @@ class BatchResult:
 
     ``status`` (N,) int: a :class:`Status` value per pose; ``messages[i]`` says what went wrong with pose i ("" when ok).
     ``hinge_force[name]`` (N, 2) N on bodies[1] from bodies[0]; ``frame_load_points`` and
-    ``frame_load_forces`` (N, K, 2) in the order of ``frame_load_names``.
+    ``frame_load_forces`` (N, K, 2) in the order of ``frame_load_names``. ``transmission_angle``
+    (N,) rad and ``weakest_transmission`` (N names) as :class:`Result`'s.
     """
 
     points: dict[str, np.ndarray]
@@ -194,6 +198,8 @@ class BatchResult:
     condition: np.ndarray
     status: np.ndarray
     messages: list[str]
+    transmission_angle: np.ndarray
+    weakest_transmission: list[str]
 
     def __len__(self) -> int:
         return len(self.status)
@@ -208,9 +214,9 @@ class BatchResult:
                         column[index] = theirs[key]
             elif isinstance(value, np.ndarray):
                 value[index] = theirs
-            elif name == "messages":
-                for i, message in zip(index.tolist(), theirs):
-                    value[i] = message
+            elif isinstance(value, list) and name != "frame_load_names":   # messages, weakest_transmission
+                for i, text in zip(index.tolist(), theirs):
+                    value[i] = text
 
     def result(self, i: int) -> Result:
         """Pose i as a :class:`Result` (its status may be an error: check ``status``/``message``)."""
@@ -238,18 +244,20 @@ class BatchResult:
         cgs, load_points, load_forces = (a[span].copy() for a in (self.implement_cg, self.frame_load_points,
                                                                   self.frame_load_forces))
         scalars = zip(*(a[span].tolist() for a in (self.implement_load, self.residual, self.consistency_residual,
-                                                    self.condition, self.status)))
+                                                    self.condition, self.status, self.transmission_angle)))
         return [Result(names, points[j], poses[j], hinges[j], cylinders[j], contacts[j], load, cgs[j], load_points[j],
-                       load_forces[j], residual, consistency, condition, STATUS_LABELS[int(status)], message)
-                for j, ((load, residual, consistency, condition, status), message)
-                in enumerate(zip(scalars, self.messages[span]))]
+                       load_forces[j], residual, consistency, condition, STATUS_LABELS[int(status)], message,
+                       transmission_angle=angle, weakest_transmission=weakest)
+                for j, ((load, residual, consistency, condition, status, angle), message, weakest)
+                in enumerate(zip(scalars, self.messages[span], self.weakest_transmission[span]))]
 
     @classmethod
     def from_stacked(cls, names: ResultNames, hinge_bodies: dict[str, tuple[str, str]], point_xz: np.ndarray,
                      body_q: np.ndarray, hinge_force: np.ndarray, cylinder_values: np.ndarray,
                      contact_values: np.ndarray, implement_load: np.ndarray, implement_cg: np.ndarray,
                      frame_load_names: list[str], frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
-                     residual: np.ndarray, consistency_residual: np.ndarray, condition: np.ndarray) -> "BatchResult":
+                     residual: np.ndarray, consistency_residual: np.ndarray, condition: np.ndarray,
+                     transmission_angle: np.ndarray, weakest_transmission: list[str]) -> "BatchResult":
         """N solved poses (status OK) from arrays stacked as :class:`Result`'s, with a first axis of
         poses (``results`` the other way round); each column is a view of the stack."""
         n_pose = len(residual)
@@ -265,7 +273,7 @@ class BatchResult:
             implement_load=implement_load, implement_cg=implement_cg, frame_load_names=frame_load_names,
             frame_load_points=frame_load_points, frame_load_forces=frame_load_forces, residual=residual,
             consistency_residual=consistency_residual, condition=condition, status=np.zeros(n_pose, dtype=int),
-            messages=[""] * n_pose)
+            messages=[""] * n_pose, transmission_angle=transmission_angle, weakest_transmission=weakest_transmission)
 
     @property
     def names(self) -> ResultNames:

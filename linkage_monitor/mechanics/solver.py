@@ -16,7 +16,7 @@ from .constants import ATMOSPHERIC_PRESSURE   # a gauge pressure below −1 atm 
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
 from .kinematics import Kinematics, KinematicState
 from .model import Cylinder, Mechanism
-from .reduced import ReducedStatics
+from .reduced import DEAD_CENTRE_TRANSMISSION_DEG, ReducedStatics
 from .results import BatchResult, Result, ResultNames, Status
 from .statics import StaticsLayout
 
@@ -45,13 +45,17 @@ class Solver:
     """Everything that depends only on the mechanism, built once; ``solve`` / ``solve_batch`` per pose(s).
 
     dead_centre_cond: condition number (1-norm, dimensionless matrices) above which a pose is a
-    dead centre; consistency_tol: m, largest constraint residual accepted when more inputs than
-    degrees of freedom are measured.
+    dead centre on the general path; dead_centre_transmission_deg: degrees, the smallest
+    transmission angle below which a pose is a dead centre on the reduced path
+    (``reduced.DEAD_CENTRE_TRANSMISSION_DEG``); consistency_tol: m, largest constraint residual
+    accepted when more inputs than degrees of freedom are measured.
     """
 
-    def __init__(self, mech: Mechanism, dead_centre_cond: float = 1e6, consistency_tol: float = 1e-3) -> None:
+    def __init__(self, mech: Mechanism, dead_centre_cond: float = 1e6, consistency_tol: float = 1e-3,
+                 dead_centre_transmission_deg: float = DEAD_CENTRE_TRANSMISSION_DEG) -> None:
         self.mech = mech
         self.dead_centre_cond = dead_centre_cond
+        self.dead_centre_transmission_deg = dead_centre_transmission_deg
         self.consistency_tol = consistency_tol
         self.kin = kin = Kinematics(mech)
         self._check_kinematics_observable()
@@ -185,7 +189,7 @@ class Solver:
         batch = BatchResult.from_stacked(
             self.names, {h.name: h.bodies for h in mech.hinges}, points, q.reshape(n_pose, -1, 3), hinge_force,
             cylinder_values, contact_values, scalars[:, 0], implement_cg, list(self.frame_load_names), frame_points,
-            frame_forces, scalars[:, 1], scalars[:, 2], scalars[:, 3])
+            frame_forces, scalars[:, 1], scalars[:, 2], scalars[:, 3], np.full(n_pose, np.nan), [""] * n_pose)
         general = np.flatnonzero(~plain)
         if general.size:
             def rows(group: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -463,7 +467,8 @@ class Solver:
             frame_load_points=np.stack(fl_points, axis=1) if fl_points else np.zeros(shape),
             frame_load_forces=np.stack(fl_forces, axis=1) if fl_forces else np.zeros(shape),
             residual=np.where(failed, np.nan, sol.residual), consistency_residual=np.zeros(n_pose),
-            condition=np.zeros(n_pose), status=np.zeros(n_pose, dtype=int), messages=[""] * n_pose)
+            condition=np.zeros(n_pose), status=np.zeros(n_pose, dtype=int), messages=[""] * n_pose,
+            transmission_angle=np.full(n_pose, np.nan), weakest_transmission=[""] * n_pose)
 
 
 def _measured_force(c: Cylinder, cap: "float | np.ndarray", rod: "float | np.ndarray") -> "float | np.ndarray":

@@ -307,4 +307,5 @@ class Solver:
             frame_load_points=np.stack(fl_points, axis=1) if fl_points else np.zeros(shape),
             frame_load_forces=np.stack(fl_forces, axis=1) if fl_forces else np.zeros(shape),
             residual=np.where(failed, np.nan, sol.residual), consistency_residual=np.zeros(n_pose),
-            condition=np.zeros(n_pose), status=np.zeros(n_pose, dtype=int), messages=[""] * n_pose)
+            condition=np.zeros(n_pose), status=np.zeros(n_pose, dtype=int), messages=[""] * n_pose,
+            transmission_angle=np.full(n_pose, np.nan), weakest_transmission=[""] * n_pose)
