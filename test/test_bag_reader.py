@@ -161,3 +161,65 @@ def test_a_corrupt_chunk_is_named_skipped_and_counted(tmp_path, caplog, where):
     assert lost > 0 and f"({lost} messages" in named[0] or "unknown number" in named[0], (lost, named[0])
     kept = {(r[0], r[3]) for r in after}
     assert kept <= {(r[0], r[3]) for r in before}   # nothing made up, the rest read as before
+
+
+HITCH_STATE = "linkage_monitor/msg/HitchState"
+
+
+def test_a_message_recorded_with_another_definition_reads_by_it(tmp_path: Path, caplog) -> None:
+    """A HitchState recorded with a definition that lacks `min_transmission_angle` (the installed
+    definition with that line taken out), written by rosbags' writer, whose schema record carries
+    that definition: read_bag decodes it by the recorded definition into the installed class —
+    every field the recording has equal to what was written, `min_transmission_angle` NaN (not
+    known) — and says once in the log which field the recording lacks."""
+    import math
+    import re
+
+    from rosbags.typesys import get_types_from_msg
+
+    from linkage_monitor.msg import HitchState
+    from linkage_monitor.wire.definitions import message_definition
+
+    installed = message_definition(HITCH_STATE)
+    older = re.sub(r"^float64 min_transmission_angle .*\n", "", installed, flags=re.M)
+    assert older != installed
+    store = get_typestore(Stores.EMPTY)
+    store.register(get_types_from_msg(older, HITCH_STATE))
+    T = store.types
+    cylinder = T["linkage_monitor/msg/CylinderState"](name="lift_cylinder", length=0.6, force=1.2e5,
+                                                       cap_pressure_measured=1.0e7, rod_pressure_measured=math.nan,
+                                                       cap_pressure_predicted=1.01e7)
+    header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=T0 // 10**9, nanosec=5),
+                                      frame_id="base_footprint")
+    written = T[HITCH_STATE](header=header, cylinders=[cylinder], implement_load=15000.0,
+                             implement_load_estimated=True, implement_cg_x=-1.8, implement_cg_z=0.34,
+                             hitch_axis_height=0.30, lift_capacity_hitch_axis=31800.0, lift_capacity_610mm=24200.0,
+                             lift_capacity_implement_cg=23000.0, lift_reserve=1.53, status=1,
+                             status_text="lift reserve 0.98 < 1")
+    with Writer(tmp_path / "older", version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        connection = writer.add_connection("/hitch_state", HITCH_STATE, typestore=store)
+        writer.write(connection, T0 + 5, store.serialize_cdr(written, HITCH_STATE))
+    with caplog.at_level("INFO", logger="linkage_monitor.bag.reader"):
+        rows = list(read_bag(tmp_path / "older"))
+    assert len(rows) == 1
+    topic, type_name, stamp, _, msg = rows[0]
+    assert (topic, type_name, stamp) == ("/hitch_state", HITCH_STATE, T0 + 5) and isinstance(msg, HitchState)
+    for name in HitchState.get_fields_and_field_types():
+        if name not in ("header", "cylinders", "min_transmission_angle"):
+            assert getattr(msg, name) == getattr(written, name), name
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id) == (T0 // 10**9, 5, "base_footprint")
+    [c] = msg.cylinders
+    assert (c.name, c.length, c.force, c.cap_pressure_measured, c.cap_pressure_predicted) == (
+        "lift_cylinder", 0.6, 1.2e5, 1.0e7, 1.01e7) and math.isnan(c.rod_pressure_measured)
+    assert math.isnan(msg.min_transmission_angle)
+    said = [r.getMessage() for r in caplog.records if "another definition" in r.getMessage()]
+    assert len(said) == 1 and "lacks min_transmission_angle" in said[0], caplog.text
+
+
+def test_every_recorded_output_of_the_bundled_bag_reads() -> None:
+    """The bundled bag's HitchState, HingeReactions and Steerability messages all decode (whichever
+    definition of them the bag recorded)."""
+    bag = Path(__file__).resolve().parents[1] / "bags" / "belarus_1221_lift_transport"
+    topics = ["/hitch_state", "/hinge_reactions", "/steerability"]
+    recorded = sum(1 for _ in read_bag_raw(bag, topics=topics))
+    assert recorded > 0 and sum(1 for _ in read_bag(bag, topics=topics)) == recorded

@@ -5,7 +5,11 @@ Iron), one file or a split bag (several storage files listed in one metadata.yam
 the other as one bag). A ROS 1 `.bag` is refused with the command that converts it.
 
 `read_bag` yields decoded messages one by one (a message that does not decode as its type is
-left out with a warning in the log); `read_bag_raw` yields their bytes undecoded (the replay
+left out with a warning in the log). A message recorded with another definition of its type than
+the installed one (an MCAP file's schema record carries the definition it was written with, e.g.
+a HitchState from before `min_transmission_angle`) is decoded by the recorded definition and
+handed over as the installed class: fields of the same name copied, a float field the recording
+lacks NaN (not known), any other one its default; `read_bag_raw` yields their bytes undecoded (the replay
 reads its inputs itself and reports an unreadable one as the node does); `read_inputs`
 gathers the sensor topics the solver needs (JointState, FluidPressure) into numpy columns.
 A bag whose writer was killed (no summary, possibly a truncated last record) is read up to
@@ -17,6 +21,7 @@ from __future__ import annotations
 import functools
 import importlib
 import logging
+import math
 import os
 import sqlite3
 import struct
@@ -34,9 +39,12 @@ from mcap.reader import NonSeekingReader, SeekingReader
 from mcap.records import Chunk, ChunkIndex, Message
 from mcap.stream_reader import CRCValidationError, breakup_chunk
 from rclpy.serialization import deserialize_message
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosidl_parser.definition import AbstractNestedType, BasicType, NamespacedType
 
 from linkage_monitor.bag.writer import BagError
 from linkage_monitor.wire.cdr import stamp_ns
+from linkage_monitor.wire.definitions import MessageDefinitionError, message_definition
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE
 
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -219,6 +227,7 @@ def undecoded_lines(undecoded: Undecoded) -> list[str]:
 def _decoded(file: Path, topics: Collection[str] | None, types: Collection[str] | None,
              undecoded: Undecoded) -> Iterator[tuple[str, str, int, int, Any]]:
     """``_messages`` of one storage file; the messages that do not decode counted in ``undecoded``."""
+    recorded: dict[tuple[str, bytes], Any] = {}   # (type, schema text) -> its typestore when it is not the installed
     for schema, channel, message in _raw_messages(file, topics):
         type_name = schema.name if schema is not None else ""
         if types is not None and type_name not in types:
@@ -227,8 +236,16 @@ def _decoded(file: Path, topics: Collection[str] | None, types: Collection[str] 
             raise BagError(f"{file}: topic {channel.topic!r} is encoded as "
                            f"{channel.message_encoding!r}, only 'cdr' is supported")
         msg_class = _message_class(type_name)   # BagError when the type's package is not installed
+        key = (type_name, getattr(schema, "data", b"") or b"")
+        if key not in recorded:
+            recorded[key] = _recorded_typestore(*key)
+            if recorded[key] is not None:
+                _log.info("%s: %s is recorded with another definition of %s than the installed one: read by the "
+                          "recorded definition (%s)", file, channel.topic, type_name, _missing_fields(*key))
+        store = recorded[key]
         try:
-            msg: Any = deserialize_message(message.data, msg_class)
+            msg: Any = (deserialize_message(message.data, msg_class) if store is None else
+                        _as_installed(store.deserialize_cdr(message.data, type_name), msg_class))
         except Exception as exc:  # noqa: BLE001 - e.g. an input the node recorded as it came, unreadable
             count, first = undecoded.get((str(file), channel.topic, type_name), (0, ""))
             undecoded[(str(file), channel.topic, type_name)] = (count + 1, first or (
@@ -238,6 +255,61 @@ def _decoded(file: Path, topics: Collection[str] | None, types: Collection[str] 
         header = getattr(msg, "header", None)
         stamp = stamp_ns(header) if header is not None else message.publish_time
         yield channel.topic, type_name, stamp, message.log_time, msg
+
+
+def _fields(text: str, type_name: str) -> dict[str, Any]:
+    """Type name -> its fields (names and types, no constants) of every type in a ``ros2msg`` schema text."""
+    return {name: fields for name, (_, fields) in get_types_from_msg(text, type_name).items()}
+
+
+@functools.lru_cache(maxsize=64)
+def _recorded_typestore(type_name: str, schema: bytes) -> Any | None:
+    """A rosbags typestore holding ``schema`` (the ``ros2msg`` definition a bag recorded ``type_name``
+    with) when its fields differ from the installed definition's; None when they agree, when the bag
+    carries no definition (sqlite3) or when either cannot be parsed: rclpy decodes as installed."""
+    try:
+        text = schema.decode("utf-8")
+        if not text or _fields(text, type_name) == _fields(message_definition(type_name), type_name):
+            return None
+        store = get_typestore(Stores.EMPTY)
+        store.register(get_types_from_msg(text, type_name))
+    except (MessageDefinitionError, UnicodeDecodeError):
+        return None
+    except Exception:  # noqa: BLE001 - rosbags' parser errors (TypesysError and others): decode as installed
+        return None
+    return store
+
+
+def _missing_fields(type_name: str, schema: bytes) -> str:
+    """What the recorded definition of ``type_name`` lacks of the installed one, and how it reads."""
+    recorded = _fields(schema.decode("utf-8"), type_name).get(type_name, [])
+    installed = _fields(message_definition(type_name), type_name).get(type_name, [])
+    missing = [name for name, _ in installed if name not in {n for n, _ in recorded}]
+    return (f"it lacks {', '.join(missing)}: NaN where a float, else the default" if missing else
+            "fields of the same name copied")
+
+
+def _as_installed(value: Any, cls: type) -> Any:
+    """``value`` (a message decoded by rosbags) as the installed rclpy class ``cls``: fields of the same
+    name copied (nested messages likewise), float fields ``value`` lacks NaN, any other lacking field
+    its default; fields ``cls`` has not are dropped."""
+    msg = cls()
+    for name, slot in zip(cls.get_fields_and_field_types(), cls.SLOT_TYPES):   # type: ignore[attr-defined]
+        if not hasattr(value, name):
+            if isinstance(getattr(msg, name), float):
+                setattr(msg, name, math.nan)
+            continue
+        field = getattr(value, name)
+        element = slot.value_type if isinstance(slot, AbstractNestedType) else slot
+        if isinstance(element, NamespacedType):
+            nested = getattr(importlib.import_module(".".join(element.namespaces)), element.name)
+            field = ([_as_installed(v, nested) for v in field] if isinstance(slot, AbstractNestedType)
+                     else _as_installed(field, nested))
+        elif isinstance(slot, AbstractNestedType):
+            items = field.tolist() if isinstance(field, np.ndarray) else list(field)
+            field = bytes(items) if isinstance(element, BasicType) and element.typename == "octet" else items
+        setattr(msg, name, field)
+    return msg
 
 
 class _Schema(NamedTuple):

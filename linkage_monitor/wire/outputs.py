@@ -125,14 +125,15 @@ class OutputEncoder:
     def _lay_out(self, monitor: Monitor) -> None:
         """The templates of the three messages for ``monitor``'s mechanism. The source rows
         (``_values``) are [fx, fz per hinge | |F| per hinge | x, z per point | CylinderResult fields
-        per cylinder | residual, consistency residual, implement load, NaN | implement cg x, z |
-        capacity row | steerability row]; every float64 field is a ``Column`` of them."""
+        per cylinder | residual, consistency residual, implement load, NaN, transmission angle |
+        implement cg x, z | capacity row | steerability row]; every float64 field is a ``Column`` of
+        them."""
         mech, machine = monitor.mechanism, monitor.machine
         self._mechanism, self._overdetermined = mech, monitor.overdetermined
         n_h, n_p, n_c = len(mech.hinges), len(mech.points), len(mech.cylinders)
         magnitude, point, cylinder = 2 * n_h, 3 * n_h, 3 * n_h + 2 * n_p
-        residual, consistency, load, nan = (cylinder + 5 * n_c + k for k in range(4))
-        cg, capacity = nan + 1, nan + 3
+        residual, consistency, load, nan, transmission = (cylinder + 5 * n_c + k for k in range(5))
+        cg, capacity = transmission + 1, transmission + 3
         steer = capacity + len(machine.capacity_keys)
         points = list(mech.points)
         header = {"stamp": STAMP, "frame_id": FRAME_ID}
@@ -159,7 +160,7 @@ class OutputEncoder:
             "implement_load_estimated": int(monitor.estimates_load), "implement_cg_x": Column(cg),
             "implement_cg_z": Column(cg + 1),
             "hitch_axis_height": xz(hitch_point)[1] if hitch_point is not None else Column(nan),
-            **capacities, "status": Flag(0)}, stop=HITCH_TAIL))
+            **capacities, "min_transmission_angle": Column(transmission), "status": Flag(0)}, stop=HITCH_TAIL))
         self._hitch_texts: dict[str, Template] = {}
 
         ratios = {f: Column(steer + machine.steerability_keys.index(f) if f in machine.steerability_keys else nan)
@@ -190,7 +191,8 @@ class OutputEncoder:
             force, np.hypot(force[:, 0::2], force[:, 1::2]),   # as Result.hinge_magnitude
             _stacked([r.point_xz for r in results]).reshape(n, -1),
             _stacked([r.cylinder_values for r in results]).reshape(n, -1),
-            np.array([(r.residual, r.consistency_residual, r.implement_load, math.nan) for r in results]),
+            np.array([(r.residual, r.consistency_residual, r.implement_load, math.nan, r.transmission_angle)
+                      for r in results]),
             _stacked([r.implement_cg for r in results]),
             _stacked([m.capacity_row if m.capacity_row.size else self._no_capacity for m in machines]),
             _stacked([m.steerability_row if m.steerability_row.size else self._no_steerability for m in machines])],

@@ -57,7 +57,8 @@ def hinge_reactions(mech: Mechanism, step: Step, result: Result, overdetermined:
 
 def hitch_state(mech: Mechanism, step: Step, result: Result, lift_capacity: Mapping[str, float],
                 estimated: bool) -> HitchState:
-    """HitchState: cylinder states, implement load (N, + down), lift capacities (N), reserve (-)."""
+    """HitchState: cylinder states, implement load (N, + down), lift capacities (N), reserve (-),
+    the smallest transmission angle (rad, the solver's Result.transmission_angle)."""
     cylinders = [CylinderState(name=name, length=c.length, force=c.force,
                                cap_pressure_measured=c.cap_pressure_measured,
                                rod_pressure_measured=c.rod_pressure_measured,
@@ -73,7 +74,8 @@ def hitch_state(mech: Mechanism, step: Step, result: Result, lift_capacity: Mapp
                       lift_capacity_hitch_axis=float(lift_capacity.get("hitch_axis", math.nan)),
                       lift_capacity_610mm=float(lift_capacity.get("behind_610mm", math.nan)),
                       lift_capacity_implement_cg=float(lift_capacity.get("implement_cg", math.nan)),
-                      lift_reserve=float(lift_capacity.get("reserve", math.nan)), status=status,
+                      lift_reserve=float(lift_capacity.get("reserve", math.nan)),
+                      min_transmission_angle=float(result.transmission_angle), status=status,
                       status_text=step.message)
 
 
