@@ -16,12 +16,13 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
-from linkage_monitor.mechanics import Inputs, Solver, apply_overrides, load_preset
+from linkage_monitor.mechanics import DeadCentreError, Inputs, Solver, apply_overrides, load_preset
 from linkage_monitor.mechanics.capacity import stroke_mechanism
 from linkage_monitor.mechanics.machine import MachineModel
 from linkage_monitor.mechanics.results import angle_readings
 from linkage_monitor.wire.cdr import stamp_ns
-from support.ros_harness import MonitorClient, start_node, stop
+from linkage_monitor.offline.replay import replay
+from support.ros_harness import MonitorClient, node_bag, start_node, stop
 
 T0 = (time.time_ns() // 10**9) * 10**9  # ns, now (whole s): the node refuses stamps far from its clock
 JOINTS = ["lift_cylinder", "lift_arm_angle"]
@@ -68,6 +69,9 @@ def test_outputs_equal_offline_solver_and_carry_input_stamps(node):
             assert h.fz == pytest.approx(ref.fz, rel=1e-9, abs=1e-6)
         hitch = client.outputs_at("hitch_state", stamp)[0]
         assert hitch.implement_load == pytest.approx(expected.implement_load, rel=1e-9)
+        # stroke, angle and the cap pressure: a chain of dyads the reduced path solves, the angle finite
+        assert math.isfinite(expected.transmission_angle) and 0.0 <= expected.transmission_angle <= math.pi / 2
+        assert hitch.min_transmission_angle == pytest.approx(expected.transmission_angle, rel=1e-9)
         assert hitch.implement_load_estimated
         cyl = hitch.cylinders[0]
         assert cyl.force == pytest.approx(expected.cylinders["lift_cylinder"].force, rel=1e-9)
@@ -250,6 +254,53 @@ def test_implement_mass_changed_at_runtime_applies_from_the_next_message(ros, tm
     offline = Solver(heavy).solve(Inputs(cylinders={"lift_cylinder": s}, angles={"lift_arm_angle": angle}))
     expected = MachineModel(heavy, Solver(heavy)).evaluate(offline).steerability["margin"]
     assert client.outputs_at("steerability", T0 + 1)[0].margin == pytest.approx(expected, rel=1e-9)
+
+
+def test_dead_centre_threshold_changed_at_runtime_applies_from_the_next_message(node):
+    """dead_centre_transmission_deg set at run time: 50 (outside its range, 0 to 45 degrees) is
+    refused with rclpy's reason; 45, above this pose's smallest transmission angle (the offline
+    solver's, about 40 degrees at a 0.62 m stroke), makes the same pose a dead centre from the next
+    message on (an ERROR diagnostic, no outputs), as the offline solver with that threshold says;
+    back at 1 degree (the default) the pose is solved again."""
+    client, proc, tmp_path = node
+    mech = load_preset("belarus_1221")
+    s, angle = _pose(0.62)
+    inputs = Inputs(cylinders={"lift_cylinder": s}, angles={"lift_arm_angle": angle},
+                    pressures={"lift_cap_pressure": 9.0e6})
+    expected = Solver(mech).solve(inputs).transmission_angle   # rad
+    assert math.isfinite(expected) and math.degrees(expected) < 45.0
+    with pytest.raises(DeadCentreError):
+        Solver(mech, dead_centre_transmission_deg=45.0).solve(inputs)
+    setter = client.node.create_client(SetParameters, "/linkage_monitor/set_parameters")
+    assert setter.wait_for_service(timeout_sec=10)
+
+    def set_threshold(degrees: float):
+        future = setter.call_async(SetParameters.Request(parameters=[
+            Parameter("dead_centre_transmission_deg", value=degrees).to_parameter_msg()]))
+        assert client.spin_until(future.done, 10)
+        return future.result().results[0]
+
+    stamps = [T0 + k * 100_000_000 for k in range(3)]
+    _send(client, stamps[0], s, angle, 9.0e6)
+    assert client.spin_until(lambda: client.outputs_at("hitch_state", stamps[0] + 1000), 20)
+    assert client.outputs_at("hitch_state", stamps[0] + 1000)[0].min_transmission_angle == pytest.approx(expected,
+                                                                                                       rel=1e-9)
+    refused = set_threshold(50.0)
+    assert not refused.successful and "dead_centre_transmission_deg out of range" in refused.reason, refused
+    assert set_threshold(45.0).successful
+    _send(client, stamps[1], s, angle, 9.0e6)
+    assert client.spin_until(lambda: client.diagnostics_at(stamps[1] + 1000), 20)
+    dead = client.diagnostics_at(stamps[1] + 1000)[0]
+    assert dead.level == b"\x02" and dead.message.startswith("dead centre"), dead.message
+    assert not client.outputs_at("hitch_state", stamps[1] + 1000)
+    assert set_threshold(1.0).successful
+    _send(client, stamps[2], s, angle, 9.0e6)
+    assert client.spin_until(lambda: client.outputs_at("hitch_state", stamps[2] + 1000), 20)
+    # the bag records each change with the configuration; its replay makes the same verdicts
+    assert stop(proc) == 0
+    steps = {step.stamp_ns: step for step in replay(node_bag(tmp_path / "bags"), progress=None).steps}
+    assert [steps[t + 1000].pose is not None for t in stamps] == [True, False, True]
+    assert steps[stamps[1] + 1000].message.startswith("dead centre")
 
 
 def test_a_cold_kernel_cache_is_compiled_before_the_inputs_are_subscribed(ros, tmp_path, monkeypatch):

@@ -54,6 +54,8 @@ def test_launch_file_starts_node_with_params_and_descriptors(preset, tmp_path):
 @pytest.mark.parametrize("param, expect", [("mechanism:=/no/such/tractor.yaml", "cannot read the file"),
                                            ("sensor_qos:=fast", "expected one of sensor_data, reliable"),
                                            ("reliable_queue_depth:=0", "reliable_queue_depth out of range"),
+                                           ("dead_centre_transmission_deg:=50.0",
+                                            "dead_centre_transmission_deg out of range"),
                                            ("stamp_tolerance:=1000000", "of type 'INTEGER', expecting type 'DOUBLE'"),
                                            ("tractor_mass:=-0.5", "tractor_mass = -0.5: a value must be >= 0")])
 def test_bad_parameter_exits_2_with_one_line_on_stderr(param, expect):

@@ -24,6 +24,7 @@ from linkage_monitor.bag.writer import message_type_name
 from linkage_monitor.mechanics import load_mechanism, load_preset, preset_names
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Monitor
+from linkage_monitor.msg import HitchState
 from linkage_monitor.wire.outputs import OutputEncoder
 from linkage_monitor.sim.telemetry import Noise, simulate
 from oracles.output_messages import outputs as oracle_outputs
@@ -138,3 +139,37 @@ def test_many_steps_at_once_as_one_at_a_time():
     assert ours == [encoder.outputs(monitor, step) for step in steps]
     texts = {step.message for step in steps if step.pose is not None}
     assert any(o is None for o in ours) and len(texts) > OutputEncoder.MAX_TEMPLATES, len(texts)
+
+
+def test_the_smallest_transmission_angle_in_hitch_state_and_the_diagnostic():
+    """HitchState.min_transmission_angle is the solver's Result.transmission_angle, bit for bit, and
+    the diagnostic's key-values carry it with the step attaining it. belarus_1221 measured by stroke,
+    lift-arm angle and the lift cylinder's cap pressure is a chain of dyads the reduced path serves:
+    a finite angle in [0, π/2] rad on every solved pose of a simulated lift; the triad fixture (a
+    class-III group, test/fixtures/triad.yaml) only the general path solves: NaN, and no such keys."""
+    mech = load_preset("belarus_1221")
+    stream = simulate(mech, "lift", rate_hz=5.0, seed=1, start_ns=1_700_000_000_000_000_000)
+    monitor, encoder = _monitor(mech), OutputEncoder()
+    solved = 0
+    for i, stamp in enumerate(stream.stamps_ns.tolist()):
+        monitor.on_pressure("/pressure/lift_cap_pressure", float(stream.pressure_values[i, 0]), stamp, stamp)
+        step = monitor.on_joint_state(list(stream.joint_names), stream.joint_positions[i].tolist(), [], stamp, stamp)
+        if step.pose is None:
+            continue
+        solved += 1
+        result = step.pose.result
+        msg = deserialize_message(encoder.outputs(monitor, step).hitch_state, HitchState)
+        assert struct.pack("<d", msg.min_transmission_angle) == struct.pack("<d", result.transmission_angle)
+        assert math.isfinite(msg.min_transmission_angle) and 0.0 <= msg.min_transmission_angle <= math.pi / 2
+        assert step.values["min transmission angle [rad]"] == f"{result.transmission_angle:.4f}"
+        assert step.values["weakest transmission"] == result.weakest_transmission != ""
+    assert solved > 0.9 * len(stream)
+
+    triad = load_mechanism(FIXTURES / "triad.yaml")
+    monitor = _monitor(triad)
+    names, values = list(monitor.solver.kin.input_names), monitor.solver.kin.reference_inputs()
+    step = monitor.on_joint_state(names, values.tolist(), [], 1_700_000_000_000_000_000, 1_700_000_000_000_000_000)
+    assert step.pose is not None, step.message
+    msg = deserialize_message(OutputEncoder().outputs(monitor, step).hitch_state, HitchState)
+    assert math.isnan(msg.min_transmission_angle)
+    assert "min transmission angle [rad]" not in step.values and "weakest transmission" not in step.values

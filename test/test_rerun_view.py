@@ -13,7 +13,9 @@ from rerun.chunk import RrdReader
 
 from linkage_monitor.mechanics import BatchResult, Inputs, Mechanism, Solver, load_preset, mechanism_from_dict
 from linkage_monitor.viz.drawing import ARROW_LENGTH, CYLINDER_COLOR
+from linkage_monitor.mechanics.reduced import DEAD_CENTRE_TRANSMISSION_DEG
 from linkage_monitor.viz.rerun_view import RerunView, default_blueprint, largest_hinges, linkage_bounds
+from linkage_monitor.viz.rerun_view import machine_series as view_series
 from support.rerun_shot import RERUN, pixels_of, screenshot
 
 T0_NS = 1_700_000_000_000_000_000  # an arbitrary ROS header stamp, ns
@@ -55,7 +57,8 @@ def write_batch_rrd(path: Path, strokes: np.ndarray) -> tuple[Mechanism, BatchRe
     solved = np.concatenate([v[np.isfinite(v).all(axis=1)] for v in batch.points.values()])
     view = RerunView.to_file(mech, path, blueprint=default_blueprint(mech, hinges=largest_hinges(batch),
                                                                      extent_xz=solved))
-    view.log_batch(stamps, batch, machine_series(mech, batch))
+    transmission = view_series({}, {}, batch.transmission_angle, DEAD_CENTRE_TRANSMISSION_DEG)   # the solver's
+    view.log_batch(stamps, batch, {**machine_series(mech, batch), **transmission})
     view.close()
     return mech, batch, stamps
 
@@ -94,7 +97,8 @@ def test_replay_has_every_entity_with_one_sample_per_solved_pose(replay):
     solved = int(np.sum(batch.status == 0))
     assert solved == len(batch) - 2  # the two bad poses above, nothing else
     solver_series = ([f"forces/hinges/{h.name}" for h in mech.hinges] + ["forces/cylinders/lift_cylinder",
-                      "steerability/ratio", "lift/reserve", "lift/reserve_limit"])
+                      "steerability/ratio", "lift/reserve", "lift/reserve_limit", "transmission/min_angle",
+                      "transmission/dead_centre"])
     geometry = ["linkage/links", "linkage/hinges", "linkage/hinges/forces", "linkage/cylinders",
                 "linkage/cylinders/forces"]
     for entity in solver_series + geometry:
@@ -107,6 +111,12 @@ def test_replay_has_every_entity_with_one_sample_per_solved_pose(replay):
     status = [row[0] for row in column(tables, "status", "TextLog:text")]
     assert len(status) == 2 and "nan" in status[0] and "cannot assemble" in status[1]
     assert column(tables, "lift/reserve_limit", "Scalars:scalars") == [[1.0]] * solved
+    # the smallest transmission angle in degrees (the solver's, in rad: finite on this chain of dyads,
+    # in [0, 90]) beside the dead-centre threshold (the default, DEAD_CENTRE_TRANSMISSION_DEG)
+    angles = np.array(column(tables, "transmission/min_angle", "Scalars:scalars"))[:, 0]
+    np.testing.assert_allclose(angles, np.degrees(batch.transmission_angle[batch.status == 0]), rtol=1e-12)
+    assert np.all((angles >= 0.0) & (angles <= 90.0))
+    assert column(tables, "transmission/dead_centre", "Scalars:scalars") == [[DEAD_CENTRE_TRANSMISSION_DEG]] * solved
 
 
 def test_replay_draws_the_solver_points_upright_and_scales_the_largest_force(replay):
@@ -134,15 +144,22 @@ def test_live_poses_log_one_sample_each(tmp_path):
     solver = Solver(mech)
     strokes = np.linspace(0.55, 0.65, 5)
     view = RerunView.to_file(mech, tmp_path / "live.rrd")
+    angles = []
     for k, s in enumerate(strokes):
         result = solver.solve(Inputs(cylinders={"lift_cylinder": float(s)}))
-        view.log_pose(T0_NS + k * PERIOD_NS, result, {"lift/reserve": 1.5, "steerability/ratio": float("nan")})
+        angles.append(np.degrees(result.transmission_angle))
+        view.log_pose(T0_NS + k * PERIOD_NS, result, {"lift/reserve": 1.5, "steerability/ratio": float("nan"),
+                                                      **view_series({}, {}, result.transmission_angle, 2.5)})
     view.log_status(T0_NS + 5 * PERIOD_NS, "lift_cylinder: stroke sensor timed out")
     view.close()
     tables = temporal_tables(tmp_path / "live.rrd")
     for entity in ["linkage/links", "linkage/hinges/forces", "forces/hinges/P03", "forces/cylinders/lift_cylinder",
-                   "lift/reserve", "lift/reserve_limit"]:
+                   "lift/reserve", "lift/reserve_limit", "transmission/min_angle", "transmission/dead_centre"]:
         assert sum(rb.num_rows for rb in tables[entity]) == len(strokes), entity
+    # degrees of the solver's transmission angle; the threshold as given (2.5 degrees)
+    np.testing.assert_allclose(np.array(column(tables, "transmission/min_angle", "Scalars:scalars"))[:, 0], angles,
+                               rtol=1e-12)
+    assert column(tables, "transmission/dead_centre", "Scalars:scalars") == [[2.5]] * len(strokes)
     assert "steerability/ratio" not in tables  # NaN samples are skipped
     assert column(tables, "status", "TextLog:text") == [["lift_cylinder: stroke sensor timed out"]]
 

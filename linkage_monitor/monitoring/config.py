@@ -5,7 +5,7 @@ Everything that decides what the monitor computes from its inputs lives here: th
 messages map onto the mechanism's measurements, the pressure convention, the time limits and
 the topic names. The node builds it from its parameters, records it in its bag (YAML text on
 CONFIG_TOPIC, a new copy at every runtime parameter change), and the replay rebuilds the same
-monitor from the recorded copies. Units SI (Pa, s, kg).
+monitor from the recorded copies. Units SI (Pa, s, kg); the dead-centre threshold in degrees.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import yaml
 
 from linkage_monitor.mechanics import InputError, Mechanism
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
+from linkage_monitor.mechanics.reduced import DEAD_CENTRE_TRANSMISSION_DEG
 
 CONFIG_TOPIC = "/linkage_monitor/config"
 """Topic (std_msgs/String, YAML of a MonitorConfig) on which the node records its configuration."""
@@ -51,7 +52,9 @@ class MonitorConfig:
     FluidPressure carries absolute pressure (its definition) or gauge. atmospheric_pressure: Pa.
     staleness_limit_s: s, largest age of any input at a solve. stamp_tolerance_s: s, largest
     distance of a header stamp from the monitor's clock. kinetostatics: use JointState
-    velocities (and their differences) for inertia loads (seed 004).
+    velocities (and their differences) for inertia loads (seed 004). dead_centre_transmission_deg:
+    degrees, a pose whose smallest transmission angle along the linkage's chain of dyads is below
+    this is a dead centre (``Solver(dead_centre_transmission_deg=)``).
     """
 
     mechanism: str
@@ -64,6 +67,7 @@ class MonitorConfig:
     staleness_limit_s: float = 0.5
     stamp_tolerance_s: float = 10.0
     kinetostatics: bool = False
+    dead_centre_transmission_deg: float = DEAD_CENTRE_TRANSMISSION_DEG
 
     @staticmethod
     def default(spec: str, mech: Mechanism, namespace: str = "/") -> MonitorConfig:

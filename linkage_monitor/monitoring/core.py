@@ -72,7 +72,8 @@ class Step:
     @cached_property
     def values(self) -> dict[str, str]:
         """The key-values of the step's diagnostic, as text (SI units in the keys): the input topic,
-        the inputs of a due solve, the main results of a solved pose. Formatted when first asked
+        the inputs of a due solve, the main results of a solved pose (with the smallest transmission
+        angle and the step attaining it where the reduced path solved it). Formatted when first asked
         for (most steps are never reported)."""
         values = {"input": self.trigger}
         if self.inputs is not None:
@@ -91,6 +92,10 @@ class Step:
                 "equilibrium residual [N]": f"{result.residual:.3g}",
                 "kinematic residual [m]": f"{result.consistency_residual:.3g}",
             })
+            if math.isfinite(result.transmission_angle):   # NaN on the general path
+                values["min transmission angle [rad]"] = f"{result.transmission_angle:.4f}"
+            if result.weakest_transmission:
+                values["weakest transmission"] = result.weakest_transmission
         return values
 
     @property
@@ -110,7 +115,8 @@ class Segment:
 
     steps: index (into ``Run.steps``) of each pose's Step; stamps_ns: their header stamps;
     batch / machine: the solver's and the machine-level results (arrays, SI units; failed poses
-    NaN with their status); mechanism: the effective mechanism of the segment.
+    NaN with their status); mechanism: the effective mechanism of the segment; config: the
+    configuration it was solved with.
     """
 
     steps: np.ndarray
@@ -118,6 +124,7 @@ class Segment:
     batch: BatchResult
     machine: MachineBatch
     mechanism: Mechanism
+    config: MonitorConfig
 
 
 @dataclass(frozen=True)
@@ -156,7 +163,8 @@ class Monitor:
     def _build(self, config: MonitorConfig, previous: InputTracker | None) -> None:
         mech = apply_overrides(self.description, dict(config.overrides)) if config.overrides else self.description
         tracker = InputTracker(mech, config)   # raises ValueError for a bad mapping: nothing changed yet
-        solver = Solver(mech, consistency_tol=ASSEMBLY_LIMIT_M)
+        solver = Solver(mech, consistency_tol=ASSEMBLY_LIMIT_M,
+                        dead_centre_transmission_deg=config.dead_centre_transmission_deg)
         machine = MachineModel(mech, solver)
         if previous is not None:
             tracker.carry_over(previous)
@@ -252,7 +260,7 @@ class Monitor:
             steps[i] = (self._finish(due, results[k], machine_results[k]) if status < Status.INPUT
                         else self._failed(due, Status(status), batch.messages[k]))
         segments.append(Segment(np.array([i for i, _ in segment]), np.array([d.stamp_ns for d in dues], dtype=np.int64),
-                                batch, machine, self.mechanism))
+                                batch, machine, self.mechanism, self.config))
 
     # ---- the stages both paths share -------------------------------------------------------------
     def _accept(self, event: InputEvent) -> _Due | Step:

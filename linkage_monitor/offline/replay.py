@@ -140,7 +140,8 @@ def _events(path: Path, config: MonitorConfig, raw: list[RecordedInput]) -> Iter
                 recorded = MonitorConfig.from_yaml(text, source=f"{path} ({CONFIG_TOPIC})")
                 yield ConfigEvent(replace(config, overrides=recorded.overrides,
                                           staleness_limit_s=recorded.staleness_limit_s,
-                                          stamp_tolerance_s=recorded.stamp_tolerance_s))
+                                          stamp_tolerance_s=recorded.stamp_tolerance_s,
+                                          dead_centre_transmission_deg=recorded.dead_centre_transmission_deg))
             first_config = False
             continue
         if not ((type_name == JOINT_STATE and topic == config.topics.joint_states)
@@ -261,5 +262,7 @@ def _log_rerun(path: Path, description: Mechanism, run: Run) -> None:
             view.log_status(s.stamp_ns, s.message)
     for seg in segments:
         m = seg.machine
-        view.log_batch(seg.stamps_ns, seg.batch, machine_series(m.steerability, m.lift_capacity))
+        view.log_batch(seg.stamps_ns, seg.batch, machine_series(m.steerability, m.lift_capacity,
+                                                                seg.batch.transmission_angle,
+                                                                seg.config.dead_centre_transmission_deg))
     view.close()

@@ -43,6 +43,7 @@ from linkage_monitor.bag.step_recorder import StepRecorder, mechanism_yaml
 from linkage_monitor.bag.writer import BagError, BagWriter
 from linkage_monitor.mechanics import LinkageError, Mechanism, apply_overrides, load_description
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
+from linkage_monitor.mechanics.reduced import DEAD_CENTRE_TRANSMISSION_DEG
 from linkage_monitor.mechanics.warm import compiled_kernels
 from linkage_monitor.monitoring.config import OVERRIDE_KEYS, MonitorConfig, Topics
 from linkage_monitor.monitoring.core import Monitor, Step
@@ -94,6 +95,9 @@ PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
     "stamp_tolerance": (10.0, "s, an input whose header stamp is farther than this from the node's clock is "
                         "refused (ERROR)", False, (0.001, 1e6)),
     "kinetostatics": (False, "Add inertia loads from JointState velocities and their change (seed 004)", True, None),
+    "dead_centre_transmission_deg": (DEAD_CENTRE_TRANSMISSION_DEG, "degrees, a pose whose smallest transmission "
+                                     "angle along the linkage's chain of dyads is below this is a dead centre (ERROR, "
+                                     "no outputs); applies from the next message", False, (0.0, 45.0)),
     "implement_mass": (-1.0, "kg, implement mass; -1 (exactly) keeps the mechanism file's value, other negatives "
                        "are refused; applies from the next message", False, (-1.0, 100_000.0)),
     "tractor_mass": (-1.0, "kg, tractor operating mass without ballast; -1 (exactly) keeps the file's value", False,
@@ -169,7 +173,8 @@ def monitor_config(p: dict[str, Any], mech: Mechanism, resolve: Callable[[str], 
                          pressure_absolute=bool(p["pressure_absolute"]),
                          atmospheric_pressure=float(p["atmospheric_pressure"]),
                          staleness_limit_s=float(p["staleness_limit"]), stamp_tolerance_s=float(p["stamp_tolerance"]),
-                         kinetostatics=bool(p["kinetostatics"]))
+                         kinetostatics=bool(p["kinetostatics"]),
+                         dead_centre_transmission_deg=float(p["dead_centre_transmission_deg"]))
 
 
 def _check_choices(p: dict[str, Any]) -> None:
@@ -415,6 +420,8 @@ class LinkageMonitorNode(Node):
                 config = replace(config, staleness_limit_s=float(param.value))
             elif param.name == "stamp_tolerance":
                 config = replace(config, stamp_tolerance_s=float(param.value))
+            elif param.name == "dead_centre_transmission_deg":
+                config = replace(config, dead_centre_transmission_deg=float(param.value))
         return replace(config, overrides=overrides)
 
     def as_declared_types(self, params: list[Parameter]) -> list[Parameter]:
@@ -500,8 +507,10 @@ class LinkageMonitorNode(Node):
         assert self.rerun is not None
         if step.pose is not None:
             if self.rerun_gate.due(step.stamp_ns):
-                m = step.pose.machine
-                self.rerun.log_pose(step.stamp_ns, step.pose.result, machine_series(m.steerability, m.lift_capacity))
+                m, result = step.pose.machine, step.pose.result
+                self.rerun.log_pose(step.stamp_ns, result, machine_series(
+                    m.steerability, m.lift_capacity, result.transmission_angle,
+                    self.monitor.config.dead_centre_transmission_deg))
         elif step.level == Level.ERROR:
             self.rerun.log_status(step.stamp_ns, step.message)
 

@@ -9,7 +9,10 @@ go to a Rerun recording (rerun-sdk 0.41) under these entity paths:
   the ``linkage/force_scale`` text log); ``linkage/ground``: the ground line and the origin B (static).
 - ``forces/cylinders/<name>``, ``forces/hinges/<name>``: force magnitudes, kN (cylinder: + pushing).
 - whatever the caller passes as ``extra`` (``steerability/ratio``, ``steerability/ratio_min``,
-  ``lift/reserve``; ``lift/reserve_limit`` = 1.0 is added with ``lift/reserve``).
+  ``lift/reserve``; ``lift/reserve_limit`` = 1.0 is added with ``lift/reserve``;
+  ``transmission/min_angle``, the smallest transmission angle along the linkage's chain of dyads
+  in degrees, with ``transmission/dead_centre``, the dead-centre threshold in degrees, where it is
+  defined: see :func:`machine_series`).
 - ``status``: a text line for every pose whose status is not ok.
 
 Drawing frame: Rerun's 2D y axis points down, so a point (x, z) is drawn at (x, -z): the
@@ -52,15 +55,27 @@ _SERIES_STYLES: dict[str, tuple[str, tuple[int, int, int], float]] = {
     "steerability/ratio_min": ("required minimum", (255, 70, 70), 1.5),
     "lift/reserve": ("lift reserve = capacity / needed force", (120, 220, 120), 2.0),
     "lift/reserve_limit": ("1.0 = at capacity", (255, 70, 70), 1.5),
+    "transmission/min_angle": ("smallest transmission angle", (200, 140, 255), 2.0),
+    "transmission/dead_centre": ("dead-centre threshold", (255, 70, 70), 1.5),
 }
 _REFERENCE_LINES = {"lift/reserve": ("lift/reserve_limit", 1.0)}  # series -> (reference series, value)
 
 
-def machine_series(steerability: Mapping[str, Any], lift_capacity: Mapping[str, Any]) -> dict[str, Any]:
+def machine_series(steerability: Mapping[str, Any], lift_capacity: Mapping[str, Any],
+                   transmission_angle: Any = None, dead_centre_deg: float | None = None) -> dict[str, Any]:
     """The machine-level series the blueprint plots, by entity path (floats or (N,) arrays):
-    steerability ratio and its minimum (-), lift reserve (-). Missing values are left out."""
+    steerability ratio and its minimum (-), lift reserve (-); with ``transmission_angle`` (rad, the
+    solver's ``transmission_angle``, NaN where the general path solved) the smallest transmission
+    angle in degrees, and with ``dead_centre_deg`` (degrees) the dead-centre threshold beside it
+    wherever the angle is defined. Missing values are left out."""
     series = {"steerability/ratio": steerability.get("ratio"), "steerability/ratio_min": steerability.get("ratio_min"),
               "lift/reserve": lift_capacity.get("reserve")}
+    if transmission_angle is not None:
+        degrees = np.degrees(np.asarray(transmission_angle, dtype=float))
+        series["transmission/min_angle"] = degrees if degrees.ndim else float(degrees)
+        if dead_centre_deg is not None:
+            threshold = np.where(np.isfinite(degrees), float(dead_centre_deg), np.nan)
+            series["transmission/dead_centre"] = threshold if threshold.ndim else float(threshold)
     return {path: value for path, value in series.items() if value is not None}
 
 
@@ -88,7 +103,7 @@ def largest_hinges(batch: BatchResult, n: int = LARGEST_HINGES) -> list[str]:
 
 def default_blueprint(mechanism: Mechanism, *, hinges: Sequence[str] | None = None,
                       extent_xz: np.ndarray | None = None) -> rrb.Blueprint:
-    """The layout a recording opens in: linkage side view + status log (left), four time series (right).
+    """The layout a recording opens in: linkage side view + status log (left), five time series (right).
 
     hinges: hinge names shown in the hinge-reaction plot (default all; see :func:`largest_hinges`);
     extent_xz: points (x, z) in m the 2D view must fit (default the mechanism's reference points).
@@ -105,6 +120,7 @@ def default_blueprint(mechanism: Mechanism, *, hinges: Sequence[str] | None = No
                            plot_legend=rrb.PlotLegend(corner="RightTop")),
         rrb.TimeSeriesView(origin="steerability", name="Steerability: front axle load share"),
         rrb.TimeSeriesView(origin="lift", name="Lift reserve (< 1: cannot lift)"),
+        rrb.TimeSeriesView(origin="transmission", name="Transmission angle, ° (below red: dead centre)"),
     )
     status = rrb.TextLogView(origin="/", name="Status", columns=rrb.archetypes.TextLogColumns(text_log_columns=[
         rrb.encodings.TextLogColumn("EntityPath", visible=False), rrb.encodings.TextLogColumn("LogLevel"),
