@@ -18,6 +18,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from linkage_monitor.cli.main import main as cli_main
 from linkage_monitor.mechanics import load_preset
+from linkage_monitor.mechanics.reduced import DEAD_CENTRE_TRANSMISSION_DEG
 from linkage_monitor.sim.telemetry import Noise, simulate
 
 T0 = (time.time_ns() // 10**9) * 10**9  # ns, now (whole s): the node refuses stamps far from its clock
@@ -79,9 +80,14 @@ def test_replay_bag_is_read_by_rosbags_mcap_ros2_and_rerun(replayed):
 
 
 def test_replay_rrd_holds_one_sample_per_solved_pose(replayed):
-    solved = 0
+    """One sample per solved pose in every series; the smallest transmission angle (finite here: stroke,
+    angle and cap pressure make belarus_1221 a chain of dyads the reduced path solves) is the replayed
+    bag's HitchState.min_transmission_angle in degrees, beside the default dead-centre threshold."""
     with AnyReader([replayed / "bag"], default_typestore=get_typestore(Stores.EMPTY)) as reader:
         solved = sum(1 for c, _, _ in reader.messages() if c.topic == "/hinge_reactions")
+        hitch = [c for c in reader.connections if c.topic == "/hitch_state"]
+        messages = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=hitch)]
+    published = sorted((m.header.stamp.sec, m.header.stamp.nanosec, m.min_transmission_angle) for m in messages)
     rows: dict[str, int] = {}
     for chunk in RrdReader(replayed / "replay.rrd").stream().to_chunks():
         batch = chunk.to_record_batch()
@@ -92,6 +98,24 @@ def test_replay_rrd_holds_one_sample_per_solved_pose(replayed):
     assert rows["steerability/ratio"] == solved
     assert rows["linkage/links"] == solved
     assert {"forces/hinges/P03", "lift/reserve", "linkage/hinges/forces"} <= set(rows)
+    assert rows["transmission/min_angle"] == rows["transmission/dead_centre"] == solved
+    series = _series(replayed / "replay.rrd")
+    expected = np.degrees([angle for *_, angle in published])
+    np.testing.assert_allclose(series["transmission/min_angle"], expected, rtol=1e-12)
+    assert np.all((expected >= 0.0) & (expected <= 90.0))
+    assert np.all(series["transmission/dead_centre"] == DEAD_CENTRE_TRANSMISSION_DEG)
+
+
+def _series(rrd: Path) -> dict[str, np.ndarray]:
+    """Entity path -> its scalar samples in ros_time order, of every Scalars series in ``rrd``."""
+    samples: dict[str, list] = {}
+    for chunk in RrdReader(rrd).stream().to_chunks():
+        batch = chunk.to_record_batch()
+        if "ros_time" in batch.schema.names and "Scalars:scalars" in batch.schema.names:
+            times = batch.column("ros_time").cast("int64").to_pylist()
+            values = batch.column("Scalars:scalars").to_pylist()
+            samples.setdefault(chunk.entity_path.lstrip("/"), []).extend(zip(times, (v[0] for v in values)))
+    return {path: np.array([v for _, v in sorted(rows)]) for path, rows in samples.items()}
 
 
 def test_replay_cli_errors_name_the_bag(tmp_path, capsys):
