@@ -40,7 +40,7 @@ def main() -> int:
     member_force = np.zeros((N_POSES, layout.member_att.shape[1]))
 
     def general() -> tuple[np.ndarray, ...]:
-        return kernels.solve_statics(p, member_force, *NO_ACCEL, False, layout.n_unknowns, *layout.program)
+        return kernels.solve_statics(p, member_force, *NO_ACCEL, False, layout.n_unknowns, layout.program)
 
     def in_reduced() -> tuple[np.ndarray, ...]:
         return kernels.solve_reduced_statics(p, member_force, *NO_ACCEL, False, layout.n_unknowns, layout.program,

@@ -93,7 +93,7 @@ def main() -> None:
         q = kin.continue_from(kin.reference, s_in)[0]
         p, _ = kin.positions(q)
         kernels.solve_statics(p, np.zeros((n, len(mech.cylinders))), np.zeros((1, 1, 2)), np.zeros((1, 1)), False,
-                              layout.n_unknowns, *layout.program)
+                              layout.n_unknowns, layout.program)
 
     numba.set_num_threads(1)
     t_k1 = best_of(kernels_only, 2)

@@ -69,8 +69,10 @@ def assert_batches_equal(got: BatchResult, expected: BatchResult) -> None:
             _close(getattr(got, name)[key], value, f"{name}[{key}]")
     for name in ("implement_load", "frame_load_forces", "residual", "consistency_residual"):
         _close(getattr(got, name), getattr(expected, name), name)
-    solved = expected.status < 2
-    _close(got.condition[solved], expected.condition[solved], "condition", rel=1e-6)
+    # the condition number: the oracle's is the larger of the kinematic and the equilibrium matrix's;
+    # where the reduced path serves a pose (a transmission angle) there is no equilibrium matrix
+    general = (expected.status < 2) & np.isnan(got.transmission_angle)
+    _close(got.condition[general], expected.condition[general], "condition", rel=1e-6)
 
 
 def _tie_free(message: str) -> str:
@@ -81,7 +83,10 @@ def _tie_free(message: str) -> str:
     depending on where Newton stopped within 1e-13 m (the verdict, the inputs and the limit are
     still compared)."""
     message = re.sub(r"at best .*? is off by", "at best (a constraint) is off by", message)
-    return re.sub(r"condition number \S+ >", "condition number (above the limit) >", message)
+    message = re.sub(r"condition number \S+ >", "condition number (above the limit) >", message)
+    # a static dead centre's reason: the oracle has only the condition number, the reduced path
+    # names the transmission it lost (test_reduced_coordinates holds that verdict)
+    return re.sub(r"(static dead centre at [^:]*):.*", r"\1: (the reason)", message)
 
 
 def _close(got: np.ndarray, expected: np.ndarray, what: str, rel: float = REL) -> None:

@@ -41,10 +41,12 @@ def test_unassemblable_says_by_how_much() -> None:
     assert "assembles only up to" in batch.messages[1] and "assembles only up to" not in quick.messages[1]
 
 
-def test_static_dead_centre_reports_condition_number() -> None:
-    # angle −π/2 puts T at (1, 0): the cylinder E-T passes through the pivot O, its moment arm is 0
+def test_static_dead_centre_names_the_lost_transmission() -> None:
+    # angle −π/2 puts T at (1, 0): the cylinder E-T passes through the pivot O, its moment arm is 0:
+    # the cylinder's force (the load the angle-driven step leaves free) has no transmission left
     solver = Solver(mechanism_from_dict(_arm({"angles": [{"name": "arm_angle", "hinge": "O"}]})))
-    with pytest.raises(DeadCentreError, match="condition number"):
+    with pytest.raises(DeadCentreError, match=r"transmission angle \S+ deg at cylinder 'cyl' force through "
+                                              r"arm_angle about O < 1 deg"):
         solver.solve(Inputs(angles={"arm_angle": -math.pi / 2}))
     res = solver.solve(Inputs(angles={"arm_angle": -math.pi / 4}))
     # away from it: moment balance about O, weight 10 kg at T = (√½, √½) vs cylinder force (closed form)

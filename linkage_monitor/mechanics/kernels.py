@@ -23,6 +23,7 @@ from numba import njit, prange
 
 from .chain import (A_BODY, A_BODY2, A_END, A_JOINT1, A_JOINT2, A_OTHER, A_PARENT, A_PARENT2, ANGLE, ANGLE_INPUT,
                     ANGLE_SIGN, BODY, BODY2, CYLINDER, CYLINDER_INPUT, KIND, RRR, STEP_HINGE, STEP_HINGE2, STEP_JOINT)
+from .programs import KinematicsProgram, LiveRows, MachineProgram, OutputsProgram, ReducedProgram, StaticsProgram
 
 TWO_PI = 2.0 * math.pi
 PARALLEL_MIN = 512  # poses: smaller batches stay on the calling thread (no thread-pool wake-up)
@@ -632,44 +633,42 @@ def loop_signs(jac: np.ndarray, loop_rows: np.ndarray, loop_cols: np.ndarray, lo
 @njit(cache=True)
 def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, jac_out: np.ndarray, cond: np.ndarray,
                     on_branch: np.ndarray, q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray,
-                    s: np.ndarray, max_iter: int, att_body: np.ndarray, att_ref: np.ndarray, hinge_att: np.ndarray,
-                    cyl_att: np.ndarray, angle_body: np.ndarray, angle_reference: np.ndarray, lc: float,
-                    drive_rows: np.ndarray, fit_rows: np.ndarray, chain_int: np.ndarray, chain_float: np.ndarray,
-                    column_scale: np.ndarray, loop_rows: np.ndarray, loop_cols: np.ndarray, loop_ptr: np.ndarray,
-                    ref_branch: np.ndarray) -> None:
+                    s: np.ndarray, max_iter: int, kin: KinematicsProgram) -> None:
     """Pose i of ``solve_poses``, written into the output arrays."""
     m, n = jac_start.shape[1], jac_start.shape[2]
     n_in = s.shape[1]
-    nc = cyl_att.shape[1]
+    nc = kin.cyl_att.shape[1]
+    att_body, att_ref, hinge_att, cyl_att, lc = kin.att_body, kin.att_ref, kin.hinge_att, kin.cyl_att, kin.lc
+    angle_body, angle_reference = kin.angle_body, kin.angle_reference
     converged = False
     if m > n:   # redundant sensors: fitted along the chain's closed poses
         q0, closed, converged = chain_fit(s[i], n, att_body, att_ref, cyl_att, angle_body, angle_reference, lc,
-                                          chain_int, chain_float, max_iter)
+                                          kin.chain_int, kin.chain_float, max_iter)
     else:
-        q0, closed = chain_pose(s[i], n, att_body, att_ref, chain_int, chain_float)
+        q0, closed = chain_pose(s[i], n, att_body, att_ref, kin.chain_int, kin.chain_float)
     if not closed:   # no chain, or a step out of reach: the tangent prediction
         r0 = m - n_in
         shift = np.zeros(m)
         for j in range(n_in):
             ds = s[i, j] - s_start[0, j]
             shift[r0 + j] = ds if j < nc else lc * ds
-        q0 = q_start[0] + closed_step(jac_start[0], shift, drive_rows, fit_rows, 2 * hinge_att.shape[1])
+        q0 = q_start[0] + closed_step(jac_start[0], shift, kin.drive_rows, kin.fit_rows, 2 * hinge_att.shape[1])
     if converged:
         q = q0
         phi, jac = residual_jacobian(q, s[i], att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc)
     else:
         q, phi, jac = newton(q0, s[i], max_iter, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference,
-                             lc, drive_rows, fit_rows)
+                             lc, kin.drive_rows, kin.fit_rows)
     for b in range(q.shape[0] // 3):   # a rotation that Newton took by whole turns: the equivalent nearest the start
         q[3 * b + 2] = q_start[0, 3 * b + 2] + _wrap(q[3 * b + 2] - q_start[0, 3 * b + 2])
     q_out[i], phi_out[i] = q, phi
     if i == s.shape[0] - 1:   # the last pose's Jacobian: where the next solve continues (not N of them: memory)
         jac_out[0] = jac
-    cond[i] = condition(jac, column_scale)
-    signs = loop_signs(jac, loop_rows, loop_cols, loop_ptr)
+    cond[i] = condition(jac, kin.column_scale)
+    signs = loop_signs(jac, kin.loop_rows, kin.loop_cols, kin.loop_ptr)
     on_branch[i] = True
     for k in range(signs.shape[0]):
-        if signs[k] * ref_branch[k] < 0.0:
+        if signs[k] * kin.ref_branch[k] < 0.0:
             on_branch[i] = False
 
 
@@ -680,35 +679,37 @@ def _kinematic_outputs(s: np.ndarray, jac_start: np.ndarray) -> tuple[np.ndarray
 
 
 def solve_poses(q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray, s: np.ndarray, max_iter: int,
-                *mechanism: object) -> tuple[np.ndarray, ...]:
+                kin: KinematicsProgram) -> tuple[np.ndarray, ...]:
     """Assemble N poses for inputs s (N, n_inputs): Newton from the tangent prediction off one solved
     pose (q_start (1, n), its Jacobian (1, m, n) and inputs (1, n_inputs)) — J·dq = E·(s − s_start)
     as a ``closed_step``, E the input rows' unit / lc entries — then the condition number and the
     assembly branch.
 
-    ``mechanism``: att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc,
-    drive_rows, fit_rows, chain_int, chain_float, column_scale, loop_rows, loop_cols, loop_ptr,
-    ref_branch (``Kinematics.program``). Returns q (N, n), Φ (N, m), ∂Φ/∂q at the last pose (1, m, n)
+    ``kin``: the mechanism (``Kinematics.program``). Returns q (N, n), Φ (N, m), ∂Φ/∂q at the last pose (1, m, n)
     (where the next solve continues; N of them would be 1.9 kB per pose for belarus_1221), condition
     (N,), on_branch (N,): False where a loop is in the opposite assembly of ``ref_branch`` (a loop
     at a dead centre, sign 0, counts as on it). Large batches run on every core (``allow_threads``).
     """
     out = _kinematic_outputs(s, jac_start)
     driver: Any = _kinematics_parallel if _parallel(s.shape[0]) else _kinematics_serial
-    driver(s.shape[0], *out, q_start, jac_start, s_start, s, max_iter, *mechanism)
+    driver(s.shape[0], *out, q_start, jac_start, s_start, s, max_iter, *kin)
     return out
+
+
+_KINEMATIC_ARGS = 10   # ``_kinematic_pose``'s arguments before its program (outputs, start, inputs, max_iter)
 
 
 @njit(cache=True)
 def _kinematics_serial(n_pose, *args):
+    kin = KinematicsProgram(*args[_KINEMATIC_ARGS:])
     for i in range(n_pose):
-        _kinematic_pose(i, *args)
+        _kinematic_pose(i, *args[:_KINEMATIC_ARGS], kin)
 
 
 @njit(cache=True, parallel=True)
-def _kinematics_parallel(n_pose, *args):
+def _kinematics_parallel(n_pose, *args):   # a record cannot enter a parallel loop: rebuilt in it from its fields
     for i in prange(n_pose):
-        _kinematic_pose(i, *args)
+        _kinematic_pose(i, *args[:_KINEMATIC_ARGS], KinematicsProgram(*args[_KINEMATIC_ARGS:]))
 
 
 @njit(cache=True)
@@ -792,7 +793,7 @@ def _term_force(t: int, axes: np.ndarray, t_const: np.ndarray, t_member: np.ndar
 
 
 def solve_statics(p: np.ndarray, member_force: np.ndarray, accel: np.ndarray, alpha: np.ndarray,
-                  has_accel: bool, n_unknowns: int, *layout: object) -> tuple[np.ndarray, ...]:
+                  has_accel: bool, n_unknowns: int, layout: StaticsProgram) -> tuple[np.ndarray, ...]:
     """Equilibrium of every moving body for N poses: unknowns u (N, n_unknowns) with A·u + b = 0.
 
     p (N, K, 2): attachment positions, m. member_force (N, M): force of springs then cylinders, N
@@ -818,17 +819,20 @@ def solve_statics(p: np.ndarray, member_force: np.ndarray, accel: np.ndarray, al
     return out
 
 
+_STATICS_ARGS = 10   # ``_statics_pose``'s arguments before its program (outputs, positions, loads)
+
+
 @njit(cache=True)
 def _statics_pose(i, u_out, residual, cond, axes, lengths, p, member_force, accel, alpha, has_accel,
-                  lc, n_eq, t_col, t_att, t_body, t_const, t_member, t_sign, const_force, known_att, known_body,
-                  end_member, end_sign, member_att, mass_att, mass_body, mass, inertia):
+                  layout: StaticsProgram):
     """Pose i of ``solve_statics``, written into the output arrays."""
     n_unknowns = u_out.shape[1]
-    _member_axes(i, axes, lengths, p, member_att)
-    a_mat = equilibrium_matrix(p[i], axes[i], lc, n_eq, n_unknowns, t_col, t_att, t_body, t_const, t_member, t_sign)
+    lc, n_eq = layout.lc, layout.n_eq
+    _member_axes(i, axes, lengths, p, layout.member_att)
+    a_mat = equilibrium_matrix(p[i], axes[i], lc, n_eq, n_unknowns, layout.t_col, layout.t_att, layout.t_body,
+                               layout.t_const, layout.t_member, layout.t_sign)
     b = np.zeros(n_eq)
-    _known_loads(b, i, p, axes, member_force, accel, alpha, has_accel, lc, const_force, known_att, known_body,
-                 end_member, end_sign, mass_att, mass_body, mass, inertia)
+    _known_loads(b, i, p, axes, member_force, accel, alpha, has_accel, layout)
     if n_unknowns == n_eq:
         lu, piv, c = factor_and_condition(a_mat)
         u = -lu_solve(lu, piv, b) if math.isfinite(c) else np.full(n_unknowns, np.nan)
@@ -859,12 +863,13 @@ def _member_axes(i: int, axes: np.ndarray, lengths: np.ndarray, p: np.ndarray, m
 
 @njit(cache=True)
 def _known_loads(b: np.ndarray, i: int, p: np.ndarray, axes: np.ndarray, member_force: np.ndarray,
-                 accel: np.ndarray, alpha: np.ndarray, has_accel: bool, lc: float, const_force: np.ndarray,
-                 known_att: np.ndarray, known_body: np.ndarray, end_member: np.ndarray, end_sign: np.ndarray,
-                 mass_att: np.ndarray, mass_body: np.ndarray, mass: np.ndarray, inertia: np.ndarray) -> None:
+                 accel: np.ndarray, alpha: np.ndarray, has_accel: bool, layout: StaticsProgram) -> None:
     """The known loads of pose i as generalized forces into b (n_eq,) ([Fx, Fz, M/lc] per body,
     ``solve_statics``' layout): constant loads, the ends of members of known force, and with
     ``has_accel`` the inertia loads −m·a at each cg and −I·α (seed 004)."""
+    lc, const_force, known_att, known_body = layout.lc, layout.const_force, layout.known_att, layout.known_body
+    end_member, end_sign, mass_att, mass_body = layout.end_member, layout.end_sign, layout.mass_att, layout.mass_body
+    mass, inertia = layout.mass, layout.inertia
     n_const = const_force.shape[0]
     for k in range(n_const):
         att = known_att[k]
@@ -884,14 +889,15 @@ def _known_loads(b: np.ndarray, i: int, p: np.ndarray, axes: np.ndarray, member_
 
 @njit(cache=True)
 def _statics_serial(n_pose, *args):
+    layout = StaticsProgram(*args[_STATICS_ARGS:])
     for i in range(n_pose):
-        _statics_pose(i, *args)
+        _statics_pose(i, *args[:_STATICS_ARGS], layout)
 
 
 @njit(cache=True, parallel=True)
-def _statics_parallel(n_pose, *args):
+def _statics_parallel(n_pose, *args):   # a record cannot enter a parallel loop: rebuilt in it from its fields
     for i in prange(n_pose):
-        _statics_pose(i, *args)
+        _statics_pose(i, *args[:_STATICS_ARGS], StaticsProgram(*args[_STATICS_ARGS:]))
 
 
 # ---- reduced coordinates: transmission and statics along the chain of dyads (chain.py) ---------------
@@ -1030,7 +1036,8 @@ def _reverse_pass(g: np.ndarray, u: np.ndarray, p: np.ndarray, axes: np.ndarray,
 
 
 def solve_reduced_statics(p: np.ndarray, member_force: np.ndarray, accel: np.ndarray, alpha: np.ndarray,
-                          has_accel: bool, n_unknowns: int, layout: tuple, reduced: tuple) -> tuple[np.ndarray, ...]:
+                          has_accel: bool, n_unknowns: int, layout: StaticsProgram, reduced: ReducedProgram
+                          ) -> tuple[np.ndarray, ...]:
     """``solve_statics`` in reduced coordinates: the same unknowns u (N, n_unknowns) for the same
     loads (arguments as there; ``layout``: ``StaticsLayout.program``), found along the chain of
     dyads (``_reverse_pass``) with no linear system. ``reduced``: ``ReducedStatics.program``.
@@ -1042,20 +1049,20 @@ def solve_reduced_statics(p: np.ndarray, member_force: np.ndarray, accel: np.nda
     """
     n_pose = p.shape[0]
     n_members = member_force.shape[1]
-    chain_int = reduced[2]
-    out = (np.empty((n_pose, n_unknowns)), np.empty(n_pose), np.empty((n_pose, chain_int.shape[0] + 1)),
+    out = (np.empty((n_pose, n_unknowns)), np.empty(n_pose), np.empty((n_pose, reduced.chain_int.shape[0] + 1)),
            np.empty(n_pose, dtype=np.int64), np.empty((n_pose, n_members, 2)), np.empty((n_pose, n_members)))
     driver = _reduced_parallel if _parallel(n_pose) else _reduced_serial
     driver(n_pose, *out, p, member_force, accel, alpha, has_accel, *layout, *reduced)
     return out
 
 
+_REDUCED_ARGS = 11   # ``_reduced_pose``'s arguments before its programs (outputs, positions, loads)
+_REDUCED_LAYOUT_END = _REDUCED_ARGS + len(StaticsProgram._fields)
+
+
 @njit(cache=True, error_model="numpy")
 def _reduced_pose(i, u_out, residual, sine, weakest, axes, lengths, p, member_force, accel, alpha, has_accel,
-                  lc, n_eq, t_col, t_att, t_body, t_const, t_member, t_sign, const_force, known_att, known_body,
-                  end_member, end_sign, member_att, mass_att, mass_body, mass, inertia,
-                  att_body, hinge_att, chain_int, hinge_cols, step_col, step_member, step_sign, free_col,
-                  closing_step):
+                  layout: StaticsProgram, reduced: ReducedProgram):
     """Pose i of ``solve_reduced_statics``, written into the output arrays.
 
     The statics are linear in the loads: with a free load λ (``free_col`` ≥ 0: a contact's normal
@@ -1071,27 +1078,28 @@ def _reduced_pose(i, u_out, residual, sine, weakest, axes, lengths, p, member_fo
     0 the load does no work on the motion the closing equation balances, and it is not determined:
     a static dead centre of the general path that no link's transmission shows.
     """
-    _member_axes(i, axes, lengths, p, member_att)
+    lc, t_col = layout.lc, layout.t_col
+    chain_int, free_col, closing_step = reduced.chain_int, reduced.free_col, reduced.closing_step
+    _member_axes(i, axes, lengths, p, layout.member_att)
     n_steps = chain_int.shape[0]
     n_cases = 2 if free_col >= 0 else 1    # the known loads; λ = 1 alone
-    loads = np.zeros((n_cases, n_eq))
-    _known_loads(loads[0], i, p, axes, member_force, accel, alpha, has_accel, lc, const_force, known_att, known_body,
-                 end_member, end_sign, mass_att, mass_body, mass, inertia)
+    loads = np.zeros((n_cases, layout.n_eq))
+    _known_loads(loads[0], i, p, axes, member_force, accel, alpha, has_accel, layout)
     size, radius = 0.0, 0.0   # |e| N per unit λ; |P − A| m
     if free_col >= 0:
         pivot = chain_int[closing_step, A_BODY]
         for t in range(t_col.shape[0]):
             if t_col[t] == free_col:
-                fx, fz = _term_force(t, axes[i], t_const, t_member, t_sign)
-                px, pz = p[i, t_att[t], 0], p[i, t_att[t], 1]
-                _add_generalized(loads[1], 3 * t_body[t], px, pz, fx, fz, lc)
+                fx, fz = _term_force(t, axes[i], layout.t_const, layout.t_member, layout.t_sign)
+                px, pz = p[i, layout.t_att[t], 0], p[i, layout.t_att[t], 1]
+                _add_generalized(loads[1], 3 * layout.t_body[t], px, pz, fx, fz, lc)
                 size = math.sqrt(fx * fx + fz * fz)
                 radius = max(radius, math.hypot(px - p[i, pivot, 0], pz - p[i, pivot, 1]))
     u = np.zeros((n_cases, u_out.shape[1]))
     closing = np.zeros(n_cases)
     for c in range(n_cases):
-        closing[c] = _reverse_pass(loads[c], u[c], p[i], axes[i], lc, att_body, hinge_att, chain_int, hinge_cols,
-                                   step_col, step_member, step_sign)
+        closing[c] = _reverse_pass(loads[c], u[c], p[i], axes[i], lc, reduced.att_body, reduced.hinge_att, chain_int,
+                                   reduced.hinge_cols, reduced.step_col, reduced.step_member, reduced.step_sign)
     weakest[i] = transmission_pose(p[i], chain_int, sine[i, :n_steps])
     if free_col >= 0:
         free = -closing[0] / closing[1]
@@ -1109,14 +1117,17 @@ def _reduced_pose(i, u_out, residual, sine, weakest, axes, lengths, p, member_fo
 
 @njit(cache=True)
 def _reduced_serial(n_pose, *args):
+    layout = StaticsProgram(*args[_REDUCED_ARGS:_REDUCED_LAYOUT_END])
+    reduced = ReducedProgram(*args[_REDUCED_LAYOUT_END:])
     for i in range(n_pose):
-        _reduced_pose(i, *args)
+        _reduced_pose(i, *args[:_REDUCED_ARGS], layout, reduced)
 
 
 @njit(cache=True, parallel=True)
-def _reduced_parallel(n_pose, *args):
+def _reduced_parallel(n_pose, *args):   # records cannot enter a parallel loop: rebuilt in it from their fields
     for i in prange(n_pose):
-        _reduced_pose(i, *args)
+        _reduced_pose(i, *args[:_REDUCED_ARGS], StaticsProgram(*args[_REDUCED_ARGS:_REDUCED_LAYOUT_END]),
+                      ReducedProgram(*args[_REDUCED_LAYOUT_END:]))
 
 
 # ---- lift capacity by virtual work ------------------------------------------------------------------
@@ -1285,166 +1296,194 @@ def steerability_rows(points: np.ndarray, forces: np.ndarray, implement_load: np
 
 # ---- one live pose, end to end; a series of them -----------------------------------------------
 @njit(cache=True)
-def _pose_outputs(n_pose, n, m, outputs, machine):
-    """The output arrays of ``live_series`` for n_pose poses (see there; the Jacobian two slots, not
-    n_pose): the rows of a pose that is not
-    plain are left as they are (the general path writes them), the implement cg and the capacities
-    NaN until written (no implement; a capacity that is not computed)."""
-    (_, spring_stiffness, _, _, hinge_cols, _, _, contact_cols, _, _, per_cap_area, _, point_rows, _, frame_att, _,
-     _, _, _) = outputs
-    parameters, point_att = machine[0], machine[8]
-    n_steer = N_STEERABILITY if parameters.shape[0] > 0 else 0
-    n_capacity = point_att.shape[0] + 1 if point_att.shape[0] > 0 else 0
-    return (np.zeros(n_pose, dtype=np.bool_), np.empty((n_pose, n)), np.empty((n_pose, m)), np.empty((2, m, n)),
-            np.empty(n_pose), np.empty((n_pose, point_rows.shape[0], 2)), np.empty((n_pose, hinge_cols.shape[0], 2)),
-            np.empty((n_pose, per_cap_area.shape[0], 5)), np.empty((n_pose, contact_cols.shape[0], 2)),
-            np.full((n_pose, 2), np.nan), np.empty((n_pose, frame_att.shape[0], 2)),
-            np.empty((n_pose, frame_att.shape[0], 2)), np.empty((n_pose, 4)), np.empty((n_pose, n_steer)),
-            np.full((n_pose, n_capacity), np.nan))
+def _live_rows(n_pose: int, n: int, m: int, outputs: OutputsProgram, machine: MachineProgram) -> LiveRows:
+    """``LiveRows`` for n_pose poses (the Jacobian two slots, not n_pose): the rows of a pose that
+    is not plain are left as they are (the general path writes them); the implement cg and the
+    capacities NaN until written (no implement; a capacity that is not computed)."""
+    n_steer = N_STEERABILITY if machine.parameters.shape[0] > 0 else 0
+    n_capacity = machine.point_att.shape[0] + 1 if machine.point_att.shape[0] > 0 else 0
+    n_frame = outputs.frame_att.shape[0]
+    return LiveRows(
+        plain=np.zeros(n_pose, dtype=np.bool_), q=np.empty((n_pose, n)), phi=np.empty((n_pose, m)),
+        jac=np.empty((2, m, n)), kinematic_condition=np.empty(n_pose),
+        point_xz=np.empty((n_pose, outputs.point_rows.shape[0], 2)),
+        hinge_force=np.empty((n_pose, outputs.hinge_cols.shape[0], 2)),
+        cylinder_values=np.empty((n_pose, outputs.per_cap_area.shape[0], 5)),
+        contact_values=np.empty((n_pose, outputs.contact_cols.shape[0], 2)), implement_cg=np.full((n_pose, 2), np.nan),
+        frame_load_points=np.empty((n_pose, n_frame, 2)), frame_load_forces=np.empty((n_pose, n_frame, 2)),
+        implement_load=np.empty(n_pose), residual=np.empty(n_pose), consistency_residual=np.empty(n_pose),
+        condition=np.empty(n_pose), transmission_angle=np.full(n_pose, np.nan),
+        weakest=np.full(n_pose, -1, dtype=np.int64), steerability=np.empty((n_pose, n_steer)),
+        capacity=np.full((n_pose, n_capacity), np.nan))
 
 
 @njit(cache=True)
-def live_pose(s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kinematics, statics, outputs,
-              machine):
+def live_pose(s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin, statics, outputs, machine):
     """The live node's pose in one call: ``live_series`` of one pose (s (1, n_inputs), pressure_forces
     (3, C)) from the solved pose (q_start (1, n), jac_start (1, m, n), s_start (1, n_inputs)).
-
-    Returns (plain, q (1, n), Φ (1, m), ∂Φ/∂q (1, m, n), kinematic condition (1,), then the pose's rows
-    of the other outputs of ``live_series``).
-    """
-    out = _pose_outputs(1, q_start.shape[1], jac_start.shape[1], outputs, machine)
-    _live_pose_at(0, out, s, pressure_forces.reshape((1,) + pressure_forces.shape), q_start, jac_start, s_start,
-                  limit, max_condition, kinematics, statics, outputs, machine)
-    return (out[0][0], out[1], out[2], out[3][0:1], out[4], out[5][0], out[6][0], out[7][0], out[8][0], out[9][0],
-            out[10][0], out[11][0], out[12][0], out[13][0], out[14][0])
+    Returns its ``LiveRows`` (one pose; ``jac[0]`` its Jacobian)."""
+    rows = _live_rows(1, q_start.shape[1], jac_start.shape[1], outputs, machine)
+    _live_pose_at(0, rows, s, pressure_forces.reshape((1,) + pressure_forces.shape), q_start, jac_start, s_start,
+                  limit, max_condition, kin, statics, outputs, machine)
+    return rows
 
 
 @njit(cache=True)
-def live_series(s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kinematics, statics, outputs,
+def live_series(s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin, statics, outputs,
                 machine):
     """A recorded series of poses as the live node solves them (replay): pose i from the last pose
     before it that took this path, the first from (q_start (1, n), jac_start (1, m, n), s_start
     (1, n_inputs)). s (N, n_inputs): inputs (m, rad); pressure_forces (N, 3, C): per cylinder the
     measured force (N, NaN = not measured), cap and rod gauge pressures (Pa, NaN = not measured).
     limit: largest constraint residual accepted (m); max_condition: the dead-centre condition
-    number. kinematics: ``Kinematics.program``; statics: ``StaticsLayout.program``; outputs:
-    ``Solver.outputs_program`` of that layout; machine: ``MachineModel.program`` (empty arrays for a
-    part the mechanism does not support).
+    number (the kinematics', and the statics' on the general path). kin: ``Kinematics.program``;
+    statics: ``StaticsLayout.program``; outputs: ``Solver.outputs_program`` of that layout;
+    machine: ``MachineModel.program`` (empty arrays for a part the mechanism does not support).
 
     Each pose, from the per-pose kernels above: loop closure (``_kinematic_pose``), equilibrium with
-    the measured cylinder forces (``_statics_pose``), the arrays of a ``Result``, lift capacity
-    (``_capacity_pose``) and steerability (``steerability_pose``). Returns (plain (N,), q (N, n), Φ
-    (N, m), ∂Φ/∂q (2, m, n) — [0] the last pose's, [1] the last plain pose's (each pose continues from
-    it; not N of them: 1.9 kB per pose for belarus_1221) —, kinematic condition (N,), point_xz,
-    hinge_force, cylinder_values, contact_values (N, rows, fields), implement_cg (N, 2), frame_load_points, frame_load_forces (N, F,
-    2), [implement_load, residual, consistency residual, condition] (N, 4), steerability rows,
-    capacity rows) in ``Result``'s and ``MachineResult``'s layouts. ``plain[i]`` is False when pose i
-    is not the usual one — off the reference branch, not assembled to ``limit``, at a dead centre, a
-    contact lifting off — and then its rows are not meaningful: the general path
-    (``Solver._solve``) words the verdict.
+    the measured cylinder forces — along the chain of dyads with the transmission verdict
+    (``_reduced_pose``) where ``outputs.reduced``, else in one linear system with the
+    condition-number verdict (``_statics_pose``) —, the arrays of a ``Result``, lift capacity
+    (``_capacity_pose``) and steerability (``steerability_pose``). Returns ``LiveRows``;
+    ``plain[i]`` is False when pose i is not the usual one — off the reference branch, not
+    assembled to ``limit``, at a dead centre, a contact lifting off — and then its rows are not
+    meaningful: the general path (``Solver._solve``) words the verdict.
     """
     n_pose = s.shape[0]
-    out = _pose_outputs(n_pose, q_start.shape[1], jac_start.shape[1], outputs, machine)
+    rows = _live_rows(n_pose, q_start.shape[1], jac_start.shape[1], outputs, machine)
     last = -1
     for i in range(n_pose):
         if last < 0:
-            _live_pose_at(i, out, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kinematics,
+            _live_pose_at(i, rows, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin,
                           statics, outputs, machine)
         else:
-            _live_pose_at(i, out, s, pressure_forces, out[1][last:last + 1], out[3][1:2],
-                          s[last:last + 1], limit, max_condition, kinematics, statics, outputs, machine)
-        if out[0][i]:
+            _live_pose_at(i, rows, s, pressure_forces, rows.q[last:last + 1], rows.jac[1:2],
+                          s[last:last + 1], limit, max_condition, kin, statics, outputs, machine)
+        if rows.plain[i]:
             last = i
-            out[3][1] = out[3][0]
-    return out
+            rows.jac[1] = rows.jac[0]
+    return rows
 
 
 @njit(cache=True)
-def _live_pose_at(i, out, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kinematics, statics,
+def smallest_sine(sine: np.ndarray, weakest: int) -> float:
+    """The pose's transmission measure from its measures' |sin| (``_reduced_pose``): that of the
+    weakest, 1 when none has one, 0 when the weakest's is undefined (a free load doing no work)."""
+    if weakest < 0:
+        return 1.0
+    value = sine[weakest]
+    return 0.0 if math.isnan(value) else min(value, 1.0)
+
+
+@njit(cache=True)
+def _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition, statics, outputs) -> bool:
+    """Equilibrium of pose i of ``live_series`` into u_out (1, n_unknowns), member axes and lengths,
+    its residual, condition and transmission into ``rows``: False at a dead centre — the smallest
+    transmission below ``outputs.dead_centre_sine`` (reduced path) or the condition number above
+    ``max_condition`` (general path)."""
+    residual, no_accel, no_alpha = np.empty(1), np.zeros((1, 1, 2)), np.zeros((1, 1))
+    if outputs.reduced:
+        sine, weakest = np.empty((1, outputs.measure_count)), np.empty(1, dtype=np.int64)
+        _reduced_pose(0, u_out, residual, sine, weakest, axes, lengths, p, member_force, no_accel, no_alpha, False,
+                      statics, outputs.reduced_program)
+        smallest = smallest_sine(sine[0], weakest[0])
+        if not smallest >= outputs.dead_centre_sine:
+            return False
+        rows.transmission_angle[i], rows.weakest[i] = math.asin(smallest), weakest[0]
+        rows.condition[i] = rows.kinematic_condition[i]
+    else:
+        cond = np.empty(1)
+        _statics_pose(0, u_out, residual, cond, axes, lengths, p, member_force, no_accel, no_alpha, False, statics)
+        if not cond[0] <= max_condition:
+            return False
+        rows.condition[i] = max(cond[0], rows.kinematic_condition[i])
+    rows.residual[i] = residual[0]
+    return True
+
+
+@njit(cache=True)
+def _live_pose_at(i, rows, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin, statics,
                   outputs, machine):
-    """Pose i of ``live_series``, written into its rows of ``out`` (``_pose_outputs``)."""
-    (att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc, drive_rows, fit_rows, chain_int,
-     chain_float, column_scale, loop_rows, loop_cols, loop_ptr, ref_branch) = kinematics
-    (n_unknowns, spring_stiffness, spring_free_length, spring_preload, hinge_cols, force_measured, cylinder_cols,
-     contact_cols, implement_col, implement_weight, per_cap_area, friction, point_rows, cg_att, frame_att,
-     frame_hinge_index, frame_hinge_sign, frame_member_index, frame_member_sign) = outputs
-    (parameters, cap_hinge_att, cap_cylinder_att, lift, lift_force, gravity, weight_att, weight_mass, point_att,
-     cg_point) = machine
-    member_att = statics[13]   # (2, M): the ends of springs then cylinders
-    (plain, q, phi, jac, kin_cond, point_xz, hinge_force, cylinders, contacts, implement_cg, frame_points,
-     frame_forces, scalars, steer, capacity) = out
-    n, m = q.shape[1], phi.shape[1]
-    n_springs, n_cylinders = spring_stiffness.shape[0], per_cap_area.shape[0]
+    """Pose i of ``live_series``, written into its rows of ``rows`` (``LiveRows``)."""
+    member_att = statics.member_att   # (2, M): the ends of springs then cylinders
+    n, m = rows.q.shape[1], rows.phi.shape[1]
+    n_springs, n_cylinders = outputs.spring_stiffness.shape[0], outputs.per_cap_area.shape[0]
     n_members = n_springs + n_cylinders
     on_branch = np.empty(1, dtype=np.bool_)
-    _kinematic_pose(0, q[i:i + 1], phi[i:i + 1], jac[0:1], kin_cond[i:i + 1], on_branch, q_start, jac_start,
-                    s_start, s[i:i + 1], 25, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc,
-                    drive_rows, fit_rows, chain_int, chain_float, column_scale, loop_rows, loop_cols, loop_ptr,
-                    ref_branch)
-    if not (on_branch[0] and assembled(phi[i], 2 * hinge_att.shape[1], lc, limit) and kin_cond[i] <= max_condition):
+    _kinematic_pose(0, rows.q[i:i + 1], rows.phi[i:i + 1], rows.jac[0:1], rows.kinematic_condition[i:i + 1],
+                    on_branch, q_start, jac_start, s_start, s[i:i + 1], 25, kin)
+    if not (on_branch[0] and assembled(rows.phi[i], 2 * kin.hinge_att.shape[1], kin.lc, limit)
+            and rows.kinematic_condition[i] <= max_condition):
         return
-    p1, _ = positions(q[i], att_body, att_ref)
+    p1, _ = positions(rows.q[i], kin.att_body, kin.att_ref)
     p = p1.reshape((1, p1.shape[0], 2))
     member_force = np.empty((1, n_members))
     for k in range(n_springs):   # k·(free length − length) + preload (StaticsLayout.spring_forces)
         a, b = member_att[0, k], member_att[1, k]
         dx, dz = p1[b, 0] - p1[a, 0], p1[b, 1] - p1[a, 1]
-        member_force[0, k] = spring_stiffness[k] * (spring_free_length[k] - math.sqrt(dx * dx + dz * dz)) \
-            + spring_preload[k]
+        member_force[0, k] = outputs.spring_stiffness[k] * (outputs.spring_free_length[k] - math.sqrt(dx * dx + dz * dz)) \
+            + outputs.spring_preload[k]
     for k in range(n_cylinders):   # an unmeasured cylinder's force is an unknown
-        member_force[0, n_springs + k] = pressure_forces[i, 0, k] if force_measured[k] else 0.0
-    u_out, residual, cond = np.empty((1, n_unknowns)), np.empty(1), np.empty(1)
+        member_force[0, n_springs + k] = pressure_forces[i, 0, k] if outputs.force_measured[k] else 0.0
+    u_out = np.empty((1, outputs.n_unknowns))
     axes, lengths = np.empty((1, n_members, 2)), np.empty((1, n_members))
-    _statics_pose(0, u_out, residual, cond, axes, lengths, p, member_force, np.zeros((1, 1, 2)), np.zeros((1, 1)),
-                  False, *statics)
-    u = u_out[0]
-    if not cond[0] <= max_condition:
+    if not _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition, statics, outputs):
         return
+    u = u_out[0]
+    contact_cols = outputs.contact_cols
     for k in range(contact_cols.shape[0]):
         if u[contact_cols[k]] < 0.0:   # lifts off
             return
     for k in range(contact_cols.shape[0]):
         normal = u[contact_cols[k]]
-        contacts[i, k, 0], contacts[i, k, 1] = normal, friction[k] * normal
-    for k in range(point_rows.shape[0]):
-        point_xz[i, k, 0], point_xz[i, k, 1] = p1[point_rows[k], 0], p1[point_rows[k], 1]
+        rows.contact_values[i, k, 0], rows.contact_values[i, k, 1] = normal, outputs.friction[k] * normal
+    for k in range(outputs.point_rows.shape[0]):
+        a = outputs.point_rows[k]
+        rows.point_xz[i, k, 0], rows.point_xz[i, k, 1] = p1[a, 0], p1[a, 1]
+    hinge_cols = outputs.hinge_cols
     for h in range(hinge_cols.shape[0]):   # N on bodies[1] from bodies[0]
-        hinge_force[i, h, 0], hinge_force[i, h, 1] = u[hinge_cols[h, 0]], u[hinge_cols[h, 1]]
+        rows.hinge_force[i, h, 0], rows.hinge_force[i, h, 1] = u[hinge_cols[h, 0]], u[hinge_cols[h, 1]]
     for k in range(n_cylinders):
-        force = pressure_forces[i, 0, k] if force_measured[k] else u[cylinder_cols[k]]
+        force = pressure_forces[i, 0, k] if outputs.force_measured[k] else u[outputs.cylinder_cols[k]]
         member_force[0, n_springs + k] = force
-        cylinders[i, k, 0], cylinders[i, k, 1] = lengths[0, n_springs + k], force
-        cylinders[i, k, 2] = force * per_cap_area[k]
-        cylinders[i, k, 3], cylinders[i, k, 4] = pressure_forces[i, 1, k], pressure_forces[i, 2, k]
-    n_frame_hinges = frame_hinge_index.shape[0]
-    for j in range(frame_att.shape[0]):   # the forces ON the ground body: hinges, then member ends
-        frame_points[i, j, 0], frame_points[i, j, 1] = p1[frame_att[j], 0], p1[frame_att[j], 1]
+        cylinder = rows.cylinder_values[i, k]   # CylinderResult's fields
+        cylinder[0], cylinder[1] = lengths[0, n_springs + k], force
+        cylinder[2] = force * outputs.per_cap_area[k]
+        cylinder[3], cylinder[4] = pressure_forces[i, 1, k], pressure_forces[i, 2, k]
+    n_frame_hinges = outputs.frame_hinge_index.shape[0]
+    frame_points, frame_forces = rows.frame_load_points[i], rows.frame_load_forces[i]
+    for j in range(outputs.frame_att.shape[0]):   # the forces ON the ground body: hinges, then member ends
+        a = outputs.frame_att[j]
+        frame_points[j, 0], frame_points[j, 1] = p1[a, 0], p1[a, 1]
         if j < n_frame_hinges:
-            sign, h = frame_hinge_sign[j], frame_hinge_index[j]
-            frame_forces[i, j, 0], frame_forces[i, j, 1] = sign * hinge_force[i, h, 0], sign * hinge_force[i, h, 1]
+            sign, h = outputs.frame_hinge_sign[j], outputs.frame_hinge_index[j]
+            frame_forces[j, 0], frame_forces[j, 1] = sign * rows.hinge_force[i, h, 0], sign * rows.hinge_force[i, h, 1]
         else:
-            e = frame_member_index[j - n_frame_hinges]
-            f = frame_member_sign[j - n_frame_hinges] * member_force[0, e]
-            frame_forces[i, j, 0], frame_forces[i, j, 1] = f * axes[0, e, 0], f * axes[0, e, 1]
-    if cg_att >= 0:
-        implement_cg[i, 0], implement_cg[i, 1] = p1[cg_att, 0], p1[cg_att, 1]
-    load = u[implement_col] if implement_col >= 0 else implement_weight
+            e = outputs.frame_member_index[j - n_frame_hinges]
+            f = outputs.frame_member_sign[j - n_frame_hinges] * member_force[0, e]
+            frame_forces[j, 0], frame_forces[j, 1] = f * axes[0, e, 0], f * axes[0, e, 1]
+    if outputs.cg_att >= 0:
+        rows.implement_cg[i, 0], rows.implement_cg[i, 1] = p1[outputs.cg_att, 0], p1[outputs.cg_att, 1]
+    load = u[outputs.implement_col] if outputs.implement_col >= 0 else outputs.implement_weight
     consistency = 0.0
     for r in range(m):
-        consistency += phi[i, r] * phi[i, r]
-    scalars[i, 0], scalars[i, 1], scalars[i, 2] = load, residual[0], math.sqrt(consistency)
-    scalars[i, 3] = max(cond[0], kin_cond[i])
-    if parameters.shape[0]:
-        steerability_pose(frame_points[i], frame_forces[i], load, implement_cg[i, 0], parameters, steer[i])
-    if point_att.shape[0]:
-        square = 2 * cap_hinge_att.shape[1] + cap_cylinder_att.shape[1] == n
-        _capacity_pose(0, capacity[i:i + 1], q[i:i + 1], att_body, att_ref, cap_hinge_att, cap_cylinder_att, lift,
-                       lift_force, gravity, weight_att, weight_mass, member_att[:, :n_springs].copy(),
-                       member_force[:, :n_springs].copy(), point_att, column_scale, max_condition,
-                       np.ones(1, dtype=np.bool_), square, np.full(1, load), cg_point)
-    plain[i] = True
+        consistency += rows.phi[i, r] * rows.phi[i, r]
+    rows.implement_load[i], rows.consistency_residual[i] = load, math.sqrt(consistency)
+    if machine.parameters.shape[0]:
+        steerability_pose(frame_points, frame_forces, load, rows.implement_cg[i, 0], machine.parameters,
+                          rows.steerability[i])
+    if machine.point_att.shape[0]:
+        square = 2 * machine.hinge_att.shape[1] + machine.cylinder_att.shape[1] == n
+        _capacity_pose(0, rows.capacity[i:i + 1], rows.q[i:i + 1], kin.att_body, kin.att_ref, machine.hinge_att,
+                       machine.cylinder_att, machine.lift, machine.lift_force, machine.gravity, machine.weight_att,
+                       machine.weight_mass, member_att[:, :n_springs].copy(), member_force[:, :n_springs].copy(),
+                       machine.point_att, kin.column_scale, max_condition, np.ones(1, dtype=np.bool_), square,
+                       np.full(1, load), machine.cg_point)
+    rows.plain[i] = True
 
 
-# ``live_pose``'s ``machine`` when no machine-level results are wanted (``MachineModel.program``'s types)
-NO_MACHINE = (np.zeros(0), np.zeros((2, 0), dtype=np.int64), np.zeros((2, 0), dtype=np.int64), 0, math.nan, math.nan,
-              np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=np.int64), 0)
+# ``live_pose``'s ``machine`` when no machine-level results are wanted
+NO_MACHINE = MachineProgram(parameters=np.zeros(0), hinge_att=np.zeros((2, 0), dtype=np.int64),
+                            cylinder_att=np.zeros((2, 0), dtype=np.int64), lift=0, lift_force=math.nan,
+                            gravity=math.nan, weight_att=np.zeros(0, dtype=np.int64), weight_mass=np.zeros(0),
+                            point_att=np.zeros(0, dtype=np.int64), cg_point=0)

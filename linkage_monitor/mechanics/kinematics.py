@@ -20,6 +20,7 @@ from scipy.sparse.csgraph import connected_components, maximum_bipartite_matchin
 
 from . import chain, kernels
 from .model import Mechanism
+from .programs import Geometry, KinematicsProgram
 from .results import Status
 
 
@@ -60,8 +61,8 @@ class Kinematics:
         self.q_ref = np.column_stack([origins, np.zeros(len(moving))]).ravel()
         self._origins = origins
         self._att: dict[tuple[str, str], int] = {}
-        self._arrays: tuple | None = None
-        self._program: tuple | None = None
+        self._arrays: Geometry | None = None
+        self._program: KinematicsProgram | None = None
         self._att_body: list[int] = []
         self._att_ref: list[np.ndarray] = []
         # constraint rows
@@ -117,23 +118,28 @@ class Kinematics:
         return self._att[ident]
 
     @property
-    def geometry(self) -> tuple:
+    def geometry(self) -> Geometry:
         """The loop closure as the kernels take it: attachment bodies (K,) and offsets (K, 2) m,
         hinge attachments (2, n_hinges), measured cylinders' (base, rod end) attachments (2, nc),
         angle sensors' bodies (2, na), their reference angles (na,) rad, the length scale lc m."""
         if self._arrays is None:
-            self._arrays = (np.array(self._att_body, dtype=np.int64), np.array(self._att_ref).reshape(-1, 2),
-                            self.hinge_att, self.cyl_att, self.angle_bodies, self.angle_reference, self.lc)
+            self._arrays = Geometry(att_body=np.array(self._att_body, dtype=np.int64),
+                                    att_ref=np.array(self._att_ref).reshape(-1, 2), hinge_att=self.hinge_att,
+                                    cyl_att=self.cyl_att, angle_body=self.angle_bodies,
+                                    angle_reference=self.angle_reference, lc=self.lc)
         return self._arrays
 
     @property
-    def program(self) -> tuple:
+    def program(self) -> KinematicsProgram:
         """``geometry`` with what ``kernels.solve_poses`` also takes: the driving and fitted rows
         (``_driving_system``), the chain of dyads (``chain.decompose``), the column scale, the loops'
         index arrays and the reference assembly branch (``kernels.live_pose``'s ``kinematics``)."""
         if self._program is None:
-            self._program = (*self.geometry, self.drive_rows, self.fit_rows, self.chain_int, self.chain_float,
-                             self.column_scale, *self._loop_arrays, self._ref_branch)
+            loop_rows, loop_cols, loop_ptr = self._loop_arrays
+            self._program = KinematicsProgram(
+                **self.geometry._asdict(), drive_rows=self.drive_rows, fit_rows=self.fit_rows,
+                chain_int=self.chain_int, chain_float=self.chain_float, column_scale=self.column_scale,
+                loop_rows=loop_rows, loop_cols=loop_cols, loop_ptr=loop_ptr, ref_branch=self._ref_branch)
         return self._program
 
     def _padded(self, q: np.ndarray) -> np.ndarray:
@@ -145,8 +151,8 @@ class Kinematics:
 
         Ground attachments are offset from the global origin B, i.e. the offset is their position.
         """
-        att_body, att_ref = self.geometry[:2]
-        return kernels.positions_batch(np.ascontiguousarray(q, dtype=float), att_body, att_ref)
+        geometry = self.geometry
+        return kernels.positions_batch(np.ascontiguousarray(q, dtype=float), geometry.att_body, geometry.att_ref)
 
     # ---- constraints ----------------------------------------------------------------------
     def residual_jacobian(self, q: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -310,7 +316,7 @@ class Kinematics:
         ∂Φ/∂q at the last pose (1, m, n), condition number and whether each pose is on the reference
         assembly branch."""
         return kernels.solve_poses(start.q[-1:], start.jac[-1:], start.s[-1:], np.ascontiguousarray(s, dtype=float),
-                                   25, *self.program)
+                                   25, self.program)
 
     @property
     def reference(self) -> KinematicState:
@@ -370,7 +376,7 @@ class Kinematics:
 
     def point_rates(self, q_dot: np.ndarray, rel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Velocities (N, K, 2) of all attachments and their centripetal accelerations −θ̇²·rel."""
-        att_body = self.geometry[0]
+        att_body = self.geometry.att_body
         col = np.where(att_body >= 0, 3 * att_body, self.n)
         qp = self._padded(q_dot)        # the ground's rates are the appended zeros
         w = qp[:, col + 2]

@@ -20,6 +20,7 @@ from . import kernels
 from .capacity import capacity_force, capacity_points, lift_cylinder, reference_length
 from .kinematics import KinematicState
 from .model import Mechanism, Tractor
+from .programs import MachineProgram
 from .results import BatchResult, Status, Result
 from .solver import ArrayMap, Inputs, Solver
 
@@ -152,7 +153,7 @@ class MachineModel:
         self.steerability_keys: tuple[str, ...] = STEERABILITY_KEYS if self._tractor is not None else ()
         self.capacity_keys: tuple[str, ...] = ()
         # what kernels.live_pose takes to give this model's rows in the live solve (kernels.NO_MACHINE's types)
-        self.program: tuple = (self._tractor if self._tractor is not None else _EMPTY, *kernels.NO_MACHINE[1:])
+        self.program = kernels.NO_MACHINE._replace(parameters=self._tractor if self._tractor is not None else _EMPTY)
         if mech.implement is None or not any(c.relief_pressure is not None for c in mech.cylinders):
             self.capacity_error = "no implement or no cylinder with relief_pressure: lift capacity not computed"
             return
@@ -174,9 +175,11 @@ class MachineModel:
         lift = [c.name for c in mech.cylinders].index(cyl.name)
         weight_att, weight_mass = layout.mass_att[others], layout.mass[others]
         self._spring_att = layout.member_att[:, :layout.n_springs].copy()   # (2, n_springs): the springs' ends
-        self.program = (self.program[0], np.ascontiguousarray(kin.hinge_att, dtype=np.int64), all_cylinders, lift,
-                        float(self.capacity_force), float(mech.gravity), weight_att.astype(np.int64),
-                        weight_mass.astype(float), point_att, self._cg_column)
+        self.program = MachineProgram(
+            parameters=self.program.parameters, hinge_att=np.ascontiguousarray(kin.hinge_att, dtype=np.int64),
+            cylinder_att=all_cylinders, lift=lift, lift_force=float(self.capacity_force), gravity=float(mech.gravity),
+            weight_att=weight_att.astype(np.int64), weight_mass=weight_mass.astype(float), point_att=point_att,
+            cg_point=self._cg_column)
 
     @property
     def has_steerability(self) -> bool:
@@ -196,10 +199,11 @@ class MachineModel:
     def solve(self, inputs: Inputs, previous: Result | None = None) -> tuple[Result, MachineResult]:
         """One pose (``Solver.solve``, warm-started from ``previous``) with its machine-level results,
         the usual live pose in one compiled call (``Solver.solve_with_machine``); raises as ``solve``."""
-        result, rows = self.solver.solve_with_machine(inputs, previous, self.program)
-        if rows is None:
-            return result, self.evaluate(result)
-        return result, MachineResult(rows[0], rows[1], self.steerability_keys, self.capacity_keys)
+        solved = self.solver.solve_with_machine(inputs, previous, self.program)
+        if solved.steerability is None or solved.capacity is None:
+            return solved.result, self.evaluate(solved.result)
+        return solved.result, MachineResult(solved.steerability, solved.capacity, self.steerability_keys,
+                                            self.capacity_keys)
 
     def solve_series(self, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap
                      ) -> tuple[BatchResult, MachineBatch]:
@@ -236,12 +240,13 @@ class MachineModel:
         parallelogram: no lift capacity, not a negative load)."""
         kin = self.solver.kin
         q = np.ascontiguousarray(q, dtype=float)
-        _, hinge_att, cylinder_att, lift, force, gravity, weight_att, weight_mass, point_att, _ = self.program
+        program = self.program
         spring_force = self._layout.spring_forces(kin.positions(q)[0]) if self._layout.n_springs else \
             self._no_spring_force
-        att_body, att_ref = kin.geometry[:2]
-        return kernels.lift_capacity(q, att_body, att_ref, hinge_att, cylinder_att, lift, force, gravity, weight_att,
-                                     weight_mass, self._spring_att, spring_force, point_att, kin.column_scale,
+        return kernels.lift_capacity(q, kin.geometry.att_body, kin.geometry.att_ref, program.hinge_att,
+                                     program.cylinder_att, program.lift, program.lift_force, program.gravity,
+                                     program.weight_att, program.weight_mass, self._spring_att, spring_force,
+                                     program.point_att, kin.column_scale,
                                      self.solver.dead_centre_cond, np.ascontiguousarray(ok, dtype=np.bool_),
                                      np.ascontiguousarray(implement_load, dtype=float), self._cg_column)
 

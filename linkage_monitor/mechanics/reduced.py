@@ -39,6 +39,7 @@ import numpy as np
 
 from . import chain, kernels
 from .kinematics import Kinematics
+from .programs import ReducedProgram
 from .statics import StaticsLayout
 
 DEAD_CENTRE_TRANSMISSION_DEG = 1.0
@@ -76,12 +77,18 @@ class ReducedSolution(NamedTuple):
     spring_axis: np.ndarray
 
 
-def transmission_angle(sine: np.ndarray, weakest: np.ndarray) -> np.ndarray:
-    """The pose's measure (N,) rad in [0, π/2]: arcsin of its weakest step's |sin|, π/2 without one."""
+def smallest_sine(sine: np.ndarray, weakest: np.ndarray) -> np.ndarray:
+    """The pose's measure (N,) as |sin| in [0, 1]: its weakest step's, 1 without one, 0 where that is
+    undefined (``kernels.smallest_sine`` of N poses)."""
     smallest = np.ones(weakest.shape[0])
     has = weakest >= 0
-    smallest[has] = np.nan_to_num(sine[has, weakest[has]], nan=0.0)
-    return np.arcsin(np.minimum(smallest, 1.0))
+    smallest[has] = np.minimum(np.nan_to_num(sine[has, weakest[has]], nan=0.0), 1.0)
+    return smallest
+
+
+def transmission_angle(sine: np.ndarray, weakest: np.ndarray) -> np.ndarray:
+    """The pose's measure (N,) rad in [0, π/2]: arcsin of its weakest step's |sin|, π/2 without one."""
+    return np.arcsin(smallest_sine(sine, weakest))
 
 
 def step_names(kin: Kinematics) -> list[str]:
@@ -165,13 +172,13 @@ class ReducedStatics:
         return not self.reason
 
     @cached_property
-    def program(self) -> tuple:
-        """What ``kernels.solve_reduced_statics`` takes beyond the statics layout: attachment bodies,
-        hinge attachments, the chain, the hinges' columns, per step the column / member / sign of
-        its cylinder, the free load's column and its closing step (−1: none)."""
+    def program(self) -> ReducedProgram:
+        """What ``kernels.solve_reduced_statics`` takes beyond the statics layout (``ReducedProgram``)."""
         kin, layout = self.kin, self.layout
-        return (kin.geometry[0], kin.hinge_att, kin.chain_int, np.ascontiguousarray(layout.hinge_cols, dtype=np.int64),
-                self.step_col, self.step_member, self.step_sign, self.free_col, self.closing_step)
+        return ReducedProgram(att_body=kin.geometry.att_body, hinge_att=kin.hinge_att, chain_int=kin.chain_int,
+                              hinge_cols=np.ascontiguousarray(layout.hinge_cols, dtype=np.int64),
+                              step_col=self.step_col, step_member=self.step_member, step_sign=self.step_sign,
+                              free_col=self.free_col, closing_step=self.closing_step)
 
     def describe(self) -> str:
         """Whether the reduced path serves this layout and why, for people (``linkage-monitor solve --explain``)."""

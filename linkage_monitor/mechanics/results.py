@@ -111,7 +111,9 @@ class Result:
     one row per frame-side hinge and cylinder/spring mount (names in ``Solver.frame_load_names``).
     ``implement_load`` = vertical load (N, + = down) at ``implement_cg``: estimated when a
     cylinder force is measured, else the configured weight. ``residual`` = norm of the
-    equilibrium residual (N; moments divided by the length scale), ``consistency_residual`` =
+    equilibrium residual (N; moments divided by the length scale), ``condition`` = the
+    kinematic Jacobian's condition number and, on the general path, the equilibrium matrix's
+    if larger, ``consistency_residual`` =
     norm of the kinematic constraint residual (m). ``status`` = "ok" or "lift_off" (a contact
     pulls: N < 0; ``message`` names it).
     """

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Mapping
+from typing import Mapping, NamedTuple
 
 import numpy as np
 
@@ -16,9 +16,10 @@ from .constants import ATMOSPHERIC_PRESSURE   # a gauge pressure below −1 atm 
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
 from .kinematics import Kinematics, KinematicState
 from .model import Cylinder, Mechanism
-from .reduced import DEAD_CENTRE_TRANSMISSION_DEG, ReducedStatics
+from .programs import MachineProgram, OutputsProgram, StaticsProgram
+from .reduced import DEAD_CENTRE_TRANSMISSION_DEG, ReducedSolution, ReducedStatics, smallest_sine
 from .results import BatchResult, Result, ResultNames, Status
-from .statics import StaticsLayout
+from .statics import StaticsLayout, StaticsSolution
 
 ArrayMap = Mapping[str, "float | np.ndarray"]
 _SOLVED = np.zeros(1, dtype=int)   # KinematicState.status of one solved pose (shared, read-only)
@@ -56,6 +57,7 @@ class Solver:
         self.mech = mech
         self.dead_centre_cond = dead_centre_cond
         self.dead_centre_transmission_deg = dead_centre_transmission_deg
+        self._dead_centre_sine = math.sin(math.radians(dead_centre_transmission_deg))
         self.consistency_tol = consistency_tol
         self.kin = kin = Kinematics(mech)
         self._check_kinematics_observable()
@@ -64,6 +66,8 @@ class Solver:
         self._layouts = {frozenset(c for k, c in enumerate(gauged) if bits >> k & 1):
                          StaticsLayout(mech, kin, frozenset(c for k, c in enumerate(gauged) if bits >> k & 1))
                          for bits in range(2 ** len(gauged))}
+        # the reduced-coordinate statics of each layout; ``served`` says whether it takes the layout's poses
+        self._reduced = {known: ReducedStatics(kin, layout) for known, layout in self._layouts.items()}
         self._point_att = {}
         for name in mech.points:
             owner = next((b for b in mech.moving_bodies if name in b.points), mech.ground)
@@ -99,8 +103,8 @@ class Solver:
         self._friction = np.array([c.friction for c in mech.contacts])
         self._angle_reference = kin.angle_reference.tolist()   # rad, the angle inputs' readings in the reference pose
         self._cylinder_index = {c.name: k for k, c in enumerate(mech.cylinders)}
-        self._outputs_programs: dict[frozenset[str], tuple] = {}
-        self._programs_by_sensors: dict[tuple[str, ...], tuple] = {}   # pressure sensors given -> _solve_plain's
+        self._outputs_programs: dict[frozenset[str], OutputsProgram] = {}
+        self._programs_by_sensors: dict[tuple[str, ...], _PlainPrograms] = {}   # pressure sensors given -> _solve_plain's
         # largest constraint residual (m) of an assembled pose (kin.solve's): 1e-9·lc when closed exactly
         self._assembly_limit = 1e-9 * kin.lc if kin.m == kin.n else consistency_tol
 
@@ -113,10 +117,10 @@ class Solver:
         little between messages: 2 iterations); without it, from the reference pose. Either way
         the answer is the same pose on the reference assembly branch (the solver keeps no state).
         """
-        return self.solve_with_machine(inputs, previous, kernels.NO_MACHINE)[0]
+        return self.solve_with_machine(inputs, previous, kernels.NO_MACHINE).result
 
-    def solve_with_machine(self, inputs: Inputs, previous: Result | None, machine: tuple
-                           ) -> tuple[Result, tuple[np.ndarray, np.ndarray] | None]:
+    def solve_with_machine(self, inputs: Inputs, previous: Result | None, machine: MachineProgram
+                           ) -> SolvedPose:
         """``solve``, with the machine-level rows (steerability, lift capacity) of ``machine``
         (``MachineModel.program``) computed in the same compiled call — or None for them when the
         pose took the general path (then ``MachineModel.evaluate`` gives them)."""
@@ -132,15 +136,19 @@ class Solver:
         res = batch.result(0)
         code = int(batch.status[0])
         if code in (Status.OK, Status.LIFT_OFF):
-            return replace(res, state=ks), None
+            return SolvedPose(replace(res, state=ks), None, None)
         raise {Status.INPUT: InputError, Status.ASSEMBLY: AssemblyError, Status.DEAD_CENTRE: DeadCentreError}[Status(code)](
             res.message)
 
     def explain(self) -> list[str]:
         """Whether reduced coordinates serve the statics of each set of measured cylinder forces and
-        why, a line each (``reduced.ReducedStatics.describe``; the rule in reduced.py's docstring).
-        ``solve`` itself still takes the general path."""
-        return [ReducedStatics(self.kin, layout).describe() for layout in self._layouts.values()]
+        why, a line each (``reduced.ReducedStatics.describe``; the rule in reduced.py's docstring),
+        and the dead-centre verdict each path gives."""
+        served = (f"reduced coordinates: a dead centre where the smallest transmission angle is below "
+                  f"{self.dead_centre_transmission_deg:g} deg")
+        general = (f"general path: a dead centre where the equilibrium matrix's condition number exceeds "
+                   f"{self.dead_centre_cond:.3g}")
+        return [*(reduced.describe() for reduced in self._reduced.values()), served, general]
 
     def solve_batch(self, cylinders: ArrayMap | None = None, angles: ArrayMap | None = None,
                     pressures: ArrayMap | None = None, rates: ArrayMap | None = None,
@@ -155,7 +163,7 @@ class Solver:
                                reach=reach)
         return batch
 
-    def solve_series(self, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap, machine: tuple
+    def solve_series(self, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap, machine: MachineProgram
                      ) -> tuple[BatchResult, np.ndarray, np.ndarray, np.ndarray]:
         """A recorded series of N poses (arrays (N,)) solved as the live node solves them, each from the
         one before (``kernels.live_series``, one compiled call); the poses it does not take (a bad
@@ -180,24 +188,25 @@ class Solver:
             if layout.force_measured[k]:
                 measured[:, k] = _measured_force(c, cap[:, k], rod[:, k])
         start = kin.reference
-        (plain, q, phi, jac, kin_cond, points, hinge_force, cylinder_values, contact_values, implement_cg,
-         frame_points, frame_forces, scalars, steer, capacity) = kernels.live_series(
+        rows = kernels.live_series(
             s, np.ascontiguousarray(np.stack([measured, cap, rod], axis=1)), start.q[-1:], start.jac[-1:],
             start.s[-1:], self._assembly_limit, self.dead_centre_cond, kin.program, layout.program,
             self.outputs_program(layout), machine)
-        plain &= ~bad
+        plain = rows.plain & ~bad
         batch = BatchResult.from_stacked(
-            self.names, {h.name: h.bodies for h in mech.hinges}, points, q.reshape(n_pose, -1, 3), hinge_force,
-            cylinder_values, contact_values, scalars[:, 0], implement_cg, list(self.frame_load_names), frame_points,
-            frame_forces, scalars[:, 1], scalars[:, 2], scalars[:, 3], np.full(n_pose, np.nan), [""] * n_pose)
+            self.names, {h.name: h.bodies for h in mech.hinges}, rows.point_xz, rows.q.reshape(n_pose, -1, 3),
+            rows.hinge_force, rows.cylinder_values, rows.contact_values, rows.implement_load, rows.implement_cg,
+            list(self.frame_load_names), rows.frame_load_points, rows.frame_load_forces, rows.residual,
+            rows.consistency_residual, rows.condition, rows.transmission_angle,
+            self._weakest_names(self._reduced[layout.force_known], rows.weakest))
         general = np.flatnonzero(~plain)
         if general.size:
-            def rows(group: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+            def taken(group: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
                 return {n: v[general] for n, v in group.items()}
-            other, _ = self._solve(None, rows(arrays["cylinders"]), rows(arrays["angles"]), rows(arrays["pressures"]),
-                                   {}, {})
+            other, _ = self._solve(None, taken(arrays["cylinders"]), taken(arrays["angles"]),
+                                   taken(arrays["pressures"]), {}, {})
             batch.assign(general, other)
-        return batch, steer, capacity, plain
+        return batch, rows.steerability, rows.capacity, plain
 
     # ---- internals --------------------------------------------------------------------------
     def _check_kinematics_observable(self) -> None:
@@ -296,28 +305,42 @@ class Solver:
                                               f"absolute pressure: check the sensor and its zero offset")
         return problems
 
-    def outputs_program(self, layout: StaticsLayout) -> tuple:
+    def outputs_program(self, layout: StaticsLayout) -> OutputsProgram:
         """What ``kernels.live_pose`` needs, beyond the layout's own program, to write a Result's
         arrays for poses solved with ``layout`` (its ``outputs``; built once per layout)."""
         program = self._outputs_programs.get(layout.force_known)
         if program is None:
             mech = self.mech
             imp = mech.implement
-            implement_weight = imp.mass * mech.gravity if imp is not None else math.nan
-            program = (layout.n_unknowns, layout.spring_stiffness.astype(float), layout.spring_free_length.astype(float),
-                       layout.spring_preload.astype(float), np.ascontiguousarray(layout.hinge_cols, dtype=np.int64),
-                       layout.force_measured.astype(np.bool_), layout.cylinder_cols.astype(np.int64),
-                       layout.contact_cols.astype(np.int64),
-                       layout.implement_col if layout.implement_col is not None else -1, float(implement_weight),
-                       self._per_cap_area, self._friction.astype(float), self._point_rows.astype(np.int64),
-                       self._cg_att if self._cg_att is not None else -1, self._frame_att.astype(np.int64),
-                       self._frame_hinge_index.astype(np.int64), self._frame_hinge_sign.ravel().astype(float),
-                       self._frame_member_index.astype(np.int64), self._frame_member_sign.ravel().astype(float))
+            reduced = self._reduced[layout.force_known]
+            program = OutputsProgram(
+                n_unknowns=layout.n_unknowns, spring_stiffness=layout.spring_stiffness.astype(float),
+                spring_free_length=layout.spring_free_length.astype(float),
+                spring_preload=layout.spring_preload.astype(float),
+                hinge_cols=np.ascontiguousarray(layout.hinge_cols, dtype=np.int64),
+                force_measured=layout.force_measured.astype(np.bool_), cylinder_cols=layout.cylinder_cols.astype(np.int64),
+                contact_cols=layout.contact_cols.astype(np.int64),
+                implement_col=layout.implement_col if layout.implement_col is not None else -1,
+                implement_weight=float(imp.mass * mech.gravity if imp is not None else math.nan),
+                per_cap_area=self._per_cap_area, friction=self._friction.astype(float),
+                point_rows=self._point_rows.astype(np.int64), cg_att=self._cg_att if self._cg_att is not None else -1,
+                frame_att=self._frame_att.astype(np.int64), frame_hinge_index=self._frame_hinge_index.astype(np.int64),
+                frame_hinge_sign=self._frame_hinge_sign.ravel().astype(float),
+                frame_member_index=self._frame_member_index.astype(np.int64),
+                frame_member_sign=self._frame_member_sign.ravel().astype(float),
+                reduced=reduced.served, reduced_program=reduced.program, dead_centre_sine=self._dead_centre_sine,
+                measure_count=len(reduced.measure_names))
             self._outputs_programs[layout.force_known] = program
         return program
 
-    def _solve_plain(self, inputs: Inputs, start: KinematicState | None, machine: tuple
-                     ) -> tuple[Result, tuple[np.ndarray, np.ndarray]] | None:
+    @staticmethod
+    def _weakest_names(reduced: ReducedStatics, weakest: np.ndarray) -> list[str]:
+        """The name of each pose's weakest transmission measure (``ReducedStatics.measure_names``; '' for −1)."""
+        names = [*reduced.measure_names, ""]   # index −1: ''
+        return [names[k] for k in weakest.tolist()]
+
+    def _solve_plain(self, inputs: Inputs, start: KinematicState | None, machine: MachineProgram
+                     ) -> SolvedPose | None:
         """The usual live pose in one compiled call (``kernels.live_pose``): every input given, finite
         and in range, no rates, assembled on the reference branch from ``start`` (or the reference
         pose), no dead centre, no contact lifting off. None for anything else: ``_solve`` then solves
@@ -346,24 +369,28 @@ class Solver:
         programs = self._programs_by_sensors.get(tuple(inputs.pressures))
         if programs is None:   # the layout of these measured cylinder forces, once per set of pressure sensors
             layout = self.statics_layout(frozenset(ps.cylinder for ps, _ in pressures))
-            programs = self._programs_by_sensors[tuple(inputs.pressures)] = (
-                layout.force_measured.tolist(), layout.program, self.outputs_program(layout))
+            programs = self._programs_by_sensors[tuple(inputs.pressures)] = _PlainPrograms(
+                layout.force_measured.tolist(), layout.program, self.outputs_program(layout),
+                [*self._reduced[layout.force_known].measure_names, ""])
         measured = [_measured_force(c, cap[k], rod[k]) if known else math.nan
-                    for k, (c, known) in enumerate(zip(cylinders, programs[0]))]
+                    for k, (c, known) in enumerate(zip(cylinders, programs.force_measured))]
         start = start if start is not None else kin.reference
         s = np.array([values])
-        (plain, q, phi, jac, kin_cond, points, hinge_force, cylinder_values, contact_values, implement_cg,
-         frame_points, frame_forces, scalars, steer, capacity) = kernels.live_pose(
-            s, np.array([measured, cap, rod]), start.q[-1:], start.jac[-1:], start.s[-1:],
-            self._assembly_limit, self.dead_centre_cond, kin.program, programs[1], programs[2], machine)
-        if not plain:
+        rows = kernels.live_pose(s, np.array([measured, cap, rod]), start.q[-1:], start.jac[-1:], start.s[-1:],
+                                 self._assembly_limit, self.dead_centre_cond, kin.program, programs.statics,
+                                 programs.outputs, machine)
+        if not rows.plain[0]:
             return None
-        load, residual, consistency, condition = scalars.tolist()
-        state = KinematicState(s=s, q=q, phi=phi, jac=jac, status=_SOLVED, messages=[""], condition=kin_cond)
-        return (Result(self.names, points, q[0].reshape(-1, 3), hinge_force, cylinder_values, contact_values, load,
-                       implement_cg, frame_points, frame_forces, residual, consistency, condition, Status.OK.label,
-                       state=state),
-                (steer, capacity))
+        q = rows.q
+        state = KinematicState(s=s, q=q, phi=rows.phi, jac=rows.jac[0:1], status=_SOLVED, messages=[""],
+                               condition=rows.kinematic_condition)
+        return SolvedPose(Result(self.names, rows.point_xz[0], q[0].reshape(-1, 3), rows.hinge_force[0], rows.cylinder_values[0],
+                       rows.contact_values[0], float(rows.implement_load[0]), rows.implement_cg[0],
+                       rows.frame_load_points[0], rows.frame_load_forces[0], float(rows.residual[0]),
+                       float(rows.consistency_residual[0]), float(rows.condition[0]), Status.OK.label, state=state,
+                       transmission_angle=float(rows.transmission_angle[0]),
+                       weakest_transmission=programs.measure_names[int(rows.weakest[0])]),
+                rows.steerability[0], rows.capacity[0])
 
     def _solve(self, previous: KinematicState | None, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap,
                rates: ArrayMap, accelerations: ArrayMap, *, reach: bool = True) -> tuple[BatchResult, KinematicState]:
@@ -402,12 +429,27 @@ class Solver:
             if c.name in force_known:
                 measured_force[:, k] = _measured_force(c, cap[c.name], rod[c.name])
         layout = self.statics_layout(force_known)
-        sol = layout.solve(p, measured_force, accel)
-        for i in np.flatnonzero((status == Status.OK) & ~(sol.condition <= self.dead_centre_cond)):
-            status[i] = Status.DEAD_CENTRE
-            messages[i] = (f"static dead centre at {kin.describe_inputs(s[i])}: equilibrium matrix condition number "
-                           f"{sol.condition[i]:.3g} > {self.dead_centre_cond:.3g} (a member is aligned with a "
-                           f"hinge; forces would be unbounded)")
+        reduced = self._reduced[force_known]
+        if reduced.served:   # along the chain of dyads; a dead centre where the transmission is lost
+            sol = reduced.solve(p, measured_force, accel)
+            sine, weakest = sol.transmission.sine, sol.transmission.weakest
+            smallest = smallest_sine(sine, weakest)
+            names = self._weakest_names(reduced, weakest)
+            for i in np.flatnonzero((status == Status.OK) & ~(smallest >= self._dead_centre_sine)):
+                status[i] = Status.DEAD_CENTRE
+                messages[i] = (f"static dead centre at {kin.describe_inputs(s[i])}: transmission angle "
+                               f"{math.degrees(math.asin(smallest[i])):.3g} deg at {names[i]} < "
+                               f"{self.dead_centre_transmission_deg:g} deg (the linkage cannot hold a load there; "
+                               f"forces would be unbounded)")
+            angle, statics_condition = np.arcsin(smallest), np.full(n_pose, np.nan)
+        else:   # one linear system; a dead centre where it is near-singular
+            sol = layout.solve(p, measured_force, accel)
+            for i in np.flatnonzero((status == Status.OK) & ~(sol.condition <= self.dead_centre_cond)):
+                status[i] = Status.DEAD_CENTRE
+                messages[i] = (f"static dead centre at {kin.describe_inputs(s[i])}: equilibrium matrix condition "
+                               f"number {sol.condition[i]:.3g} > {self.dead_centre_cond:.3g} (a member is aligned "
+                               f"with a hinge; forces would be unbounded)")
+            angle, names, statics_condition = np.full(n_pose, np.nan), [""] * n_pose, sol.condition
         u = sol.unknowns
         for contact in mech.contacts:
             normal = u[:, layout.contact_col[contact.name]]
@@ -421,10 +463,13 @@ class Solver:
         batch = self._assemble(n_pose, q, p, u, sol, layout, measured_force, cap, rod, failed)
         batch.status, batch.messages = status, messages
         batch.consistency_residual = np.where(failed, np.nan, np.linalg.norm(ks.phi, axis=1))
-        batch.condition = np.maximum(sol.condition, ks.condition)
+        batch.condition = np.fmax(statics_condition, ks.condition)
+        batch.transmission_angle = np.where(failed, np.nan, angle)
+        batch.weakest_transmission = ["" if bad else name for bad, name in zip(failed.tolist(), names)]
         return batch, ks
 
-    def _assemble(self, n_pose: int, q: np.ndarray, p: np.ndarray, u: np.ndarray, sol, layout: StaticsLayout,
+    def _assemble(self, n_pose: int, q: np.ndarray, p: np.ndarray, u: np.ndarray,
+                  sol: "StaticsSolution | ReducedSolution", layout: StaticsLayout,
                   measured_force: np.ndarray, cap: dict, rod: dict, failed: np.ndarray) -> BatchResult:
         mech = self.mech
         cyl_force = {}
@@ -469,6 +514,27 @@ class Solver:
             residual=np.where(failed, np.nan, sol.residual), consistency_residual=np.zeros(n_pose),
             condition=np.zeros(n_pose), status=np.zeros(n_pose, dtype=int), messages=[""] * n_pose,
             transmission_angle=np.full(n_pose, np.nan), weakest_transmission=[""] * n_pose)
+
+
+class SolvedPose(NamedTuple):
+    """``Solver.solve_with_machine``'s answer: the pose, and its machine-level rows in
+    ``MachineModel``'s key order when the compiled call computed them (None: the general path
+    solved the pose; ``MachineModel.evaluate`` gives them)."""
+
+    result: Result
+    steerability: np.ndarray | None
+    capacity: np.ndarray | None
+
+
+class _PlainPrograms(NamedTuple):
+    """What ``Solver._solve_plain`` takes for one set of pressure sensors: which cylinders' forces
+    they measure, the statics layout's and the outputs' programs, the transmission measures' names
+    (then '' for none, index −1)."""
+
+    force_measured: list[bool]
+    statics: StaticsProgram
+    outputs: OutputsProgram
+    measure_names: list[str]
 
 
 def _measured_force(c: Cylinder, cap: "float | np.ndarray", rod: "float | np.ndarray") -> "float | np.ndarray":

@@ -21,6 +21,7 @@ from .errors import UnobservableError
 from .kinematics import Kinematics
 from . import kernels
 from .model import Mechanism
+from .programs import StaticsProgram
 
 _UNIT = {"x": (1.0, 0.0), "z": (0.0, 1.0), "down": (0.0, -1.0)}
 
@@ -181,11 +182,13 @@ class StaticsLayout:
         return self.spring_stiffness * (self.spring_free_length - length) + self.spring_preload
 
     @cached_property
-    def program(self) -> tuple:
+    def program(self) -> StaticsProgram:
         """The layout as ``kernels.solve_statics`` takes it (see there)."""
-        return (self.kin.lc, self.n_eq, self.t_col, self.t_att, self.t_body, self.t_const, self.t_member, self.t_sign,
-                self.const_force, self.known_att, self.known_body, self.end_member, self.end_sign, self.member_att,
-                self.mass_att, self.mass_body, self.mass, self.inertia)
+        return StaticsProgram(
+            lc=self.kin.lc, n_eq=self.n_eq, t_col=self.t_col, t_att=self.t_att, t_body=self.t_body, t_const=self.t_const,
+            t_member=self.t_member, t_sign=self.t_sign, const_force=self.const_force, known_att=self.known_att,
+            known_body=self.known_body, end_member=self.end_member, end_sign=self.end_sign, member_att=self.member_att,
+            mass_att=self.mass_att, mass_body=self.mass_body, mass=self.mass, inertia=self.inertia)
 
     def matrix(self, p: np.ndarray, axes: np.ndarray) -> np.ndarray:
         """Equilibrium matrix A (N, n_eq, n_unknowns) at attachment positions p (N, K, 2)."""
@@ -201,7 +204,7 @@ class StaticsLayout:
         ns = self.n_springs
         member_force, lin, alpha, has_accel = self.kernel_loads(p, cylinder_force, accel)
         u, residual, cond, axes, length = kernels.solve_statics(np.ascontiguousarray(p, dtype=float), member_force,
-                                                                lin, alpha, has_accel, self.n_unknowns, *self.program)
+                                                                lin, alpha, has_accel, self.n_unknowns, self.program)
         return StaticsSolution(unknowns=u, residual=residual, condition=cond,
                                cylinder_axis=axes[:, ns:], cylinder_length=length[:, ns:],
                                spring_force=member_force[:, :ns], spring_axis=axes[:, :ns])

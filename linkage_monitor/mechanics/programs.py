@@ -1,0 +1,190 @@
+"""What the compiled kernels (``kernels``) take and give, as named records.
+
+A *program* is a mechanism (or one statics layout of it) as plain arrays, built once by the class
+named in its docstring and handed to every compiled call; the kernels read its fields by name
+(numba compiles a NamedTuple's attribute access to a struct field). ``LiveRows`` is what the live
+solve writes, per pose. Indices are attachments (points fixed on bodies, ``Kinematics.attach``),
+hinges, members (springs then cylinders) or columns of the statics' unknowns. SI units: m, rad, N,
+kg; frame x forward, z up.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+
+class Geometry(NamedTuple):
+    """The loop closure's geometry (``Kinematics.geometry``): attachment bodies (K,) (−1: ground)
+    and offsets (K, 2) m, hinge attachments (2, H), measured cylinders' (base, rod end)
+    attachments (2, nc), angle sensors' bodies (2, na), their reference readings (na,) rad, the
+    length scale lc m."""
+
+    att_body: np.ndarray
+    att_ref: np.ndarray
+    hinge_att: np.ndarray
+    cyl_att: np.ndarray
+    angle_body: np.ndarray
+    angle_reference: np.ndarray
+    lc: float
+
+
+class KinematicsProgram(NamedTuple):
+    """The loop closure (``Kinematics.program``): attachment bodies (K,) (−1: ground) and offsets
+    (K, 2) m; hinge attachments (2, H); measured cylinders' (base, rod end) attachments (2, nc);
+    angle sensors' bodies (2, na) and reference readings (na,) rad; the length scale lc m; the
+    driving and fitted rows of the closure system; the chain of dyads (``chain.decompose``: int
+    and float tables); the column scale (n,); the loops' rows, columns and offsets; the
+    reference assembly branch (one sign per loop)."""
+
+    att_body: np.ndarray
+    att_ref: np.ndarray
+    hinge_att: np.ndarray
+    cyl_att: np.ndarray
+    angle_body: np.ndarray
+    angle_reference: np.ndarray
+    lc: float
+    drive_rows: np.ndarray
+    fit_rows: np.ndarray
+    chain_int: np.ndarray
+    chain_float: np.ndarray
+    column_scale: np.ndarray
+    loop_rows: np.ndarray
+    loop_cols: np.ndarray
+    loop_ptr: np.ndarray
+    ref_branch: np.ndarray
+
+
+class StaticsProgram(NamedTuple):
+    """One statics layout (``StaticsLayout.program``; ``kernels.solve_statics`` says how it is
+    used): lc m, the number of equations; column terms (column, attachment, body, constant unit
+    force, member, sign); known loads (constant forces, their attachments and bodies, the member
+    ends of known force and their signs); the members' end attachments (2, M); the bodies' cgs,
+    masses (kg) and inertias (kg·m²) for kinetostatics."""
+
+    lc: float
+    n_eq: int
+    t_col: np.ndarray
+    t_att: np.ndarray
+    t_body: np.ndarray
+    t_const: np.ndarray
+    t_member: np.ndarray
+    t_sign: np.ndarray
+    const_force: np.ndarray
+    known_att: np.ndarray
+    known_body: np.ndarray
+    end_member: np.ndarray
+    end_sign: np.ndarray
+    member_att: np.ndarray
+    mass_att: np.ndarray
+    mass_body: np.ndarray
+    mass: np.ndarray
+    inertia: np.ndarray
+
+
+class ReducedProgram(NamedTuple):
+    """The statics along the chain of dyads (``ReducedStatics.program``): attachment bodies (K,),
+    hinge attachments (2, H), the chain (S, fields), the hinges' columns (H, 2); per step the
+    column of its cylinder's unknown force (−1: none or measured), its member and the sign of
+    its force on the step's body; the free load's column and its closing step (−1: none)."""
+
+    att_body: np.ndarray
+    hinge_att: np.ndarray
+    chain_int: np.ndarray
+    hinge_cols: np.ndarray
+    step_col: np.ndarray
+    step_member: np.ndarray
+    step_sign: np.ndarray
+    free_col: int
+    closing_step: int
+
+
+class OutputsProgram(NamedTuple):
+    """What the live solve needs beyond the statics layout to write a ``Result``'s rows
+    (``Solver.outputs_program``): the number of unknowns; the springs' stiffness (N/m), free
+    length (m) and preload (N); the hinges' columns (H, 2); which cylinders' forces are measured
+    and the columns of the others; the contacts' columns and friction coefficients; the
+    implement load's column (−1: its weight, ``implement_weight`` N, is known); 1 / (count·cap
+    area) per cylinder (1/m²); the result points' attachments; the implement cg's (−1: none);
+    the frame loads' attachments, hinges and members with their signs (+1: the force on the
+    ground). ``reduced``: whether the reduced coordinates serve the layout (then ``reduced_program``
+    solves it and ``dead_centre_sine`` = sin of the dead-centre transmission angle decides).
+    ``measure_count``: the chain's transmission measures (steps + the free load)."""
+
+    n_unknowns: int
+    spring_stiffness: np.ndarray
+    spring_free_length: np.ndarray
+    spring_preload: np.ndarray
+    hinge_cols: np.ndarray
+    force_measured: np.ndarray
+    cylinder_cols: np.ndarray
+    contact_cols: np.ndarray
+    implement_col: int
+    implement_weight: float
+    per_cap_area: np.ndarray
+    friction: np.ndarray
+    point_rows: np.ndarray
+    cg_att: int
+    frame_att: np.ndarray
+    frame_hinge_index: np.ndarray
+    frame_hinge_sign: np.ndarray
+    frame_member_index: np.ndarray
+    frame_member_sign: np.ndarray
+    reduced: bool
+    reduced_program: ReducedProgram
+    dead_centre_sine: float
+    measure_count: int
+
+
+class MachineProgram(NamedTuple):
+    """The machine-level results in the live solve (``MachineModel.program``): the steerability
+    parameters (``kernels.STEERABILITY_PARAMETERS``; empty: no tractor block); for the lift
+    capacity by virtual work (empty ``point_att``: not computed) the hinge attachments, every
+    cylinder's (base, rod end) attachments, the lift cylinder's index and force (N), gravity
+    (m/s²), the other bodies' cg attachments and masses (kg), the capacity points' attachments
+    and which of them is the implement's cg."""
+
+    parameters: np.ndarray
+    hinge_att: np.ndarray
+    cylinder_att: np.ndarray
+    lift: int
+    lift_force: float
+    gravity: float
+    weight_att: np.ndarray
+    weight_mass: np.ndarray
+    point_att: np.ndarray
+    cg_point: int
+
+
+class LiveRows(NamedTuple):
+    """What ``kernels.live_series`` writes for N poses, in ``Result``'s and ``MachineResult``'s
+    layouts: whether pose i took the live path (``plain``; False: its rows are not meaningful,
+    the general path words it); q (N, n), Φ (N, m), the Jacobian (2, m, n) — [0] the last pose's,
+    [1] the last plain pose's —, the kinematic condition (N,); points (N, P, 2) m, hinge forces
+    (N, H, 2) N, cylinder values (N, C, 5), contact values (N, K, 2), implement cg (N, 2) m,
+    frame load points and forces (N, F, 2); implement load N, equilibrium residual N (or N·m on
+    the reduced path), consistency residual m, condition number (NaN on the reduced path); the
+    smallest transmission angle (rad, NaN on the general path) and its measure's index (−1:
+    none); steerability rows (N, S) and capacity rows (N, P + 1)."""
+
+    plain: np.ndarray
+    q: np.ndarray
+    phi: np.ndarray
+    jac: np.ndarray
+    kinematic_condition: np.ndarray
+    point_xz: np.ndarray
+    hinge_force: np.ndarray
+    cylinder_values: np.ndarray
+    contact_values: np.ndarray
+    implement_cg: np.ndarray
+    frame_load_points: np.ndarray
+    frame_load_forces: np.ndarray
+    implement_load: np.ndarray
+    residual: np.ndarray
+    consistency_residual: np.ndarray
+    condition: np.ndarray
+    transmission_angle: np.ndarray
+    weakest: np.ndarray
+    steerability: np.ndarray
+    capacity: np.ndarray
