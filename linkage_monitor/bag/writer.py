@@ -25,6 +25,12 @@ live node's callback pays a list append per message, not the MCAP writer's recor
 and the thread writes tens of messages in a row). `flush` and `close` write the queue first;
 above MAX_QUEUED queued messages `write` writes the queue itself (memory stays bounded, nothing
 is dropped).
+
+Many messages at once: ``write_rows`` takes a block of messages as arrays (``MessageRows``: one topic's
+CDR payloads of one size as the rows of a uint8 array, with their places in the block, publish and
+receive times) and writes them straight into MCAP chunks built with numpy (``_RowBlock``), with the
+records, message indexes, chunk indexes and statistics `write` one by one would give them; the
+crash-safe tail, the splitting and the cut-back on a full disk hold as for `write`.
 """
 
 from __future__ import annotations
@@ -33,11 +39,17 @@ import os
 import struct
 import threading
 import time
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple, Sequence
 
+import numpy as np
 import yaml
+from numpy.lib.stride_tricks import as_strided
+from mcap import writer as mcap_writer
+from mcap.opcode import Opcode
+from mcap.records import ChunkIndex
 from mcap.writer import CompressionType, Writer
 from rclpy.qos import (
     DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy)
@@ -152,6 +164,60 @@ class _TailedFile:
             self._file.close()
 
 
+class _McapWriter(Writer):
+    """mcap's Writer, which also takes chunks built outside it (``write_rows``): ``take_pending_records``
+    hands over the schema and channel records registered since its last chunk, ``add_chunk`` counts a
+    chunk written to its stream in its chunk indexes and statistics, as its own chunks are. The only
+    code that reaches into the Writer's private state (mcap 1.x: ``_Writer__chunk_builder``,
+    ``_Writer__chunk_indices``, ``_Writer__statistics``); test_can_blocks.py holds a bag written by
+    chunks equal to one written message by message, as mcap and rosbags read it."""
+
+    def _private(self, name: str) -> Any:
+        """The Writer's private attribute ``name`` (``__name`` inside mcap's Writer)."""
+        return getattr(self, f"_Writer__{name}")
+
+    def compression_name(self) -> str:
+        """The chunk compression as MCAP names it: "zstd", "lz4" or ""."""
+        return {CompressionType.ZSTD: "zstd", CompressionType.LZ4: "lz4"}.get(self._private("compression"), "")
+
+    def compress(self, data: bytes) -> bytes:
+        """``data`` compressed as this writer compresses its chunks."""
+        kind = self._private("compression")
+        if kind == CompressionType.ZSTD:
+            return bytes(mcap_writer.zstandard.compress(data))
+        if kind == CompressionType.LZ4:
+            return bytes(mcap_writer.lz4.frame.compress(data))
+        return data
+
+    def chunk_crc(self, data: bytes) -> int:
+        """The uncompressed CRC this writer gives a chunk of ``data`` (0: CRCs off)."""
+        return zlib.crc32(data) if self._private("enable_crcs") else 0
+
+    def take_pending_records(self) -> bytes:
+        """The schema and channel records waiting in the open chunk, taken out of it (it must hold no
+        message: call ``flush`` first); they go at the front of the next chunk written outside."""
+        builder = self._private("chunk_builder")
+        if builder.num_messages:
+            raise RuntimeError("the open chunk holds messages: flush the writer before writing chunks outside it")
+        return bytes(builder.record_writer.end())
+
+    def add_chunk(self, index: ChunkIndex, channel_counts: dict[int, int]) -> None:
+        """Count a chunk written to the stream at ``index.chunk_start_offset`` (its messages per channel
+        id: ``channel_counts``) in the summary: its chunk index and the statistics."""
+        if self._private("enable_data_crcs"):
+            raise RuntimeError("chunks written outside the writer carry no data section CRC")
+        stats = self._private("statistics")
+        count = sum(channel_counts.values())
+        stats.message_start_time = (index.message_start_time if stats.message_count == 0
+                                    else min(stats.message_start_time, index.message_start_time))
+        stats.message_end_time = max(stats.message_end_time, index.message_end_time)
+        for channel_id, n in channel_counts.items():
+            stats.channel_message_counts[channel_id] += n
+        stats.message_count += count
+        stats.chunk_count += 1
+        self._private("chunk_indices").append(index)
+
+
 @dataclass
 class _Topic:
     """A recorded topic: its type, offered QoS (rosbag2 v9 form) and messages written in all files."""
@@ -174,6 +240,12 @@ class _Span:
         self.start = log_time_ns if self.start is None else min(self.start, log_time_ns)
         self.end = log_time_ns if self.end is None else max(self.end, log_time_ns)
         self.count += 1
+
+    def add_many(self, first_ns: int, last_ns: int, count: int) -> None:
+        """``count`` messages logged from ``first_ns`` to ``last_ns`` (ns, in order), as ``add`` of each."""
+        self.start = first_ns if self.start is None else min(self.start, first_ns)
+        self.end = last_ns if self.end is None else max(self.end, last_ns)
+        self.count += count
 
     def information(self) -> dict[str, Any]:
         """rosbag2's starting_time, duration and message_count of this span."""
@@ -198,8 +270,8 @@ class _StorageFile:
     def __init__(self, path: Path, chunk_size: int, compression: CompressionType) -> None:
         self.path = path
         self.file = _TailedFile(path)
-        self.writer = Writer(self.file, chunk_size=chunk_size,  # type: ignore[arg-type]  # file-like: write/tell/flush
-                             compression=compression)
+        self.writer = _McapWriter(self.file, chunk_size=chunk_size,  # type: ignore[arg-type]  # file-like
+                                  compression=compression)
         self.writer.start(profile="ros2", library="linkage_monitor.bag.writer")
         self.file.enable_tail()
         self.file.write(b"")  # end the header in a valid tail right away
@@ -234,6 +306,141 @@ class _StorageFile:
     def attach(self, item: _Attachment) -> None:
         self.writer.add_attachment(create_time=item.log_time_ns, log_time=item.log_time_ns, name=item.name,
                                    media_type=item.media_type, data=item.data)
+
+
+class MessageRows(NamedTuple):
+    """Messages of one topic and type, all of one size, for ``BagWriter.write_rows``: ``data`` (n, size)
+    uint8, each row a message's CDR bytes; ``position`` (n,) their places in the block's order (the
+    parts of a block take every place 0..N-1 once); ``stamp_ns`` (n,) header stamps (MCAP publish time)
+    and ``log_time_ns`` (n,) receive times (MCAP log time), ns since the epoch."""
+
+    topic: str
+    type_name: str
+    data: np.ndarray
+    position: np.ndarray
+    stamp_ns: np.ndarray
+    log_time_ns: np.ndarray
+
+
+_RECORD_HEAD = np.dtype([("opcode", "u1"), ("length", "<u8"), ("channel", "<u2"), ("sequence", "<u4"),
+                         ("log_time", "<u8"), ("publish_time", "<u8")])   # an MCAP Message record before its data
+_INDEX_ENTRY = np.dtype([("log_time", "<u8"), ("offset", "<u8")])       # a MessageIndex record's entry
+
+
+@dataclass(frozen=True)
+class _RowBlock:
+    """A block of messages in writing order, as columns (one entry per message): ``part`` and ``row``
+    where its bytes are (``parts[part].data[row]``), ``topic`` its topic's index in ``entries``, ``size``
+    its payload bytes, ``log_time`` / ``publish_time`` as MCAP stores them (log times never before the
+    previous one), ``sequence`` per topic; ``record_end`` / ``payload_end``: cumulative record and payload
+    bytes up to and including it."""
+
+    parts: Sequence[MessageRows]
+    entries: list[_Topic]
+    part: np.ndarray
+    row: np.ndarray
+    topic: np.ndarray
+    size: np.ndarray
+    log_time: np.ndarray
+    publish_time: np.ndarray
+    sequence: np.ndarray
+    record_end: np.ndarray
+    payload_end: np.ndarray
+
+    @staticmethod
+    def of(parts: Sequence[MessageRows], entries: list[_Topic], last_log_time: int) -> _RowBlock:
+        """The block of ``parts`` (their topics' ``entries``); log times are moved up to the one before,
+        as ``_write_queued`` does, the first to at least ``last_log_time``; times MCAP cannot store as
+        ``write`` stores them (a log time: now; a publish time: 0)."""
+        n = sum(len(p.position) for p in parts)
+        part, row = np.empty(n, np.int64), np.empty(n, np.int64)
+        topic, size = np.empty(n, np.int64), np.empty(n, np.int64)
+        log_time, publish_time = np.empty(n, np.int64), np.empty(n, np.int64)
+        unique: list[_Topic] = []
+        topic_index: dict[int, int] = {}
+        for entry in entries:
+            if id(entry) not in topic_index:
+                topic_index[id(entry)] = len(unique)
+                unique.append(entry)
+        every = np.concatenate([np.asarray(p.position, np.int64) for p in parts]) if parts else np.zeros(0, np.int64)
+        if n and (every.min() < 0 or every.max() >= n or np.bincount(every, minlength=n).max() != 1):
+            raise ValueError(f"the parts' positions must take every place of the block (0..{n - 1}) exactly once")
+        for k, (p, entry) in enumerate(zip(parts, entries)):
+            where = np.asarray(p.position, np.int64)
+            part[where], row[where] = k, np.arange(len(where))
+            topic[where], size[where] = topic_index[id(entry)], p.data.shape[1]
+            log_time[where] = _storable(p.log_time_ns, time.time_ns())
+            publish_time[where] = _storable(p.stamp_ns, 0)
+        log_time[:1] = np.maximum(log_time[:1], last_log_time)
+        log_time = np.maximum.accumulate(log_time)
+        sequence = np.empty(n, np.int64)
+        for k, entry in enumerate(unique):
+            mine = np.flatnonzero(topic == k)
+            sequence[mine] = (entry.count + np.arange(len(mine))) % (1 << 32)
+        return _RowBlock(parts, unique, part, row, topic, size, log_time, publish_time, sequence,
+                         np.cumsum(size + _RECORD_HEAD.itemsize), np.cumsum(size))
+
+    def __len__(self) -> int:
+        return len(self.part)
+
+    def records(self, lo: int, hi: int, channels: np.ndarray, lead: bytes) -> tuple[bytes, np.ndarray]:
+        """The uncompressed records of a chunk of messages ``lo``..``hi - 1``: ``lead`` (schema and channel
+        records) then each message's Message record (its topic's channel id in ``channels``), and each
+        message's record offset in them. Each part's records are copied as rows into a view of the chunk
+        whose row k starts at byte k (``as_strided``): a row copy per message, no index per byte."""
+        head_size = _RECORD_HEAD.itemsize
+        size = self.size[lo:hi]
+        head = np.empty(hi - lo, _RECORD_HEAD)
+        head["opcode"] = int(Opcode.MESSAGE)
+        head["length"] = size + head_size - 9   # what follows the opcode and the length field
+        head["channel"] = channels[self.topic[lo:hi]]
+        head["sequence"] = self.sequence[lo:hi]
+        head["log_time"] = self.log_time[lo:hi]
+        head["publish_time"] = self.publish_time[lo:hi]
+        heads = head.view(np.uint8).reshape(hi - lo, head_size)
+        before = int(self.record_end[lo - 1]) if lo else 0
+        offset = len(lead) + self.record_end[lo:hi] - size - head_size - before
+        out = np.empty(len(lead) + int(self.record_end[hi - 1]) - before, np.uint8)
+        out[:len(lead)] = np.frombuffer(lead, np.uint8)
+        part, row = self.part[lo:hi], self.row[lo:hi]
+        for k in np.unique(part).tolist():
+            mine = np.flatnonzero(part == k)
+            data = self.parts[k].data
+            width = head_size + data.shape[1]
+            starting_at = as_strided(out, shape=(len(out) - width + 1, width), strides=(1, 1))
+            starting_at[offset[mine], :head_size] = heads[mine]
+            starting_at[offset[mine], head_size:] = data[row[mine]]
+        return out.tobytes(), offset
+
+
+def _storable(times: np.ndarray, instead: int) -> np.ndarray:
+    """``times`` (ns) with those MCAP cannot store (outside 0..2^64-1; int64 here: negative) replaced."""
+    times = np.asarray(times, np.int64)
+    return np.where(times >= 0, times, instead)
+
+
+def _chunk_record(start: int, end: int, uncompressed_size: int, crc: int, compression: str, data: bytes) -> bytes:
+    """An MCAP Chunk record (opcode, length, then its fields) of messages logged from ``start`` to ``end``
+    (ns) holding ``data`` (compressed by ``compression`` from ``uncompressed_size`` bytes of CRC ``crc``)."""
+    name = compression.encode()
+    body = struct.pack("<QQQI", start, end, uncompressed_size, crc)
+    body += struct.pack("<I", len(name)) + name + struct.pack("<Q", len(data))
+    return struct.pack("<BQ", int(Opcode.CHUNK), len(body) + len(data)) + body + data
+
+
+def _message_index_records(channel: np.ndarray, log_time: np.ndarray, offset: np.ndarray) -> list[tuple[int, bytes]]:
+    """(channel id, MessageIndex record) for each channel among a chunk's messages, in the order of each
+    channel's first message: its messages' (log time, offset in the chunk's records)."""
+    ids, first = np.unique(channel, return_index=True)
+    out = []
+    for channel_id in ids[np.argsort(first)].tolist():
+        mine = channel == channel_id
+        entries = np.empty(int(mine.sum()), _INDEX_ENTRY)
+        entries["log_time"], entries["offset"] = log_time[mine], offset[mine]
+        data = entries.tobytes()
+        out.append((channel_id, struct.pack("<BQHI", int(Opcode.MESSAGE_INDEX), 6 + len(data), channel_id, len(data))
+                    + data))
+    return out
 
 
 class BagError(RuntimeError):
@@ -345,6 +552,89 @@ class BagWriter:
         if full:
             with self._lock:
                 self._write_queued()
+
+    def write_rows(self, parts: Sequence[MessageRows], qos: QoSProfile | None = None) -> None:
+        """Record a block of messages (``MessageRows``) in the order of their positions, as ``write`` of each
+        in that order would record them (the same records, sequence numbers, log times never before the
+        last one; ``qos`` offered for a topic at its first message), written now into chunks of their own
+        instead of queued; what ``write`` queued before goes first. The file is split where ``write``
+        would split it; an I/O error shows in ``error`` and ``unwritten`` as for ``write``."""
+        n = sum(len(p.position) for p in parts)
+        with self._lock:
+            self._check_open()
+            entries = [self._topic(p.topic, p.type_name, qos) for p in parts] if self.error is None else []
+            self._write_queued()
+            written = 0
+            if self.error is None and n:
+                written = self._write_block(_RowBlock.of(parts, entries, self._span.end or 0))
+            if written < n:
+                with self._queue_lock:
+                    self.unwritten += n - written
+
+    def _write_block(self, block: _RowBlock) -> int:
+        """Write ``block`` in chunks (under ``_lock``), the writer's open chunk first; the messages written."""
+        lo, split_next = 0, False
+        try:
+            self._current.writer.flush()
+            while lo < len(block):
+                if split_next or self._split_due(int(block.log_time[lo])):
+                    self._next_file()
+                hi, split_next = self._chunk_end(block, lo)
+                self._write_chunk(block, lo, hi)
+                lo = hi
+        except OSError as exc:
+            self._fail(exc)
+        return lo
+
+    def _chunk_end(self, block: _RowBlock, lo: int) -> tuple[int, bool]:
+        """The end of the chunk that starts at message ``lo``: after the message that takes its records
+        past ``chunk_size`` (as mcap's writer closes a chunk), or before the message at which the file
+        is to be split (then True)."""
+        n = len(block)
+        before = int(block.record_end[lo - 1]) if lo else 0
+        hi = min(int(np.searchsorted(block.record_end, before + self._chunk_size, side="right")) + 1, n)
+        cut = hi
+        if self._max_size > 0:   # the size before message i: the file and the payloads given since
+            payload_before = int(block.payload_end[lo - 1]) if lo else 0
+            need = self._max_size - self._current.size() + payload_before
+            cut = min(cut, int(np.searchsorted(block.payload_end, need, side="left")) + 1)
+        if self._max_duration_ns > 0:
+            start = self._current.span.start if self._current.span.start is not None else int(block.log_time[lo])
+            cut = min(cut, int(np.searchsorted(block.log_time, start + self._max_duration_ns, side="left")))
+        cut = max(cut, lo + 1)
+        return (cut, True) if cut < hi else (hi, False)
+
+    def _write_chunk(self, block: _RowBlock, lo: int, hi: int) -> None:
+        """Messages ``lo``..``hi - 1`` of ``block`` as one chunk and its message indexes (under ``_lock``):
+        the channels they need registered, the chunk counted in the file's summary and the spans."""
+        current, writer = self._current, self._current.writer
+        topic = block.topic[lo:hi]
+        present, counts = np.unique(topic, return_counts=True)
+        channels = np.zeros(len(block.entries), np.int64)
+        for t in present.tolist():
+            channels[t] = current.channel(block.entries[t])
+        data, offset = block.records(lo, hi, channels, writer.take_pending_records())
+        log = block.log_time[lo:hi]
+        first, last = int(log[0]), int(log[-1])
+        compressed = writer.compress(data)
+        chunk = _chunk_record(first, last, len(data), writer.chunk_crc(data), writer.compression_name(), compressed)
+        indexes = _message_index_records(channels[topic], log, offset)
+        start = current.file.tell()
+        index_offsets, at = {}, start + len(chunk)
+        for channel_id, record in indexes:
+            index_offsets[channel_id] = at
+            at += len(record)
+        current.file.write(b"".join([chunk, *(record for _, record in indexes)]))
+        writer.add_chunk(ChunkIndex(message_start_time=first, message_end_time=last, chunk_start_offset=start,
+                                    chunk_length=len(chunk), message_index_offsets=index_offsets,
+                                    message_index_length=at - start - len(chunk), compression=writer.compression_name(),
+                                    compressed_size=len(compressed), uncompressed_size=len(data)),
+                         {int(channels[t]): int(c) for t, c in zip(present.tolist(), counts.tolist())})
+        for t, c in zip(present.tolist(), counts.tolist()):
+            block.entries[t].count += c
+        self._span.add_many(first, last, hi - lo)
+        current.span.add_many(first, last, hi - lo)
+        self._dirty = True
 
     def _write_queued(self) -> None:
         """Write the queued messages into the MCAP writer, in order (under ``_lock``). Receive order

@@ -9,6 +9,14 @@ available' value, a value outside the signal's DBC range or outside the mapping'
 refused frame feeds nothing: the monitor never solves on a value that is not there.
 J1939 frames (29-bit identifiers of a J1939 DBC message) are matched by parameter group number,
 whatever their source address and priority. Units SI (rad, m, Pa).
+
+``decode_block`` decodes a FrameBlock (many frames, as columns) with numpy: the mapped signals' raw
+values from the data bytes (``signals``), scaled, checked and converted by the same arithmetic as
+``decode``, element by element (so the same floats); every frame that numpy does not decode cleanly —
+an error frame, a remote request of a mapped message, a length other than the DBC's, a value that
+is refused, a message whose signals numpy does not read — goes through ``decode``, whose outcome and
+finding it then has. test_can_blocks.py holds the two equal frame for frame, with cantools as the
+oracle of the raw values.
 """
 
 from __future__ import annotations
@@ -17,9 +25,10 @@ from collections import Counter
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable, NamedTuple, Sequence, TypeVar
 
 import cantools
+import numpy as np
 from cantools.database import Database
 
 from linkage_monitor.mechanics import InputError, Mechanism
@@ -27,9 +36,10 @@ from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.events import InputEvent, JointStateEvent, PressureEvent
 from linkage_monitor.monitoring.findings import Code, Finding, fmt
 
-from .frames import Frame
-from .j1939 import CAN_ERR_BUSOFF, Raw, classify, pgn
+from .frames import Frame, FrameBlock
+from .j1939 import CAN_ERR_BUSOFF, Raw, classify, is_value, pgn
 from .mapping import UNITS, CanMapping, InputMap
+from .signals import SignalLayout, raw_values, signal_layout, words
 
 ANGLE, CYLINDER, PRESSURE = "angle", "cylinder", "pressure"
 KIND_UNITS = {ANGLE: "angle", CYLINDER: "length", PRESSURE: "pressure"}
@@ -42,6 +52,12 @@ class Outcome(Enum):
     DECODED = "decoded"
     IGNORED = "ignored"
     REFUSED = "refused"
+
+
+OUTCOMES = tuple(Outcome)   # BlockDecoded.outcome holds indices into this
+DECODED, IGNORED, REFUSED = (OUTCOMES.index(o) for o in (Outcome.DECODED, Outcome.IGNORED, Outcome.REFUSED))
+EXACT = 1 << 53   # integers up to this are exact as float64
+_Pascal = TypeVar("_Pascal", float, np.ndarray)
 
 
 @dataclass(frozen=True)
@@ -82,11 +98,76 @@ class _Route:
     topic: str           # the input's topic (JointState topic, or the pressure sensor's)
 
 
+class _Vector(NamedTuple):
+    """A mapped signal read with numpy: its route, where it lies in the data, whether its raw value has
+    J1939 error / not-available ranges."""
+
+    route: _Route
+    layout: SignalLayout
+    j1939: bool
+
+
 @dataclass(frozen=True)
 class _MessageRoute:
     message: Any         # cantools Message
     routes: tuple[_Route, ...]
     j1939: bool
+    vector: tuple[_Vector, ...] | None   # its signals read with numpy; None: decoded one frame at a time
+
+
+class _RowKeys(NamedTuple):
+    """Per frame of a block: its mapped message (index into the decoder's routes; -1: none) and whether
+    a DBC knows its identifier."""
+
+    route: np.ndarray
+    known: np.ndarray
+
+
+class DecodedInputs(NamedTuple):
+    """The inputs one mapped message gave in a block: ``rows`` (m,) the frames (rows of the block) it
+    decoded; the JointState on ``joint_topic`` of ``joint_names`` (none: no JointState) at ``positions``
+    (m, len(joint_names)) rad / m; a FluidPressure on each of ``pressure_topics`` of ``pressures``
+    (m, len(pressure_topics)) Pa, in the monitor's convention. Each frame's events in ``decode``'s order:
+    the JointState, then the pressures."""
+
+    rows: np.ndarray
+    joint_topic: str
+    joint_names: tuple[str, ...]
+    positions: np.ndarray
+    pressure_topics: tuple[str, ...]
+    pressures: np.ndarray
+
+    @property
+    def events_per_frame(self) -> int:
+        """The input events each of its frames gives."""
+        return (1 if self.joint_names else 0) + len(self.pressure_topics)
+
+
+@dataclass(frozen=True)
+class BlockDecoded:
+    """How each frame of a block ended: ``outcome`` (n,) indices into OUTCOMES; the inputs decoded with
+    numpy, per mapped message; the frames decoded one by one (``decode``) with their Decoded, by row."""
+
+    outcome: np.ndarray
+    inputs: tuple[DecodedInputs, ...]
+    single: dict[int, Decoded]
+
+    def refusals(self) -> list[Finding]:
+        """The finding of each refused frame, in frame order."""
+        return [d.finding for _, d in sorted(self.single.items()) if d.finding is not None]
+
+
+def _vector_of(message: Any, routes: list[_Route], j1939: bool) -> tuple[_Vector, ...] | None:
+    """The mapped signals of ``message`` as numpy reads them, or None if it cannot read one of them: a
+    signal ``signals`` does not lay out, or one whose physical values are not all exact as float64
+    (then ``decode``'s integer arithmetic could differ)."""
+    vector = []
+    for r in routes:
+        layout = signal_layout(message, r.signal)
+        if layout is None or (1 << r.signal.length) * abs(r.signal.scale) + abs(r.signal.offset) >= EXACT:
+            return None
+        vector.append(_Vector(r, layout, j1939 and not r.signal.is_signed))
+    return tuple(vector)
 
 
 def load_databases(paths: Sequence[str | Path]) -> Database:
@@ -161,10 +242,12 @@ class CanDecoder:
         self._by_pgn: dict[int, _MessageRoute] = {}
         self._known_ids = {(m.frame_id, m.is_extended_frame) for m in db.messages}
         self._known_pgns = {pgn(m.frame_id) for m in db.messages if m.is_extended_frame and m.protocol == "j1939"}
+        self._routes: list[_MessageRoute] = []
         for name, routes in grouped.items():
             message = db.get_message_by_name(name)
             j1939 = message.is_extended_frame and message.protocol == "j1939"
-            route = _MessageRoute(message, tuple(routes), j1939)
+            route = _MessageRoute(message, tuple(routes), j1939, _vector_of(message, routes, j1939))
+            self._routes.append(route)
             self._by_id[(message.frame_id, message.is_extended_frame)] = route
             if j1939:
                 self._by_pgn[pgn(message.frame_id)] = route
@@ -186,6 +269,17 @@ class CanDecoder:
             counts.refused += 1
         return decoded
 
+    def _route_of(self, ident: int, extended: bool) -> _MessageRoute | None:
+        """The mapped message of an identifier (J1939: by parameter group number), None if unmapped."""
+        route = self._by_id.get((ident, extended))
+        if route is None and extended:
+            route = self._by_pgn.get(pgn(ident))
+        return route
+
+    def _known(self, ident: int, extended: bool) -> bool:
+        """Whether a DBC knows the identifier (J1939: its parameter group number)."""
+        return (ident, extended) in self._known_ids or (extended and pgn(ident) in self._known_pgns)
+
     def _name(self, frame: Frame, message: Any = None) -> str:
         ident = f"0x{frame.arbitration_id:08X}" if frame.is_extended else f"0x{frame.arbitration_id:03X}"
         return f"CAN frame {message.name + ' ' if message is not None else ''}({ident}) on {self.source}"
@@ -202,13 +296,9 @@ class CanDecoder:
             return Decoded(Outcome.REFUSED, finding=Finding(Code.MALFORMED_INPUT, (
                 f"error frame on {self.source} (error class 0x{frame.arbitration_id & 0x1FFFFFFF:X}): a frame was "
                 "damaged on the wire (check wiring, termination and bit rate)")))
-        route = self._by_id.get((frame.arbitration_id, frame.is_extended))
-        if route is None and frame.is_extended:
-            route = self._by_pgn.get(pgn(frame.arbitration_id))
+        route = self._route_of(frame.arbitration_id, frame.is_extended)
         if route is None:
-            known = ((frame.arbitration_id, frame.is_extended) in self._known_ids
-                     or (frame.is_extended and pgn(frame.arbitration_id) in self._known_pgns))
-            if not known:
+            if not self._known(frame.arbitration_id, frame.is_extended):
                 self.counts.unknown_ids[frame.arbitration_id] += 1
             return Decoded(Outcome.IGNORED)
         if frame.is_remote:
@@ -260,7 +350,95 @@ class CanDecoder:
         events.extend(PressureEvent(topic, value, frame.stamp_ns, receive_ns) for topic, value in pressures)
         return Decoded(Outcome.DECODED, tuple(events))
 
-    def _fluid_pressure(self, pascal: float, absolute: bool) -> float:
+
+    # ---- many frames ---------------------------------------------------------------------------
+    def decode_block(self, block: FrameBlock) -> BlockDecoded:
+        """Every frame's outcome (counted), received = stamped (a log's time is its receive time); never
+        raises. The same outcomes, events and findings as ``decode`` of each frame in order."""
+        outcome = np.full(len(block), IGNORED, np.int8)
+        keys = self._key_rows(block)
+        single = block.is_error | (block.is_remote & (keys.route >= 0))
+        self._count_unknown(block.arbitration_id[(keys.route < 0) & ~keys.known & ~block.is_error])
+        inputs = []
+        for index, route in enumerate(self._routes):
+            rows = np.flatnonzero((keys.route == index) & ~single)
+            length = route.message.length
+            fits = (block.dlc[rows] == length) & (block.length[rows] == length) & (route.vector is not None)
+            single[rows[~fits]] = True
+            decoded, good = self._decode_rows(route, block, rows[fits])
+            single[rows[fits][~good]] = True
+            if len(decoded.rows):
+                outcome[decoded.rows] = DECODED
+                inputs.append(decoded)
+        counts = self.counts
+        counts.received += int((~single).sum())
+        counts.decoded += int((outcome == DECODED).sum())
+        counts.ignored += int(((outcome == IGNORED) & ~single).sum())
+        one_by_one = {}
+        for k in np.flatnonzero(single).tolist():
+            one_by_one[k] = self.decode(block.frame(k), int(block.stamp_ns[k]))
+            outcome[k] = OUTCOMES.index(one_by_one[k].outcome)
+        return BlockDecoded(outcome, tuple(inputs), one_by_one)
+
+    def _key_rows(self, block: FrameBlock) -> _RowKeys:
+        """Each frame's mapped message and whether a DBC knows its identifier, looked up once per
+        identifier of the block."""
+        key = block.arbitration_id | (block.is_extended.astype(np.int64) << 32)
+        keys, inverse = np.unique(key, return_inverse=True)
+        index = {id(route): k for k, route in enumerate(self._routes)}
+        route, known = np.full(len(keys), -1, np.int64), np.zeros(len(keys), bool)
+        for k, value in enumerate(keys.tolist()):
+            ident, extended = value & 0xFFFFFFFF, bool(value >> 32)
+            found = self._route_of(ident, extended)
+            route[k] = -1 if found is None else index[id(found)]
+            known[k] = self._known(ident, extended)
+        inverse = inverse.ravel()
+        return _RowKeys(route[inverse], known[inverse])
+
+    def _count_unknown(self, idents: np.ndarray) -> None:
+        """Count frames of identifiers no DBC knows (``idents``, in frame order) as ``decode`` does: each
+        identifier at its first appearance."""
+        ids, first, count = np.unique(idents, return_index=True, return_counts=True)
+        for k in np.argsort(first, kind="stable").tolist():
+            self.counts.unknown_ids[int(ids[k])] += int(count[k])
+
+    def _decode_rows(self, route: _MessageRoute, block: FrameBlock, rows: np.ndarray
+                     ) -> tuple[DecodedInputs, np.ndarray]:
+        """The inputs of frames ``rows`` of mapped message ``route`` (of its DBC length), and which of
+        them decode cleanly (the others are refused by ``decode``: an error / not-available value, a value
+        outside the DBC's range or the mapping's table)."""
+        good = np.ones(len(rows), bool)
+        names, positions, topics, pressures = [], [], [], []
+        w = words(block.data[rows])
+        for vector in route.vector or ():
+            r = vector.route
+            signal, item = r.signal, r.input
+            raw = raw_values(w, vector.layout)
+            if vector.j1939:
+                good &= is_value(raw, signal.length)
+            physical = raw.astype(float) * signal.scale + signal.offset
+            if signal.minimum is not None:
+                good &= ~(physical < signal.minimum)
+            if signal.maximum is not None:
+                good &= ~(physical > signal.maximum)
+            if item.table is not None:
+                in_unit, inside = item.table.lookup_many(physical)
+                good &= inside
+            else:
+                in_unit = item.scale * physical + item.offset
+            si = in_unit * r.factor
+            if r.kind == PRESSURE:
+                topics.append(r.topic)
+                pressures.append(self._fluid_pressure(si, item.pressure == "absolute"))
+            else:
+                names.append(item.name)
+                positions.append(si)
+        m = int(good.sum())
+        stack = lambda columns: np.stack(columns, axis=1)[good] if columns else np.zeros((m, 0))  # noqa: E731
+        return DecodedInputs(rows[good], self.config.topics.joint_states, tuple(names), stack(positions),
+                             tuple(topics), stack(pressures)), good
+
+    def _fluid_pressure(self, pascal: _Pascal, absolute: bool) -> _Pascal:
         """The FluidPressure value (Pa) of a reading, in the convention the monitor is configured for."""
         cfg = self.config
         if absolute == cfg.pressure_absolute:

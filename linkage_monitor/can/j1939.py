@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from enum import Enum
 
+import numpy as np
+
 # socketcan error frames (linux/can/error.h): class bits in the identifier
 CAN_ERR_BUSOFF = 0x40
 
@@ -37,3 +39,12 @@ def classify(raw: int, length: int) -> Raw:
         return Raw.VALUE
     top_byte = raw >> (length - 8)
     return Raw.NOT_AVAILABLE if top_byte == 0xFF else Raw.ERROR if top_byte == 0xFE else Raw.VALUE
+
+
+def is_value(raw: np.ndarray, length: int) -> np.ndarray:
+    """Where unsigned raw values ``raw`` (n,) of ``length`` bits are values: ``classify`` of each is VALUE."""
+    if length in (2, 4):
+        return raw < (1 << length) - 2
+    if length % 8 or length == 0:
+        return np.ones(raw.shape, bool)
+    return (raw >> (length - 8)) < 0xFE

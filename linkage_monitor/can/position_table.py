@@ -54,6 +54,17 @@ class PositionTable:
             return v[-1]
         return v[k] + (x - s[k]) * (v[k + 1] - v[k]) / (s[k + 1] - s[k])
 
+    def lookup_many(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``lookup`` of every value of ``x`` (n,): the values (n,) and where they are inside the table
+        (n,) bool; outside, the value is meaningless. The same arithmetic as ``lookup``, element by
+        element, so the same floats."""
+        s, v = np.asarray(self.signal, float), np.asarray(self.value, float)
+        x = np.asarray(x, float)
+        inside = (s[0] <= x) & (x <= s[-1])
+        k = np.clip(np.searchsorted(s, x, side="right") - 1, 0, len(s) - 2)
+        between = v[k] + (x - s[k]) * (v[k + 1] - v[k]) / (s[k + 1] - s[k])
+        return np.where(x >= s[-1], v[-1], between), inside
+
     def span(self) -> str:
         """The table's signal range as text."""
         return f"{fmt(self.signal[0])}..{fmt(self.signal[-1])}"

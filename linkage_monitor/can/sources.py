@@ -1,5 +1,6 @@
 """Where frames come from: a python-can bus (``INTERFACE:CHANNEL``) or a log file read by
-python-can's own readers (candump .log, .asc, .blf, ... : ``can.LogReader``)."""
+python-can's own readers (candump .log, .asc, .blf, ... : ``can.LogReader``); ``read_log_blocks``
+reads candump logs with numpy (``candump``) in blocks of frames, the other formats through python-can."""
 
 from __future__ import annotations
 
@@ -11,7 +12,8 @@ import can
 
 from linkage_monitor.mechanics import InputError
 
-from .frames import Frame, from_message
+from .candump import read_candump
+from .frames import Frame, FrameBlock, blocks_of, from_message
 
 RECEIVE_BUFFER = 4 << 20   # bytes asked for the bus socket's receive buffer
 LOG_SUFFIXES = (".log", ".asc", ".blf", ".csv", ".db", ".mf4", ".trc")
@@ -58,14 +60,37 @@ def receive_buffer(bus: can.BusABC, size: int = RECEIVE_BUFFER) -> int | None:
     return int(sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF))
 
 
-def read_log(path: str | Path) -> Iterator[Frame]:
-    """The frames of a log file in file order (python-can's LogReader picks the reader by suffix)."""
+def _checked_log(path: str | Path) -> Path:
+    """``path`` if it is a log file of a format python-can reads; InputError saying why not."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"CAN log {path}: no such file")
     if path.suffix.lower() not in LOG_SUFFIXES:
         raise InputError(f"CAN log {path}: unknown format '{path.suffix}' (python-can reads "
                          f"{', '.join(LOG_SUFFIXES)})")
+    return path
+
+
+def read_log_blocks(path: str | Path) -> Iterator[FrameBlock]:
+    """The frames of a log file in file order, in blocks: a candump ``.log`` read with numpy
+    (``candump.read_candump``, python-can's reading of every line), other formats by ``read_log``.
+    InputError for a missing file or an unknown format at once, for an unreadable line when reached."""
+    path = _checked_log(path)
+    if path.suffix.lower() != ".log":
+        return blocks_of(read_log(path))
+    return _candump_blocks(path)
+
+
+def _candump_blocks(path: Path) -> Iterator[FrameBlock]:
+    try:
+        yield from read_candump(path)
+    except (ValueError, can.CanError, IndexError, KeyError, OverflowError) as exc:
+        raise InputError(f"CAN log {path}: unreadable ({type(exc).__name__}: {exc})") from None
+
+
+def read_log(path: str | Path) -> Iterator[Frame]:
+    """The frames of a log file in file order (python-can's LogReader picks the reader by suffix)."""
+    path = _checked_log(path)
     try:
         with can.LogReader(str(path)) as reader:
             for msg in reader:

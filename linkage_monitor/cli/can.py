@@ -105,13 +105,13 @@ def run_can_to_bag(args: argparse.Namespace) -> int:
     from collections import Counter
 
     from linkage_monitor.can.decoder import CanDecoder, load_databases
-    from linkage_monitor.can.sources import read_log
-    from linkage_monitor.can.to_bag import can_to_bag
+    from linkage_monitor.can.sources import read_log_blocks
+    from linkage_monitor.can.to_bag import blocks_to_bag
 
     mapping, mech, dbc = _setup(args)
     config = MonitorConfig.default(_mechanism_spec(args, mapping), mech)
     decoder = CanDecoder(load_databases(dbc), mapping, mech, config, Path(args.log).name)
-    converted = can_to_bag(read_log(args.log), decoder, mech, config, args.out)
+    converted = blocks_to_bag(read_log_blocks(args.log), decoder, mech, config, args.out)
     counts = converted.counts
     if counts.received == 0:
         raise InputError(f"CAN log {args.log}: no frame")

@@ -1,0 +1,229 @@
+"""candump logs (``candump -L``, python-can's ``.log``) read into FrameBlocks with numpy, many lines at once.
+
+A line is ``(SECONDS.MICROSECONDS) CHANNEL ID#DATA`` with an optional direction ``R`` / ``T`` after
+it: ``(1700000000.123456) can0 18FE4D80#0102030405060708 R``. python-can's ``CanutilsLogReader`` is
+the reference for what a line means (the test holds the two equal, frame for frame); lines of the
+common form are read here as columns:
+
+- the stamp: decimal seconds (1 to 10 digits, below 2^31 s) and exactly 6 decimals (µs), as candump
+  and python-can write them; the frame's stamp is their value in ns, which is python-can's float
+  seconds rounded to the µs (``frames.stamp_of``) for every such stamp;
+- a channel of printable ASCII without spaces (not kept: a Frame has no channel);
+- an identifier of 3 hex digits (11-bit) or 8 (29-bit), below 2^29 (no flag bits);
+- 0 to 8 data bytes as pairs of hex digits (a classic data frame, DLC = the bytes);
+- single spaces between the fields and nothing else on the line.
+
+Every other non-blank line — remote requests (``123#R``), CAN FD (``123##1...``), error frames (the
+identifier's CAN_ERR_FLAG bit), other stamp formats, tabs or stray spaces, anything python-can
+refuses — is handed to python-can's own reader, one line at a time, in its place: the result is
+python-can's whatever the line. Lines end at ``\\n``, ``\\r\\n`` or ``\\r`` (text mode's universal
+newlines); blank lines hold no frame. A file is read in pieces of ``PIECE_BYTES`` cut at a line end:
+one FrameBlock per piece.
+"""
+
+from __future__ import annotations
+
+import io
+import locale
+from pathlib import Path
+from typing import Iterator, NamedTuple
+
+import can
+import numpy as np
+
+from .frames import CLASSIC_BYTES, US, Frame, FrameBlock, from_message
+
+PIECE_BYTES = 4 << 20   # bytes of the file read and parsed at once (~70,000 lines of 29-bit frames)
+SECONDS_DIGITS = 10     # at most this many digits before the decimal point on the fast path
+FRACTION_DIGITS = 6     # exactly this many after it (µs)
+ID_DIGITS = (3, 8)      # 11-bit and 29-bit identifiers
+MAX_ID = 1 << 29        # identifiers at or above carry flag bits (python-can reads those lines)
+MAX_SECONDS = 1 << 31   # s; beyond, python-can's float seconds lose the µs (python-can reads those lines)
+DIRECTIONS = b"RrTt"    # the optional last field: received / transmitted
+
+_NEWLINE, _SPACE, _HASH, _OPEN, _CLOSE, _DOT = (ord(c) for c in "\n #().")
+_HEX = np.full(256, -1, np.int64)
+for _k, _c in enumerate(b"0123456789abcdef"):
+    _HEX[_c] = _k
+    _HEX[bytes([_c]).upper()[0]] = _k
+_DIGIT = np.full(256, -1, np.int64)
+_DIGIT[np.frombuffer(b"0123456789", np.uint8)] = np.arange(10)
+_IS_DIRECTION = np.zeros(256, bool)
+_IS_DIRECTION[np.frombuffer(DIRECTIONS, np.uint8)] = True
+
+
+class Lines(NamedTuple):
+    """The lines of a piece: ``start`` (n,) their first byte, ``end`` (n,) their newline's position."""
+
+    start: np.ndarray
+    end: np.ndarray
+
+
+class Fields(NamedTuple):
+    """Where a line's fields are (byte positions, one per line): the spaces after the stamp
+    (``stamp_end``) and after the channel (``channel_end``), the ``#``, the end of the data (the third
+    space, or the line's end); ``shape_ok``: the line has 2 or 3 single spaces, one ``#`` and only
+    printable ASCII, so the positions are its fields'."""
+
+    stamp_end: np.ndarray
+    channel_end: np.ndarray
+    hash: np.ndarray
+    data_end: np.ndarray
+    shape_ok: np.ndarray
+
+
+class Columns(NamedTuple):
+    """The values of lines read on the fast path (one per line; meaningful where ``ok``): the stamp
+    (ns since the epoch), identifier, whether it is 29-bit, the data bytes (n, 8) and their count."""
+
+    ok: np.ndarray
+    stamp_ns: np.ndarray
+    arbitration_id: np.ndarray
+    is_extended: np.ndarray
+    data: np.ndarray
+    length: np.ndarray
+
+
+def read_candump(path: str | Path, piece_bytes: int = PIECE_BYTES) -> Iterator[FrameBlock]:
+    """The frames of the candump log ``path`` in file order, a FrameBlock per piece of the file. A
+    line python-can cannot read raises its error (ValueError and the like), as python-can's reader."""
+    with open(path, "rb") as file:
+        rest = b""
+        while True:
+            chunk = file.read(piece_bytes)
+            if not chunk:
+                break
+            text = (rest + chunk).replace(b"\r", b"\n")   # \r and \r\n end lines: at most blank lines more
+            cut = text.rfind(b"\n") + 1
+            rest = text[cut:]
+            if cut:
+                yield parse_candump(text[:cut])
+        if rest.strip():
+            yield parse_candump(rest + b"\n")
+
+
+def parse_candump(piece: bytes) -> FrameBlock:
+    """The frames of whole candump lines (``piece`` ends with a newline), in order."""
+    buf = np.frombuffer(piece, np.uint8)
+    lines = line_bounds(buf)
+    columns = fast_columns(buf, lines, fields_of(buf, lines))
+    blank = lines.start == lines.end
+    slow = np.flatnonzero(~columns.ok & ~blank)
+    slow_frames = [python_can_line(piece[lines.start[k]:lines.end[k]]) for k in slow.tolist()]
+    per_line = columns.ok.astype(np.int64)
+    per_line[slow] = [frame is not None for frame in slow_frames]
+    row = np.cumsum(per_line) - per_line            # each line's row in the block
+    found = [frame for frame in slow_frames if frame is not None]
+    block = FrameBlock.empty(int(per_line.sum()), max((len(f.data) for f in found), default=CLASSIC_BYTES))
+    fast = np.flatnonzero(columns.ok)
+    rows = row[fast]
+    block.stamp_ns[rows] = columns.stamp_ns[fast]
+    block.arbitration_id[rows] = columns.arbitration_id[fast]
+    block.is_extended[rows] = columns.is_extended[fast]
+    block.dlc[rows] = columns.length[fast]
+    block.length[rows] = columns.length[fast]
+    block.data[rows, :CLASSIC_BYTES] = columns.data[fast]
+    block.fill(row[slow[per_line[slow] > 0]], found)
+    return block
+
+
+def line_bounds(buf: np.ndarray) -> Lines:
+    """Start and newline of every line of ``buf`` (which ends with a newline)."""
+    end = np.flatnonzero(buf == _NEWLINE)
+    start = np.empty_like(end)
+    start[:1] = 0
+    start[1:] = end[:-1] + 1
+    return Lines(start, end)
+
+
+def _per_line(positions: np.ndarray, lines: Lines) -> tuple[np.ndarray, np.ndarray]:
+    """For byte ``positions`` (sorted): how many fall in each line, and the index of each line's first."""
+    count = np.bincount(np.searchsorted(lines.end, positions), minlength=len(lines.end))
+    return count, np.cumsum(count) - count
+
+
+def _nth(positions: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """``positions[k]``, k clipped to the array (lines where the k-th is not theirs are not shape_ok)."""
+    if not len(positions):
+        return np.zeros_like(k)
+    return positions[np.minimum(k, len(positions) - 1)]
+
+
+def fields_of(buf: np.ndarray, lines: Lines) -> Fields:
+    """The field positions of every line (meaningful where ``shape_ok``)."""
+    spaces = np.flatnonzero(buf == _SPACE)
+    hashes = np.flatnonzero(buf == _HASH)
+    odd = np.flatnonzero((buf < 0x21) | (buf > 0x7E))
+    odd = odd[(buf[odd] != _SPACE) & (buf[odd] != _NEWLINE)]   # tabs, control bytes, non-ASCII
+    n_spaces, first_space = _per_line(spaces, lines)
+    n_hashes, first_hash = _per_line(hashes, lines)
+    n_odd, _ = _per_line(odd, lines)
+    shape_ok = ((n_spaces == 2) | (n_spaces == 3)) & (n_hashes == 1) & (n_odd == 0)
+    return Fields(stamp_end=_nth(spaces, first_space), channel_end=_nth(spaces, first_space + 1),
+                  hash=_nth(hashes, first_hash),
+                  data_end=np.where(n_spaces == 3, _nth(spaces, first_space + 2), lines.end), shape_ok=shape_ok)
+
+
+def _window(buf: np.ndarray, first: np.ndarray, width: int) -> np.ndarray:
+    """The bytes ``first`` .. ``first + width - 1`` of every line (n, width), positions clipped to ``buf``."""
+    return buf[np.clip(first[:, None] + np.arange(width), 0, len(buf) - 1)]
+
+
+def _number(digits: np.ndarray, valid: np.ndarray, base: int) -> tuple[np.ndarray, np.ndarray]:
+    """The value of right-aligned ``digits`` (n, w) (digit values, -1 for none) where ``valid``, and
+    whether every valid one is a digit."""
+    ok = np.all((digits >= 0) | ~valid, axis=1)
+    weights = base ** np.arange(digits.shape[1] - 1, -1, -1, dtype=np.int64)
+    return (np.where(valid, digits, 0) * weights).sum(axis=1), ok
+
+
+def fast_columns(buf: np.ndarray, lines: Lines, f: Fields) -> Columns:
+    """The stamp, identifier and data of every line of the common form (``ok``); others are not ok."""
+    start, end = lines.start, lines.end
+    n = len(start)
+    # the stamp: "(" seconds "." 6 digits ")" before the first space
+    dot = f.stamp_end - FRACTION_DIGITS - 2
+    int_digits = dot - start - 1
+    seconds_at = dot[:, None] - SECONDS_DIGITS + np.arange(SECONDS_DIGITS)
+    seconds, seconds_ok = _number(_DIGIT[_window(buf, dot - SECONDS_DIGITS, SECONDS_DIGITS)],
+                                  seconds_at > start[:, None], 10)
+    micros, micros_ok = _number(_DIGIT[_window(buf, dot + 1, FRACTION_DIGITS)], np.ones((n, FRACTION_DIGITS), bool),
+                                10)
+    stamp_ok = ((buf[start] == _OPEN) & (buf[np.maximum(f.stamp_end - 1, 0)] == _CLOSE)
+                & (buf[np.maximum(dot, 0)] == _DOT) & (int_digits >= 1) & (int_digits <= SECONDS_DIGITS)
+                & seconds_ok & micros_ok & (seconds < MAX_SECONDS))
+    # the identifier: 3 or 8 hex digits between the second space and "#"
+    id_digits = f.hash - f.channel_end - 1
+    id_at = f.hash[:, None] - ID_DIGITS[-1] + np.arange(ID_DIGITS[-1])
+    ident, ident_ok = _number(_HEX[_window(buf, f.hash - ID_DIGITS[-1], ID_DIGITS[-1])],
+                              id_at > f.channel_end[:, None], 16)
+    ident_ok &= np.isin(id_digits, ID_DIGITS) & (ident < MAX_ID)
+    # the data: pairs of hex digits up to the third space or the line's end
+    data_digits = f.data_end - f.hash - 1
+    width = 2 * CLASSIC_BYTES
+    nibbles = _HEX[_window(buf, f.hash + 1, width)]
+    in_data = np.arange(width) < data_digits[:, None]
+    data_ok = ((data_digits >= 0) & (data_digits <= width) & (data_digits % 2 == 0)
+               & np.all((nibbles >= 0) | ~in_data, axis=1))
+    nibbles = np.where(in_data, nibbles, 0)
+    data = (nibbles[:, 0::2] * 16 + nibbles[:, 1::2]).astype(np.uint8)
+    # the direction, if any: one letter, last on the line
+    has_direction = f.data_end != end
+    direction_ok = ~has_direction | ((end == f.data_end + 2) & _IS_DIRECTION[buf[np.minimum(f.data_end + 1, len(buf) - 1)]])
+    ok = (f.shape_ok & (f.stamp_end > start) & (f.channel_end > f.stamp_end + 1) & (f.hash > f.channel_end)
+          & stamp_ok & ident_ok & data_ok & direction_ok)
+    return Columns(ok=ok, stamp_ns=(seconds * 1_000_000 + micros) * US, arbitration_id=ident,
+                   is_extended=id_digits > ID_DIGITS[0], data=data, length=data_digits // 2)
+
+
+def python_can_line(line: bytes) -> Frame | None:
+    """The frame python-can's candump reader reads from one line (None for a line without one); its
+    error for a line it cannot read."""
+    text = line.decode(locale.getpreferredencoding(False))
+    reader = can.CanutilsLogReader(io.StringIO(text))
+    try:
+        for msg in reader:
+            return from_message(msg)
+        return None
+    finally:
+        reader.stop()
