@@ -11,7 +11,10 @@ common form are read here as columns:
 - a channel of printable ASCII without spaces (not kept: a Frame has no channel);
 - an identifier of 3 hex digits (11-bit) or 8 (29-bit), below 2^29 (no flag bits);
 - 0 to 8 data bytes as pairs of hex digits (a classic data frame, DLC = the bytes);
-- single spaces between the fields and nothing else on the line.
+- single spaces between the fields and nothing else on the line, shorter than 256 bytes.
+
+Such lines are grouped by layout (where their fields end: few in a log) and each group is parsed as
+fixed-width records, every field a range of columns.
 
 Every other non-blank line — remote requests (``123#R``), CAN FD (``123##1...``), error frames (the
 identifier's CAN_ERR_FLAG bit), other stamp formats, tabs or stray spaces, anything python-can
@@ -30,6 +33,7 @@ from typing import Iterator, NamedTuple
 
 import can
 import numpy as np
+from numpy.lib.stride_tricks import as_strided
 
 from .frames import CLASSIC_BYTES, US, Frame, FrameBlock, from_message
 
@@ -42,12 +46,10 @@ MAX_SECONDS = 1 << 31   # s; beyond, python-can's float seconds lose the µs (py
 DIRECTIONS = b"RrTt"    # the optional last field: received / transmitted
 
 _NEWLINE, _SPACE, _HASH, _OPEN, _CLOSE, _DOT = (ord(c) for c in "\n #().")
-_HEX = np.full(256, -1, np.int64)
+_HEX = np.full(256, 255, np.uint8)      # byte -> its hex digit's value, 255 for none
 for _k, _c in enumerate(b"0123456789abcdef"):
-    _HEX[_c] = _k
-    _HEX[bytes([_c]).upper()[0]] = _k
-_DIGIT = np.full(256, -1, np.int64)
-_DIGIT[np.frombuffer(b"0123456789", np.uint8)] = np.arange(10)
+    _HEX[_c] = _HEX[bytes([_c]).upper()[0]] = _k
+_DECIMAL = np.where(_HEX < 10, _HEX, 255).astype(np.uint8)   # byte -> its decimal digit's value, 255 for none
 _IS_DIRECTION = np.zeros(256, bool)
 _IS_DIRECTION[np.frombuffer(DIRECTIONS, np.uint8)] = True
 
@@ -164,56 +166,83 @@ def fields_of(buf: np.ndarray, lines: Lines) -> Fields:
                   data_end=np.where(n_spaces == 3, _nth(spaces, first_space + 2), lines.end), shape_ok=shape_ok)
 
 
-def _window(buf: np.ndarray, first: np.ndarray, width: int) -> np.ndarray:
-    """The bytes ``first`` .. ``first + width - 1`` of every line (n, width), positions clipped to ``buf``."""
-    return buf[np.clip(first[:, None] + np.arange(width), 0, len(buf) - 1)]
+class Layout(NamedTuple):
+    """Where a line's fields end, counted from its first byte: the spaces after the stamp and after the
+    channel, the ``#``, the end of the data, the line's length. Lines of one layout are fixed-width
+    records: each field is a range of columns."""
+
+    stamp_end: int
+    channel_end: int
+    hash: int
+    data_end: int
+    length: int
+
+    @staticmethod
+    def key(f: Fields, lines: Lines, rows: np.ndarray) -> np.ndarray:
+        """The layout of lines ``rows`` (shorter than 256 bytes) as one int64 each (a byte per field)."""
+        key = np.zeros(len(rows), np.int64)
+        for position in (f.stamp_end, f.channel_end, f.hash, f.data_end, lines.end):
+            key = (key << 8) | (position[rows] - lines.start[rows])
+        return key
+
+    @staticmethod
+    def of_key(key: int) -> Layout:
+        return Layout(*((key >> shift) & 0xFF for shift in (32, 24, 16, 8, 0)))
+
+    def fits(self) -> bool:
+        """Whether lines of this layout can be of the common form: 1 to SECONDS_DIGITS digits and 6
+        decimals in the stamp, a channel, a 3 or 8 digit identifier, 0 to 8 data bytes, maybe a direction."""
+        data_digits = self.data_end - self.hash - 1
+        return (1 <= self.stamp_end - FRACTION_DIGITS - 3 <= SECONDS_DIGITS and self.channel_end > self.stamp_end + 1
+                and self.hash - self.channel_end - 1 in ID_DIGITS and data_digits % 2 == 0
+                and 0 <= data_digits <= 2 * CLASSIC_BYTES and self.length in (self.data_end, self.data_end + 2))
 
 
-def _number(digits: np.ndarray, valid: np.ndarray, base: int) -> tuple[np.ndarray, np.ndarray]:
-    """The value of right-aligned ``digits`` (n, w) (digit values, -1 for none) where ``valid``, and
-    whether every valid one is a digit."""
-    ok = np.all((digits >= 0) | ~valid, axis=1)
-    weights = base ** np.arange(digits.shape[1] - 1, -1, -1, dtype=np.int64)
-    return (np.where(valid, digits, 0) * weights).sum(axis=1), ok
+def _digits(columns: np.ndarray, table: np.ndarray, base: int) -> tuple[np.ndarray, np.ndarray]:
+    """The numbers written in ``columns`` (n, w) bytes, digit values by ``table`` (255: not a digit), and
+    whether each is all digits."""
+    values = table[columns]
+    weights = base ** np.arange(columns.shape[1] - 1, -1, -1, dtype=np.int64)
+    return values.astype(np.int64) @ weights, np.all(values < base, axis=1)
+
+
+def _parse_layout(rows: np.ndarray, layout: Layout) -> tuple[np.ndarray, Columns]:
+    """Lines of one layout (``rows``: (n, length) bytes): which are of the common form, and their values."""
+    dot = layout.stamp_end - FRACTION_DIGITS - 2
+    seconds, seconds_ok = _digits(rows[:, 1:dot], _DECIMAL, 10)
+    micros, micros_ok = _digits(rows[:, dot + 1:layout.stamp_end - 1], _DECIMAL, 10)
+    ident, ident_ok = _digits(rows[:, layout.channel_end + 1:layout.hash], _HEX, 16)
+    nibbles = _HEX[rows[:, layout.hash + 1:layout.data_end]]
+    ok = ((rows[:, 0] == _OPEN) & (rows[:, dot] == _DOT) & (rows[:, layout.stamp_end - 1] == _CLOSE)
+          & seconds_ok & micros_ok & (seconds < MAX_SECONDS) & ident_ok & (ident < MAX_ID) & np.all(nibbles < 16, axis=1))
+    if layout.length > layout.data_end:
+        ok &= _IS_DIRECTION[rows[:, layout.data_end + 1]]
+    n, count = len(rows), nibbles.shape[1] // 2
+    data = np.zeros((n, CLASSIC_BYTES), np.uint8)
+    data[:, :count] = nibbles[:, 0::2] * 16 + nibbles[:, 1::2]
+    return ok, Columns(ok, (seconds * 1_000_000 + micros) * US, ident,
+                       np.full(n, layout.hash - layout.channel_end - 1 > ID_DIGITS[0]), data, np.full(n, count))
 
 
 def fast_columns(buf: np.ndarray, lines: Lines, f: Fields) -> Columns:
-    """The stamp, identifier and data of every line of the common form (``ok``); others are not ok."""
-    start, end = lines.start, lines.end
-    n = len(start)
-    # the stamp: "(" seconds "." 6 digits ")" before the first space
-    dot = f.stamp_end - FRACTION_DIGITS - 2
-    int_digits = dot - start - 1
-    seconds_at = dot[:, None] - SECONDS_DIGITS + np.arange(SECONDS_DIGITS)
-    seconds, seconds_ok = _number(_DIGIT[_window(buf, dot - SECONDS_DIGITS, SECONDS_DIGITS)],
-                                  seconds_at > start[:, None], 10)
-    micros, micros_ok = _number(_DIGIT[_window(buf, dot + 1, FRACTION_DIGITS)], np.ones((n, FRACTION_DIGITS), bool),
-                                10)
-    stamp_ok = ((buf[start] == _OPEN) & (buf[np.maximum(f.stamp_end - 1, 0)] == _CLOSE)
-                & (buf[np.maximum(dot, 0)] == _DOT) & (int_digits >= 1) & (int_digits <= SECONDS_DIGITS)
-                & seconds_ok & micros_ok & (seconds < MAX_SECONDS))
-    # the identifier: 3 or 8 hex digits between the second space and "#"
-    id_digits = f.hash - f.channel_end - 1
-    id_at = f.hash[:, None] - ID_DIGITS[-1] + np.arange(ID_DIGITS[-1])
-    ident, ident_ok = _number(_HEX[_window(buf, f.hash - ID_DIGITS[-1], ID_DIGITS[-1])],
-                              id_at > f.channel_end[:, None], 16)
-    ident_ok &= np.isin(id_digits, ID_DIGITS) & (ident < MAX_ID)
-    # the data: pairs of hex digits up to the third space or the line's end
-    data_digits = f.data_end - f.hash - 1
-    width = 2 * CLASSIC_BYTES
-    nibbles = _HEX[_window(buf, f.hash + 1, width)]
-    in_data = np.arange(width) < data_digits[:, None]
-    data_ok = ((data_digits >= 0) & (data_digits <= width) & (data_digits % 2 == 0)
-               & np.all((nibbles >= 0) | ~in_data, axis=1))
-    nibbles = np.where(in_data, nibbles, 0)
-    data = (nibbles[:, 0::2] * 16 + nibbles[:, 1::2]).astype(np.uint8)
-    # the direction, if any: one letter, last on the line
-    has_direction = f.data_end != end
-    direction_ok = ~has_direction | ((end == f.data_end + 2) & _IS_DIRECTION[buf[np.minimum(f.data_end + 1, len(buf) - 1)]])
-    ok = (f.shape_ok & (f.stamp_end > start) & (f.channel_end > f.stamp_end + 1) & (f.hash > f.channel_end)
-          & stamp_ok & ident_ok & data_ok & direction_ok)
-    return Columns(ok=ok, stamp_ns=(seconds * 1_000_000 + micros) * US, arbitration_id=ident,
-                   is_extended=id_digits > ID_DIGITS[0], data=data, length=data_digits // 2)
+    """The stamp, identifier and data of every line of the common form (``ok``); others are not ok. Lines
+    are parsed by layout (few in a log): each layout's lines gathered as fixed-width rows."""
+    n = len(lines.start)
+    out = Columns(np.zeros(n, bool), np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n, bool),
+                  np.zeros((n, CLASSIC_BYTES), np.uint8), np.zeros(n, np.int64))
+    candidates = np.flatnonzero(f.shape_ok & (lines.end - lines.start < 256) & (f.stamp_end > lines.start)
+                                & (f.channel_end > f.stamp_end) & (f.hash > f.channel_end))
+    keys, inverse = np.unique(Layout.key(f, lines, candidates), return_inverse=True)
+    for k, key in enumerate(keys.tolist()):
+        layout = Layout.of_key(key)
+        if not layout.fits():
+            continue
+        mine = candidates[inverse.ravel() == k]
+        starting_at = as_strided(buf, shape=(len(buf) - layout.length + 1, layout.length), strides=(1, 1))
+        ok, values = _parse_layout(starting_at[lines.start[mine]], layout)
+        for column, value in zip(out, values):
+            column[mine[ok]] = value[ok]
+    return out
 
 
 def python_can_line(line: bytes) -> Frame | None:

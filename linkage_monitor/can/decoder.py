@@ -383,12 +383,11 @@ class CanDecoder:
     def _key_rows(self, block: FrameBlock) -> _RowKeys:
         """Each frame's mapped message and whether a DBC knows its identifier, looked up once per
         identifier of the block."""
-        key = block.arbitration_id | (block.is_extended.astype(np.int64) << 32)
-        keys, inverse = np.unique(key, return_inverse=True)
+        keys, inverse = np.unique(block.arbitration_id * 2 + block.is_extended, return_inverse=True)
         index = {id(route): k for k, route in enumerate(self._routes)}
         route, known = np.full(len(keys), -1, np.int64), np.zeros(len(keys), bool)
         for k, value in enumerate(keys.tolist()):
-            ident, extended = value & 0xFFFFFFFF, bool(value >> 32)
+            ident, extended = value >> 1, bool(value & 1)
             found = self._route_of(ident, extended)
             route[k] = -1 if found is None else index[id(found)]
             known[k] = self._known(ident, extended)
