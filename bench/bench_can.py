@@ -3,8 +3,9 @@
 1. Log -> bag (`can-to-bag`'s work: the candump reader, the decoder and the bag writer, on blocks of
    frames) on the shipped lift log repeated to N frames; baseline: python-can's candump reader alone
    (its frames as the bridge's Frames), timed in the same run; beside it the block reader alone and
-   reader + decoder without the bag, and with --per-frame the same conversion one frame at a time
-   (python-can's reader, ``decode`` and ``write`` per message). What a process does once (imports, rclpy's
+   reader + decoder without the bag, and with --per-frame python-can's frames through the same blocks
+   (the path of .asc and .blf logs) and the conversion one frame at a time as the live bridge records
+   a frame (python-can's reader, ``decode``, a bag ``write`` per message). What a process does once (imports, rclpy's
    type support, message layouts) is done before the timing by converting the shipped log. Goal: >= 100k
    frames/s.
 2. The live bridge (`linkage-monitor can --bus udp_multicast:...`, its own process, recording) fed
@@ -62,6 +63,24 @@ def _long_log(path: Path, n: int) -> int:
     return count
 
 
+def _one_frame_at_a_time(frames, decoder, mech, config, out: Path) -> None:
+    """The conversion as the live bridge records a frame: ``decode`` and a bag ``write`` per message."""
+    from linkage_monitor.bag.step_recorder import StepRecorder
+    from linkage_monitor.bag.writer import BagWriter
+    from linkage_monitor.can.frame_msg import FRAME_TYPE, to_cdr
+    from linkage_monitor.can.to_bag import RAW_TOPIC, input_record
+
+    with BagWriter(out) as writer:
+        recorder = StepRecorder(writer, config.topics)
+        for k, frame in enumerate(frames):
+            if k == 0:
+                recorder.begin(mech, config, frame.stamp_ns)
+            recorder.input(RAW_TOPIC, FRAME_TYPE, to_cdr(frame), frame.stamp_ns, frame.stamp_ns)
+            for event in decoder.decode(frame, frame.stamp_ns).events:
+                type_name, data = input_record(event)
+                recorder.input(event.topic, type_name, data, event.stamp_ns, frame.stamp_ns)
+
+
 def bench_log_to_bag(n: int, per_frame: bool = False) -> None:
     from linkage_monitor.can.decoder import CanDecoder, load_databases
     from linkage_monitor.can.mapping import load_mapping
@@ -100,8 +119,12 @@ def bench_log_to_bag(n: int, per_frame: bool = False) -> None:
         if per_frame:
             decoder = CanDecoder(db, mapping, mech, config, "bench")
             t0 = time.perf_counter()
-            can_to_bag(read_log(log), decoder, mech, config, Path(tmp) / "bag_per_frame")
-            timed["one frame at a time (python-can, decode)"] = time.perf_counter() - t0
+            can_to_bag(read_log(log), decoder, mech, config, Path(tmp) / "bag_python_can")
+            timed["python-can's frames in blocks (.asc, .blf)"] = time.perf_counter() - t0
+            decoder = CanDecoder(db, mapping, mech, config, "bench")
+            t0 = time.perf_counter()
+            _one_frame_at_a_time(read_log(log), decoder, mech, config, Path(tmp) / "bag_per_frame")
+            timed["one frame at a time (decode, write)"] = time.perf_counter() - t0
     assert read == read_blocks == count == converted.counts.received
     print(f"log -> bag, {count} frames ({converted.counts.summary()})")
     t_read = timed["python-can candump reader alone (baseline)"]
@@ -258,7 +281,7 @@ def main() -> int:
     parser.add_argument("--rate", type=float, default=8000.0, help="frames/s of the live run")
     parser.add_argument("--log-only", action="store_true", help="only the log -> bag part (no live bridge)")
     parser.add_argument("--per-frame", action="store_true",
-                        help="also time the conversion one frame at a time (python-can's reader, decode, write)")
+                        help="also time python-can's frames through the blocks and the conversion one frame at a time")
     parser.add_argument("--send", nargs=3, metavar=("SPEC", "RATE", "SECONDS"), help=argparse.SUPPRESS)
     parser.add_argument("--receive", nargs=2, metavar=("SPEC", "TOTAL"), help=argparse.SUPPRESS)
     args = parser.parse_args()
