@@ -23,7 +23,8 @@ from numba import njit, prange
 
 from .chain import (A_BODY, A_BODY2, A_END, A_JOINT1, A_JOINT2, A_OTHER, A_PARENT, A_PARENT2, ANGLE, ANGLE_INPUT,
                     ANGLE_SIGN, BODY, BODY2, CYLINDER, CYLINDER_INPUT, KIND, RRR, STEP_HINGE, STEP_HINGE2, STEP_JOINT)
-from .programs import KinematicsProgram, LiveRows, MachineProgram, OutputsProgram, ReducedProgram, StaticsProgram
+from .programs import (POSE_VALUES, KinematicsProgram, LiveRows, MachineProgram, OutputsProgram, ReducedProgram,
+                       StaticsProgram)
 
 TWO_PI = 2.0 * math.pi
 PARALLEL_MIN = 512  # poses: smaller batches stay on the calling thread (no thread-pool wake-up)
@@ -1299,10 +1300,14 @@ def steerability_rows(points: np.ndarray, forces: np.ndarray, implement_load: np
 def _live_rows(n_pose: int, n: int, m: int, outputs: OutputsProgram, machine: MachineProgram) -> LiveRows:
     """``LiveRows`` for n_pose poses (the Jacobian two slots, not n_pose): the rows of a pose that
     is not plain are left as they are (the general path writes them); the implement cg and the
-    capacities NaN until written (no implement; a capacity that is not computed)."""
+    capacities NaN until written (no implement; a capacity that is not computed); a pose without a
+    transmission measure NaN and −1."""
     n_steer = N_STEERABILITY if machine.parameters.shape[0] > 0 else 0
     n_capacity = machine.point_att.shape[0] + 1 if machine.point_att.shape[0] > 0 else 0
     n_frame = outputs.frame_att.shape[0]
+    pose = np.empty(n_pose, dtype=POSE_VALUES)
+    for i in range(n_pose):
+        pose[i].transmission_angle, pose[i].weakest = math.nan, -1
     return LiveRows(
         plain=np.zeros(n_pose, dtype=np.bool_), q=np.empty((n_pose, n)), phi=np.empty((n_pose, m)),
         jac=np.empty((2, m, n)), kinematic_condition=np.empty(n_pose),
@@ -1311,34 +1316,37 @@ def _live_rows(n_pose: int, n: int, m: int, outputs: OutputsProgram, machine: Ma
         cylinder_values=np.empty((n_pose, outputs.per_cap_area.shape[0], 5)),
         contact_values=np.empty((n_pose, outputs.contact_cols.shape[0], 2)), implement_cg=np.full((n_pose, 2), np.nan),
         frame_load_points=np.empty((n_pose, n_frame, 2)), frame_load_forces=np.empty((n_pose, n_frame, 2)),
-        implement_load=np.empty(n_pose), residual=np.empty(n_pose), consistency_residual=np.empty(n_pose),
-        condition=np.empty(n_pose), transmission_angle=np.full(n_pose, np.nan),
-        weakest=np.full(n_pose, -1, dtype=np.int64), steerability=np.empty((n_pose, n_steer)),
+        pose=pose, steerability=np.empty((n_pose, n_steer)),
         capacity=np.full((n_pose, n_capacity), np.nan))
 
 
 @njit(cache=True)
-def live_pose(s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin, statics, outputs, machine):
+def live_pose(s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin_fields, statics_fields,
+              outputs_fields, reduced_fields, machine_fields):
     """The live node's pose in one call: ``live_series`` of one pose (s (1, n_inputs), pressure_forces
     (3, C)) from the solved pose (q_start (1, n), jac_start (1, m, n), s_start (1, n_inputs)).
     Returns its ``LiveRows`` (one pose; ``jac[0]`` its Jacobian)."""
+    kin, statics = KinematicsProgram(*kin_fields), StaticsProgram(*statics_fields)
+    outputs, reduced, machine = (OutputsProgram(*outputs_fields), ReducedProgram(*reduced_fields),
+                                 MachineProgram(*machine_fields))
     rows = _live_rows(1, q_start.shape[1], jac_start.shape[1], outputs, machine)
     _live_pose_at(0, rows, s, pressure_forces.reshape((1,) + pressure_forces.shape), q_start, jac_start, s_start,
-                  limit, max_condition, kin, statics, outputs, machine)
+                  limit, max_condition, kin, statics, outputs, reduced, machine)
     return rows
 
 
 @njit(cache=True)
-def live_series(s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin, statics, outputs,
-                machine):
+def live_series(s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin_fields, statics_fields,
+                outputs_fields, reduced_fields, machine_fields):
     """A recorded series of poses as the live node solves them (replay): pose i from the last pose
     before it that took this path, the first from (q_start (1, n), jac_start (1, m, n), s_start
     (1, n_inputs)). s (N, n_inputs): inputs (m, rad); pressure_forces (N, 3, C): per cylinder the
     measured force (N, NaN = not measured), cap and rod gauge pressures (Pa, NaN = not measured).
     limit: largest constraint residual accepted (m); max_condition: the dead-centre condition
-    number (the kinematics', and the statics' on the general path). kin: ``Kinematics.program``;
-    statics: ``StaticsLayout.program``; outputs: ``Solver.outputs_program`` of that layout;
-    machine: ``MachineModel.program`` (empty arrays for a part the mechanism does not support).
+    number (the kinematics', and the statics' on the general path). The programs, each as a plain
+    tuple of its fields (``programs.fields``): ``Kinematics.program``, ``StaticsLayout.program``,
+    ``Solver.outputs_program`` of that layout, ``ReducedStatics.program`` of it,
+    ``MachineModel.program`` (empty arrays for a part the mechanism does not support).
 
     Each pose, from the per-pose kernels above: loop closure (``_kinematic_pose``), equilibrium with
     the measured cylinder forces — along the chain of dyads with the transmission verdict
@@ -1349,16 +1357,19 @@ def live_series(s, pressure_forces, q_start, jac_start, s_start, limit, max_cond
     assembled to ``limit``, at a dead centre, a contact lifting off — and then its rows are not
     meaningful: the general path (``Solver._solve``) words the verdict.
     """
+    kin, statics = KinematicsProgram(*kin_fields), StaticsProgram(*statics_fields)
+    outputs, reduced, machine = (OutputsProgram(*outputs_fields), ReducedProgram(*reduced_fields),
+                                 MachineProgram(*machine_fields))
     n_pose = s.shape[0]
     rows = _live_rows(n_pose, q_start.shape[1], jac_start.shape[1], outputs, machine)
     last = -1
     for i in range(n_pose):
         if last < 0:
             _live_pose_at(i, rows, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin,
-                          statics, outputs, machine)
+                          statics, outputs, reduced, machine)
         else:
             _live_pose_at(i, rows, s, pressure_forces, rows.q[last:last + 1], rows.jac[1:2],
-                          s[last:last + 1], limit, max_condition, kin, statics, outputs, machine)
+                          s[last:last + 1], limit, max_condition, kin, statics, outputs, reduced, machine)
         if rows.plain[i]:
             last = i
             rows.jac[1] = rows.jac[0]
@@ -1376,7 +1387,7 @@ def smallest_sine(sine: np.ndarray, weakest: int) -> float:
 
 
 @njit(cache=True)
-def _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition, statics, outputs) -> bool:
+def _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition, statics, outputs, reduced) -> bool:
     """Equilibrium of pose i of ``live_series`` into u_out (1, n_unknowns), member axes and lengths,
     its residual, condition and transmission into ``rows``: False at a dead centre — the smallest
     transmission below ``outputs.dead_centre_sine`` (reduced path) or the condition number above
@@ -1385,25 +1396,26 @@ def _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition,
     if outputs.reduced:
         sine, weakest = np.empty((1, outputs.measure_count)), np.empty(1, dtype=np.int64)
         _reduced_pose(0, u_out, residual, sine, weakest, axes, lengths, p, member_force, no_accel, no_alpha, False,
-                      statics, outputs.reduced_program)
+                      statics, reduced)
         smallest = smallest_sine(sine[0], weakest[0])
         if not smallest >= outputs.dead_centre_sine:
             return False
-        rows.transmission_angle[i], rows.weakest[i] = math.asin(smallest), weakest[0]
-        rows.condition[i] = rows.kinematic_condition[i]
+        rows.pose[i].transmission_angle, rows.pose[i].weakest = math.asin(smallest), weakest[0]
+        rows.pose[i].condition = rows.kinematic_condition[i]
     else:
         cond = np.empty(1)
         _statics_pose(0, u_out, residual, cond, axes, lengths, p, member_force, no_accel, no_alpha, False, statics)
         if not cond[0] <= max_condition:
             return False
-        rows.condition[i] = max(cond[0], rows.kinematic_condition[i])
-    rows.residual[i] = residual[0]
+        rows.pose[i].transmission_angle, rows.pose[i].weakest = math.nan, -1
+        rows.pose[i].condition = max(cond[0], rows.kinematic_condition[i])
+    rows.pose[i].residual = residual[0]
     return True
 
 
 @njit(cache=True)
 def _live_pose_at(i, rows, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin, statics,
-                  outputs, machine):
+                  outputs, reduced, machine):
     """Pose i of ``live_series``, written into its rows of ``rows`` (``LiveRows``)."""
     member_att = statics.member_att   # (2, M): the ends of springs then cylinders
     n, m = rows.q.shape[1], rows.phi.shape[1]
@@ -1427,7 +1439,7 @@ def _live_pose_at(i, rows, s, pressure_forces, q_start, jac_start, s_start, limi
         member_force[0, n_springs + k] = pressure_forces[i, 0, k] if outputs.force_measured[k] else 0.0
     u_out = np.empty((1, outputs.n_unknowns))
     axes, lengths = np.empty((1, n_members, 2)), np.empty((1, n_members))
-    if not _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition, statics, outputs):
+    if not _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition, statics, outputs, reduced):
         return
     u = u_out[0]
     contact_cols = outputs.contact_cols
@@ -1468,7 +1480,7 @@ def _live_pose_at(i, rows, s, pressure_forces, q_start, jac_start, s_start, limi
     consistency = 0.0
     for r in range(m):
         consistency += rows.phi[i, r] * rows.phi[i, r]
-    rows.implement_load[i], rows.consistency_residual[i] = load, math.sqrt(consistency)
+    rows.pose[i].implement_load, rows.pose[i].consistency_residual = load, math.sqrt(consistency)
     if machine.parameters.shape[0]:
         steerability_pose(frame_points, frame_forces, load, rows.implement_cg[i, 0], machine.parameters,
                           rows.steerability[i])
@@ -1482,7 +1494,7 @@ def _live_pose_at(i, rows, s, pressure_forces, q_start, jac_start, s_start, limi
     rows.plain[i] = True
 
 
-# ``live_pose``'s ``machine`` when no machine-level results are wanted
+# ``live_pose``'s machine program when no machine-level results are wanted
 NO_MACHINE = MachineProgram(parameters=np.zeros(0), hinge_att=np.zeros((2, 0), dtype=np.int64),
                             cylinder_att=np.zeros((2, 0), dtype=np.int64), lift=0, lift_force=math.nan,
                             gravity=math.nan, weight_att=np.zeros(0, dtype=np.int64), weight_mass=np.zeros(0),

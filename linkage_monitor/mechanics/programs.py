@@ -2,7 +2,9 @@
 
 A *program* is a mechanism (or one statics layout of it) as plain arrays, built once by the class
 named in its docstring and handed to every compiled call; the kernels read its fields by name
-(numba compiles a NamedTuple's attribute access to a struct field). ``LiveRows`` is what the live
+(numba compiles a NamedTuple's attribute access to a struct field). The live calls take them as
+plain tuples of their fields (``fields``) and name them again inside: numba types a NamedTuple
+argument in Python, some microseconds each call, a tuple in C. ``LiveRows`` is what the live
 solve writes, per pose. Indices are attachments (points fixed on bodies, ``Kinematics.attach``),
 hinges, members (springs then cylinders) or columns of the statics' unknowns. SI units: m, rad, N,
 kg; frame x forward, z up.
@@ -108,9 +110,9 @@ class OutputsProgram(NamedTuple):
     implement load's column (−1: its weight, ``implement_weight`` N, is known); 1 / (count·cap
     area) per cylinder (1/m²); the result points' attachments; the implement cg's (−1: none);
     the frame loads' attachments, hinges and members with their signs (+1: the force on the
-    ground). ``reduced``: whether the reduced coordinates serve the layout (then ``reduced_program``
-    solves it and ``dead_centre_sine`` = sin of the dead-centre transmission angle decides).
-    ``measure_count``: the chain's transmission measures (steps + the free load)."""
+    ground). ``reduced``: whether the reduced coordinates serve the layout (then its
+    ``ReducedProgram`` solves it and ``dead_centre_sine`` = sin of the dead-centre transmission
+    angle decides). ``measure_count``: the chain's transmission measures (steps + the free load)."""
 
     n_unknowns: int
     spring_stiffness: np.ndarray
@@ -132,7 +134,6 @@ class OutputsProgram(NamedTuple):
     frame_member_index: np.ndarray
     frame_member_sign: np.ndarray
     reduced: bool
-    reduced_program: ReducedProgram
     dead_centre_sine: float
     measure_count: int
 
@@ -157,16 +158,23 @@ class MachineProgram(NamedTuple):
     cg_point: int
 
 
+POSE_VALUES = np.dtype([("implement_load", np.float64), ("residual", np.float64),
+                        ("consistency_residual", np.float64), ("condition", np.float64),
+                        ("transmission_angle", np.float64), ("weakest", np.int64)])
+"""The scalars of one pose in ``LiveRows.pose``: implement load N, equilibrium residual N (N·m on
+the reduced path), consistency residual m, condition number (the kinematic one on the reduced
+path), smallest transmission angle rad (NaN on the general path) and the index of its measure
+(−1: none)."""
+
+
 class LiveRows(NamedTuple):
     """What ``kernels.live_series`` writes for N poses, in ``Result``'s and ``MachineResult``'s
     layouts: whether pose i took the live path (``plain``; False: its rows are not meaningful,
     the general path words it); q (N, n), Φ (N, m), the Jacobian (2, m, n) — [0] the last pose's,
     [1] the last plain pose's —, the kinematic condition (N,); points (N, P, 2) m, hinge forces
     (N, H, 2) N, cylinder values (N, C, 5), contact values (N, K, 2), implement cg (N, 2) m,
-    frame load points and forces (N, F, 2); implement load N, equilibrium residual N (or N·m on
-    the reduced path), consistency residual m, condition number (NaN on the reduced path); the
-    smallest transmission angle (rad, NaN on the general path) and its measure's index (−1:
-    none); steerability rows (N, S) and capacity rows (N, P + 1)."""
+    frame load points and forces (N, F, 2); the pose's scalars (N,) ``POSE_VALUES``; steerability
+    rows (N, S) and capacity rows (N, P + 1)."""
 
     plain: np.ndarray
     q: np.ndarray
@@ -180,11 +188,11 @@ class LiveRows(NamedTuple):
     implement_cg: np.ndarray
     frame_load_points: np.ndarray
     frame_load_forces: np.ndarray
-    implement_load: np.ndarray
-    residual: np.ndarray
-    consistency_residual: np.ndarray
-    condition: np.ndarray
-    transmission_angle: np.ndarray
-    weakest: np.ndarray
+    pose: np.ndarray
     steerability: np.ndarray
     capacity: np.ndarray
+
+
+def fields(program: NamedTuple) -> tuple:
+    """A program as the live calls take it (``kernels.live_pose``): a plain tuple of its fields."""
+    return tuple(program)

@@ -16,7 +16,7 @@ from .constants import ATMOSPHERIC_PRESSURE   # a gauge pressure below −1 atm 
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
 from .kinematics import Kinematics, KinematicState
 from .model import Cylinder, Mechanism
-from .programs import MachineProgram, OutputsProgram, StaticsProgram
+from .programs import POSE_VALUES, MachineProgram, OutputsProgram, fields
 from .reduced import DEAD_CENTRE_TRANSMISSION_DEG, ReducedSolution, ReducedStatics, smallest_sine
 from .results import BatchResult, Result, ResultNames, Status
 from .statics import StaticsLayout, StaticsSolution
@@ -190,15 +190,15 @@ class Solver:
         start = kin.reference
         rows = kernels.live_series(
             s, np.ascontiguousarray(np.stack([measured, cap, rod], axis=1)), start.q[-1:], start.jac[-1:],
-            start.s[-1:], self._assembly_limit, self.dead_centre_cond, kin.program, layout.program,
-            self.outputs_program(layout), machine)
+            start.s[-1:], self._assembly_limit, self.dead_centre_cond, fields(kin.program), fields(layout.program),
+            fields(self.outputs_program(layout)), fields(self._reduced[layout.force_known].program), fields(machine))
         plain = rows.plain & ~bad
         batch = BatchResult.from_stacked(
             self.names, {h.name: h.bodies for h in mech.hinges}, rows.point_xz, rows.q.reshape(n_pose, -1, 3),
-            rows.hinge_force, rows.cylinder_values, rows.contact_values, rows.implement_load, rows.implement_cg,
-            list(self.frame_load_names), rows.frame_load_points, rows.frame_load_forces, rows.residual,
-            rows.consistency_residual, rows.condition, rows.transmission_angle,
-            self._weakest_names(self._reduced[layout.force_known], rows.weakest))
+            rows.hinge_force, rows.cylinder_values, rows.contact_values, rows.pose["implement_load"],
+            rows.implement_cg, list(self.frame_load_names), rows.frame_load_points, rows.frame_load_forces,
+            rows.pose["residual"], rows.pose["consistency_residual"], rows.pose["condition"],
+            rows.pose["transmission_angle"], self._weakest_names(self._reduced[layout.force_known], rows.pose["weakest"]))
         general = np.flatnonzero(~plain)
         if general.size:
             def taken(group: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -328,7 +328,7 @@ class Solver:
                 frame_hinge_sign=self._frame_hinge_sign.ravel().astype(float),
                 frame_member_index=self._frame_member_index.astype(np.int64),
                 frame_member_sign=self._frame_member_sign.ravel().astype(float),
-                reduced=reduced.served, reduced_program=reduced.program, dead_centre_sine=self._dead_centre_sine,
+                reduced=reduced.served, dead_centre_sine=self._dead_centre_sine,
                 measure_count=len(reduced.measure_names))
             self._outputs_programs[layout.force_known] = program
         return program
@@ -369,27 +369,29 @@ class Solver:
         programs = self._programs_by_sensors.get(tuple(inputs.pressures))
         if programs is None:   # the layout of these measured cylinder forces, once per set of pressure sensors
             layout = self.statics_layout(frozenset(ps.cylinder for ps, _ in pressures))
+            reduced = self._reduced[layout.force_known]
             programs = self._programs_by_sensors[tuple(inputs.pressures)] = _PlainPrograms(
-                layout.force_measured.tolist(), layout.program, self.outputs_program(layout),
-                [*self._reduced[layout.force_known].measure_names, ""])
+                layout.force_measured.tolist(), fields(kin.program), fields(layout.program),
+                fields(self.outputs_program(layout)), fields(reduced.program), [*reduced.measure_names, ""])
         measured = [_measured_force(c, cap[k], rod[k]) if known else math.nan
                     for k, (c, known) in enumerate(zip(cylinders, programs.force_measured))]
         start = start if start is not None else kin.reference
         s = np.array([values])
         rows = kernels.live_pose(s, np.array([measured, cap, rod]), start.q[-1:], start.jac[-1:], start.s[-1:],
-                                 self._assembly_limit, self.dead_centre_cond, kin.program, programs.statics,
-                                 programs.outputs, machine)
+                                 self._assembly_limit, self.dead_centre_cond, programs.kinematics, programs.statics,
+                                 programs.outputs, programs.reduced, fields(machine))
         if not rows.plain[0]:
             return None
         q = rows.q
         state = KinematicState(s=s, q=q, phi=rows.phi, jac=rows.jac[0:1], status=_SOLVED, messages=[""],
                                condition=rows.kinematic_condition)
+        pose = dict(zip(POSE_VALUES.names, rows.pose[0].item()))   # Python floats by name, in one call
         return SolvedPose(Result(self.names, rows.point_xz[0], q[0].reshape(-1, 3), rows.hinge_force[0], rows.cylinder_values[0],
-                       rows.contact_values[0], float(rows.implement_load[0]), rows.implement_cg[0],
-                       rows.frame_load_points[0], rows.frame_load_forces[0], float(rows.residual[0]),
-                       float(rows.consistency_residual[0]), float(rows.condition[0]), Status.OK.label, state=state,
-                       transmission_angle=float(rows.transmission_angle[0]),
-                       weakest_transmission=programs.measure_names[int(rows.weakest[0])]),
+                       rows.contact_values[0], pose["implement_load"], rows.implement_cg[0],
+                       rows.frame_load_points[0], rows.frame_load_forces[0], pose["residual"],
+                       pose["consistency_residual"], pose["condition"], Status.OK.label, state=state,
+                       transmission_angle=pose["transmission_angle"],
+                       weakest_transmission=programs.measure_names[pose["weakest"]]),
                 rows.steerability[0], rows.capacity[0])
 
     def _solve(self, previous: KinematicState | None, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap,
@@ -528,12 +530,15 @@ class SolvedPose(NamedTuple):
 
 class _PlainPrograms(NamedTuple):
     """What ``Solver._solve_plain`` takes for one set of pressure sensors: which cylinders' forces
-    they measure, the statics layout's and the outputs' programs, the transmission measures' names
-    (then '' for none, index −1)."""
+    they measure, the programs of the kinematics, of the statics layout, of the outputs and of the
+    reduced statics, each as ``kernels.live_pose`` takes it (``programs.fields``), the
+    transmission measures' names (then '' for none, index −1)."""
 
     force_measured: list[bool]
-    statics: StaticsProgram
-    outputs: OutputsProgram
+    kinematics: tuple
+    statics: tuple
+    outputs: tuple
+    reduced: tuple
     measure_names: list[str]
 
 
