@@ -170,6 +170,13 @@ def _vector_of(message: Any, routes: list[_Route], j1939: bool) -> tuple[_Vector
     return tuple(vector)
 
 
+def _table(columns: list[np.ndarray], rows: np.ndarray) -> np.ndarray:
+    """``columns`` (each (n,)) side by side, the ``rows`` (bool (n,)) kept: (kept, len(columns))."""
+    if not columns:
+        return np.zeros((int(rows.sum()), 0))
+    return np.stack(columns, axis=1)[rows]
+
+
 def load_databases(paths: Sequence[str | Path]) -> Database:
     """The DBC files as one cantools database; InputError naming a file that is not one."""
     if not paths:
@@ -350,7 +357,6 @@ class CanDecoder:
         events.extend(PressureEvent(topic, value, frame.stamp_ns, receive_ns) for topic, value in pressures)
         return Decoded(Outcome.DECODED, tuple(events))
 
-
     # ---- many frames ---------------------------------------------------------------------------
     def decode_block(self, block: FrameBlock) -> BlockDecoded:
         """Every frame's outcome (counted), received = stamped (a log's time is its receive time); never
@@ -432,10 +438,8 @@ class CanDecoder:
             else:
                 names.append(item.name)
                 positions.append(si)
-        m = int(good.sum())
-        stack = lambda columns: np.stack(columns, axis=1)[good] if columns else np.zeros((m, 0))  # noqa: E731
-        return DecodedInputs(rows[good], self.config.topics.joint_states, tuple(names), stack(positions),
-                             tuple(topics), stack(pressures)), good
+        return DecodedInputs(rows[good], self.config.topics.joint_states, tuple(names), _table(positions, good),
+                             tuple(topics), _table(pressures, good)), good
 
     def _fluid_pressure(self, pascal: _Pascal, absolute: bool) -> _Pascal:
         """The FluidPressure value (Pa) of a reading, in the convention the monitor is configured for."""
