@@ -1,6 +1,8 @@
 """Test-wide set-up: DDS isolation before any rclpy context exists."""
 
+import inspect
 import os
+from types import FunctionType, ModuleType
 
 import pytest
 import rclpy
@@ -62,3 +64,33 @@ def tmpfs(tmp_path):
     yield mount
     for where in mounted:
         subprocess.run(["umount", str(where)], check=False)
+
+
+# What starts ROS 2 processes or rclpy nodes: these fixtures, these names (the harness's, rclpy),
+# these command words (a node's module, ROS arguments), in a test or in a function of its module it calls
+ROS_FIXTURES = {"ros", "node"}
+ROS_NAMES = {"rclpy", "start_node", "start_simulator", "MonitorClient", "publish_samples", "can_sender",
+             "launch", "colcon_smoke", "demo"}
+ROS_COMMANDS = ("ros2", "--ros-args", "launch", "linkage_monitor.ros.node", "linkage_monitor.sim.node",
+                "linkage_monitor.can.node")
+
+
+def _starts_ros(func: FunctionType, module: ModuleType, depth: int = 3) -> bool:
+    """Whether ``func`` (or a function of ``module`` it calls, ``depth`` calls deep) starts ROS."""
+    code = func.__code__
+    names = set(code.co_names) | {c.co_name for c in code.co_consts if inspect.iscode(c)}
+    if names & ROS_NAMES or any(isinstance(c, str) and c in ROS_COMMANDS for c in code.co_consts):
+        return True
+    if depth == 0:
+        return False
+    return any(_starts_ros(obj, module, depth - 1) for name in names
+               if isinstance(obj := getattr(module, name, None), FunctionType) and obj.__module__ == module.__name__)
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Mark ``ros`` every test that starts ROS (``pytest -m "not ros"``: the physics and file tests)."""
+    for item in items:
+        function, module = getattr(item, "function", None), getattr(item, "module", None)
+        if ROS_FIXTURES & set(getattr(item, "fixturenames", ())) or (
+                function is not None and module is not None and _starts_ros(function, module)):
+            item.add_marker(pytest.mark.ros)

@@ -17,10 +17,10 @@ from rosbags.typesys import Stores, get_typestore
 
 from linkage_monitor.bag.writer import BagWriter
 from linkage_monitor.cli.main import main as cli_main
+from support.bag_outputs import output_bytes
 
 SOURCE = Path(__file__).resolve().parents[1] / "bags" / "belarus_1221_lift_transport"
 INPUTS = ("/linkage_monitor/mechanism", "/linkage_monitor/config", "/joint_states", "/pressure/lift_cap_pressure")
-OUTPUTS = ("/hinge_reactions", "/hitch_state", "/steerability", "/diagnostics")
 MECHANISM_YAML = "name: any\n"   # an attachment each file must carry
 
 
@@ -88,21 +88,14 @@ def test_rosbags_reads_a_split_bag_as_the_messages_written(recorded, kind):
     assert read == messages
 
 
-def _outputs(bag: Path) -> dict[str, list[bytes]]:
-    out: dict[str, list[bytes]] = {t: [] for t in OUTPUTS}
-    for file in sorted(bag.glob("*.mcap")):
-        with open(file, "rb") as stream:
-            for _, channel, message in make_reader(stream).iter_messages(topics=list(OUTPUTS)):
-                out[channel.topic].append(message.data)
-    return out
 
-
+@pytest.mark.slow
 def test_a_split_bag_replays_as_the_unsplit_one(recorded, tmp_path):
     _, _, bags = recorded
     replayed = {}
     for kind in ("one", "duration"):
         assert cli_main(["replay", str(bags[kind]), "--out", str(tmp_path / kind), "--quiet"]) == 0
-        replayed[kind] = _outputs(tmp_path / kind)
+        replayed[kind] = output_bytes(tmp_path / kind)
     assert sum(len(v) for v in replayed["one"].values()) > 3000   # the bundled lift: 3257 of each output
     assert replayed["duration"] == replayed["one"]
 

@@ -12,7 +12,6 @@ from pathlib import Path
 
 import pytest
 import yaml
-from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
@@ -20,10 +19,10 @@ from rosbags.typesys import Stores, get_typestore
 from linkage_monitor.bag.writer import BagError
 from linkage_monitor.cli.main import main as cli_main
 from linkage_monitor.offline.fleet import find_bags
+from support.bag_outputs import output_bytes
 
 SOURCE = Path(__file__).resolve().parents[1] / "bags" / "belarus_1221_lift_transport"
 INPUTS = ("/linkage_monitor/mechanism", "/linkage_monitor/config", "/joint_states", "/pressure/lift_cap_pressure")
-OUTPUTS = ("/hinge_reactions", "/hitch_state", "/steerability", "/diagnostics")
 
 
 def _source_messages():
@@ -93,21 +92,13 @@ def bags(tmp_path_factory):
     return made, len(messages)
 
 
-def _outputs(bag: Path) -> dict[str, list[bytes]]:
-    """The output topics of a bag the replay wrote, as CDR bytes per topic, read by mcap's reader."""
-    out: dict[str, list[bytes]] = {t: [] for t in OUTPUTS}
-    for file in sorted(bag.glob("*.mcap")):
-        with open(file, "rb") as stream:
-            for _, channel, message in make_reader(stream).iter_messages(topics=list(OUTPUTS)):
-                out[channel.topic].append(message.data)
-    return out
-
 
 def _replay(bag: Path, out: Path) -> dict[str, list[bytes]]:
     assert cli_main(["replay", str(bag), "--out", str(out), "--quiet"]) == 0
-    return _outputs(out)
+    return output_bytes(out)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["sqlite3", "sqlite3_file", "sqlite3_split", "mcap_split"])
 def test_a_bag_in_any_storage_replays_as_its_mcap_twin(bags, kind, tmp_path):
     made, count = bags

@@ -458,6 +458,7 @@ def _per_frame_bag(frames: list[Frame], decoder: CanDecoder, out: Path) -> None:
                 recorder.input(event.topic, type_name, data, event.stamp_ns, frame.stamp_ns)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", ["shipped", "numpy", "one by one"])
 def test_can_to_bag_in_blocks_records_what_the_bridge_records(tmp_path: Path, case: str) -> None:
     text = None if case == "shipped" else SYNTHETIC_MAPS[case]
@@ -482,6 +483,7 @@ def test_can_to_bag_in_blocks_records_what_the_bridge_records(tmp_path: Path, ca
     assert len(converted.refusals) == len(refused) > 0
 
 
+@pytest.mark.slow
 def test_the_cli_prints_the_counts_of_every_special_line(tmp_path: Path) -> None:
     import subprocess
     import sys

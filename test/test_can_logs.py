@@ -50,6 +50,7 @@ def test_shipped_log_read_by_python_can() -> None:
     assert first.data == bytes.fromhex("2A40FFFFFF3F0000")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("suffix, writer", [(".asc", can.ASCWriter), (".blf", can.BLFWriter)])
 def test_asc_and_blf_written_by_python_can_give_the_same_inputs(tmp_path: Path, suffix: str, writer) -> None:
     frames = list(read_log(LOG))
@@ -73,6 +74,7 @@ def test_asc_and_blf_written_by_python_can_give_the_same_inputs(tmp_path: Path, 
         assert [values(m) for m in a] == [values(m) for m in b]
 
 
+@pytest.mark.slow
 def test_can_to_bag_holds_raw_frames_and_inputs(tmp_path: Path) -> None:
     result = _cli("can-to-bag", str(LOG), "--map", str(MAP), "--out", str(tmp_path / "bag"))
     assert result.returncode == 0, result.stderr
@@ -95,6 +97,7 @@ def test_can_to_bag_holds_raw_frames_and_inputs(tmp_path: Path) -> None:
     assert topics["/pressure/lift_cap_pressure"][0].fluid_pressure == pytest.approx(10_138e3 + 101_325.0, abs=1e-6)
 
 
+@pytest.mark.slow
 def test_replay_decodes_the_raw_frames_again(tmp_path: Path) -> None:
     assert _cli("can-to-bag", str(LOG), "--map", str(MAP), "--out", str(tmp_path / "bag")).returncode == 0
     same = _cli("replay", str(tmp_path / "bag"), "--quiet")
@@ -118,6 +121,7 @@ def test_replay_decodes_the_raw_frames_again(tmp_path: Path) -> None:
     (["can", "--map", str(MAP), "--bus", "nosuch:can0"], "python-can knows no interface 'nosuch'"),
     (["can", "--map", str(MAP), "--bus", "can0"], "expected INTERFACE:CHANNEL"),
 ])
+@pytest.mark.slow
 def test_errors_are_one_line(tmp_path: Path, args: list[str], words: str) -> None:
     args = [str(tmp_path / a) if a == "OUT" else a for a in args]
     result = _cli(*args, cwd=tmp_path)   # nothing may be recorded: the errors come before the node starts
@@ -125,6 +129,7 @@ def test_errors_are_one_line(tmp_path: Path, args: list[str], words: str) -> Non
     assert words in result.stderr and len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
 
 
+@pytest.mark.slow
 def test_calibration_reproduces_the_shipped_tables(tmp_path: Path) -> None:
     """can-calibrate on the shipped log and the simulator's truth gives the tables of the shipped mapping
     (written there to 9 significant digits), each within one position step's worth of the truth: the

@@ -64,6 +64,7 @@ def fleet_run(tmp_path_factory) -> tuple[Path, Path, int]:
     return root / "bags", root / "out", code
 
 
+@pytest.mark.slow
 def test_fleet_rows_equal_single_bag_replays(fleet_run):
     bags, out, code = fleet_run
     assert code == 0

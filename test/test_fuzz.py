@@ -5,6 +5,7 @@ profile 'ci', conftest.py)."""
 
 from __future__ import annotations
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -16,6 +17,7 @@ BELARUS = load_preset("belarus_1221")   # stroke + angle + pressure: the overdet
 TTZ = load_preset("ttz1080_base_change")
 
 
+@pytest.mark.slow
 @settings(max_examples=6, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), fault_rate=st.sampled_from([0.05, 0.3, 0.9]))
 def test_belarus_stream_with_faults(seed, fault_rate):
@@ -23,6 +25,7 @@ def test_belarus_stream_with_faults(seed, fault_rate):
     assert tally == FuzzTally(inputs_tried=1500), tally
 
 
+@pytest.mark.slow
 @settings(max_examples=3, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
 def test_single_input_mechanism_stream_with_faults(seed):

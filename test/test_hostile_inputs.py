@@ -57,6 +57,7 @@ def test_hostile_mechanism_file_is_one_named_error(tmp_path, case, capsys):
     assert len(err_lines) == 1 and words in err_lines[0]
 
 
+@pytest.mark.slow
 def test_fifo_is_refused_without_blocking(tmp_path):
     fifo = tmp_path / "mechanism.yaml"
     os.mkfifo(fifo)

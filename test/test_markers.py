@@ -116,6 +116,7 @@ def test_marker_bytes_are_what_rclpy_builds(name):
         assert len(data) == len(exact_cdr(MARKER_ARRAY, wire))
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None)
 @given(exponents=st.lists(st.floats(-4.0, 7.0), min_size=1, max_size=12), sign=st.sampled_from([1.0, -1.0]))
 def test_labels_of_any_length_are_spliced_as_rclpy_builds(exponents, sign):

@@ -52,6 +52,7 @@ def test_bad_input_exit_2_one_line(capsys, argv, words) -> None:
     assert err.count("\n") == 1 and all(w in err for w in words), err
 
 
+@pytest.mark.slow
 def test_subprocess_presets_and_solve() -> None:
     run = subprocess.run([PYTHON, "-m", "linkage_monitor.cli", "solve", "--mechanism", HITCH], capture_output=True,
                          text=True, timeout=60)

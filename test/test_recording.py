@@ -265,6 +265,7 @@ while True:
 """
 
 
+@pytest.mark.slow
 def test_killed_writer_leaves_a_readable_bag(tmp_path: Path) -> None:
     """SIGKILL mid-recording: every reader gets the messages up to the last flush."""
     import rerun.chunk as rc

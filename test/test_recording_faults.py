@@ -29,6 +29,7 @@ def _count_readable(bag: Path) -> tuple[int, int]:
     return by_mcap, by_rosbags
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("split", [0, 48 * 1024], ids=["one file", "split by size"])
 def test_full_disk_is_reported_and_the_bag_stays_readable(tmpfs, split):
     """Split by size, the disk fills while the fourth or so file is written: the files before are

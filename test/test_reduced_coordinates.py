@@ -12,6 +12,7 @@ the seed-003 hitch against its paper's table.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,7 +24,7 @@ from linkage_monitor.mechanics.chain import BODY, CYLINDER, CYLINDER_INPUT, KIND
 from linkage_monitor.mechanics.limits import input_limits
 from linkage_monitor.mechanics.reduced import DEAD_CENTRE_TRANSMISSION_DEG, ReducedStatics, transmission
 from test_mechanics_oracles import FIXTURES
-from transmission_sweep import sweep   # tools/transmission_sweep.py
+from transmission_sweep import sweep, table   # tools/transmission_sweep.py
 
 MECHANISMS = {m.name: m for m in [load_preset(name) for name in preset_names()]
               + [load_mechanism(f) for f in sorted(FIXTURES.glob("*.yaml"))]}
@@ -187,3 +188,14 @@ def test_the_default_threshold_flags_every_pose_the_condition_number_flags(prese
     assert row.flagged_by_cond > 0
     assert row.missed == 0, row
     assert row.max_angle_cond_flagged < DEAD_CENTRE_TRANSMISSION_DEG
+
+
+@pytest.mark.slow
+def test_the_sweep_table_in_the_docs_is_what_the_sweep_gives() -> None:
+    """docs/dead-centre.md's table is exactly what tools/transmission_sweep.py prints (at its default
+    4,001 points per line), and no pose the condition number flags is missed on any preset."""
+    rows = [sweep(load_preset(name), points=4001) for name in preset_names()]
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "dead-centre.md").read_text(encoding="utf-8")
+    assert table(rows, DEAD_CENTRE_TRANSMISSION_DEG) in doc, (
+        "docs/dead-centre.md's sweep table is stale: paste in what .venv/bin/python tools/transmission_sweep.py prints")
+    assert all(row.missed == 0 for row in rows)

@@ -192,6 +192,7 @@ def test_rrd_verify_accepts_the_file(replay):
     assert out.returncode == 0, out.stdout + out.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(180)
 def test_viewer_screenshot_shows_the_linkage(replay, tmp_path):
     rgb = screenshot(replay[0], tmp_path)

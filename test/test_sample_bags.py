@@ -22,6 +22,7 @@ def test_there_are_sample_bags_for_four_presets():
     assert sum(f.stat().st_size for b in BAGS for f in b.iterdir()) < 10e6  # a few MB in all
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("bag", BAGS, ids=[b.name for b in BAGS])
 def test_sample_bag_decodes_with_three_readers_and_replays(bag):
     with AnyReader([bag], default_typestore=get_typestore(Stores.EMPTY)) as reader:

@@ -59,6 +59,7 @@ def test_table_2_forces_per_row(row: int):
     assert ours.r07[0] == pytest.approx(r07, rel=0.05)     # Table 2, R07 (top link)
 
 
+@pytest.mark.slow
 def test_generated_doc_is_current(tmp_path: Path):
     """docs/seed003_tables.md is exactly what its command prints (regenerate: see the doc's first lines)."""
     out = tmp_path / "seed003_tables.md"

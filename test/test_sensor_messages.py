@@ -111,6 +111,7 @@ def _damaged(data: bytes, kind: int, at: int, value: int, extra: bytes) -> bytes
 damage = st.tuples(st.integers(0, 3), st.integers(0, 400), st.integers(0, 255), st.binary(min_size=1, max_size=9))
 
 
+@pytest.mark.slow
 @settings(max_examples=1500, deadline=None)
 @given(joint_states, damage)
 def test_a_damaged_joint_state_fares_as_in_rclpy(data, how):
