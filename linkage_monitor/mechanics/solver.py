@@ -24,6 +24,7 @@ from .statics import StaticsLayout, StaticsSolution
 ArrayMap = Mapping[str, "float | np.ndarray"]
 _SOLVED = np.zeros(1, dtype=int)   # KinematicState.status of one solved pose (shared, read-only)
 _SOLVED.flags.writeable = False
+POSE_NAMES: tuple[str, ...] = POSE_VALUES.names or ()   # LiveRows.pose's fields
 
 
 @dataclass(frozen=True)
@@ -385,7 +386,7 @@ class Solver:
         q = rows.q
         state = KinematicState(s=s, q=q, phi=rows.phi, jac=rows.jac[0:1], status=_SOLVED, messages=[""],
                                condition=rows.kinematic_condition)
-        pose = dict(zip(POSE_VALUES.names, rows.pose[0].item()))   # Python floats by name, in one call
+        pose = dict(zip(POSE_NAMES, rows.pose[0].item()))   # Python floats by name, in one call
         return SolvedPose(Result(self.names, rows.point_xz[0], q[0].reshape(-1, 3), rows.hinge_force[0], rows.cylinder_values[0],
                        rows.contact_values[0], pose["implement_load"], rows.implement_cg[0],
                        rows.frame_load_points[0], rows.frame_load_forces[0], pose["residual"],
@@ -432,6 +433,7 @@ class Solver:
                 measured_force[:, k] = _measured_force(c, cap[c.name], rod[c.name])
         layout = self.statics_layout(force_known)
         reduced = self._reduced[force_known]
+        sol: StaticsSolution | ReducedSolution
         if reduced.served:   # along the chain of dyads; a dead centre where the transmission is lost
             sol = reduced.solve(p, measured_force, accel)
             sine, weakest = sol.transmission.sine, sol.transmission.weakest
@@ -445,13 +447,13 @@ class Solver:
                                f"forces would be unbounded)")
             angle, statics_condition = np.arcsin(smallest), np.full(n_pose, np.nan)
         else:   # one linear system; a dead centre where it is near-singular
-            sol = layout.solve(p, measured_force, accel)
-            for i in np.flatnonzero((status == Status.OK) & ~(sol.condition <= self.dead_centre_cond)):
+            general = sol = layout.solve(p, measured_force, accel)
+            for i in np.flatnonzero((status == Status.OK) & ~(general.condition <= self.dead_centre_cond)):
                 status[i] = Status.DEAD_CENTRE
                 messages[i] = (f"static dead centre at {kin.describe_inputs(s[i])}: equilibrium matrix condition "
-                               f"number {sol.condition[i]:.3g} > {self.dead_centre_cond:.3g} (a member is aligned "
-                               f"with a hinge; forces would be unbounded)")
-            angle, names, statics_condition = np.full(n_pose, np.nan), [""] * n_pose, sol.condition
+                               f"number {general.condition[i]:.3g} > {self.dead_centre_cond:.3g} (a member is "
+                               f"aligned with a hinge; forces would be unbounded)")
+            angle, names, statics_condition = np.full(n_pose, np.nan), [""] * n_pose, general.condition
         u = sol.unknowns
         for contact in mech.contacts:
             normal = u[:, layout.contact_col[contact.name]]
