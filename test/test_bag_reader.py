@@ -129,7 +129,7 @@ def test_a_message_that_does_not_decode_is_left_out_with_a_warning(tmp_path: Pat
     assert columns.position[:, 0].tolist() == [0.0, 0.2]
     assert "1 message(s) on /joint_states do not decode as sensor_msgs/msg/JointState (the first: 30 bytes at " \
            "log time 1700000000000000001 ns" in caplog.text and "left out" in caplog.text
-    assert [row[4] for row in read_bag_raw(tmp_path / "bag")][1] == cut
+    assert [raw.data for raw in read_bag_raw(tmp_path / "bag")][1] == cut
 
 
 @pytest.mark.parametrize("where", [0.5, 0.9])

@@ -454,8 +454,8 @@ def _per_frame_bag(frames: list[Frame], decoder: CanDecoder, out: Path) -> None:
                 recorder.begin(mech, config, frame.stamp_ns)
             recorder.input(RAW_TOPIC, FRAME_TYPE, to_cdr(frame), frame.stamp_ns, frame.stamp_ns)
             for event in decoder.decode(frame, frame.stamp_ns).events:
-                type_name, data = input_record(event)
-                recorder.input(event.topic, type_name, data, event.stamp_ns, frame.stamp_ns)
+                record = input_record(event)
+                recorder.input(event.topic, record.type_name, record.data, event.stamp_ns, frame.stamp_ns)
 
 
 @pytest.mark.slow

@@ -127,9 +127,32 @@ def _ros1_advice(file: Path) -> str:
             f"--dst {file.with_suffix('')}` (rosbags, installed with linkage_monitor), then give that directory")
 
 
+class BagMessage(NamedTuple):
+    """A decoded message of a bag (``read_bag``): its topic, type name `pkg/msg/Type`, header stamp
+    (ns since the epoch; the MCAP publish_time without a header), log time (ns, the receive
+    time) and the rclpy message."""
+
+    topic: str
+    type_name: str
+    stamp_ns: int
+    log_time_ns: int
+    message: Any
+
+
+class RawMessage(NamedTuple):
+    """A message of a bag as recorded (``read_bag_raw``): its topic, type name, MCAP publish and
+    log times (ns since the epoch) and CDR bytes."""
+
+    topic: str
+    type_name: str
+    publish_time_ns: int
+    log_time_ns: int
+    data: bytes
+
+
 def read_bag(path: str | os.PathLike[str], topics: Collection[str] | None = None,
-             types: Collection[str] | None = None) -> Iterator[tuple[str, str, int, int, Any]]:
-    """Yield (topic, type_name, stamp_ns, log_time_ns, msg) for every message of the bag.
+             types: Collection[str] | None = None) -> Iterator[BagMessage]:
+    """Yield every message of the bag, decoded (``BagMessage``).
 
     msg is the rclpy message (class found from type_name `pkg/msg/Type`). stamp_ns is the
     header stamp (ns since the epoch) for messages with a header, else the MCAP publish_time;
@@ -142,13 +165,12 @@ def read_bag(path: str | os.PathLike[str], topics: Collection[str] | None = None
 
 
 def read_bag_raw(path: str | os.PathLike[str], topics: Collection[str] | None = None
-                 ) -> Iterator[tuple[str, str, int, int, bytes]]:
-    """(topic, type name `pkg/msg/Type`, publish_time, log_time (ns since the epoch), CDR bytes as
-    recorded) of every message (on ``topics``), undecoded, in ``read_bag``'s order."""
+                 ) -> Iterator[RawMessage]:
+    """Every message (on ``topics``) undecoded, as recorded, in ``read_bag``'s order."""
     for file in storage_files(path):
         for schema, channel, message in _raw_messages(file, topics):
-            yield (channel.topic, schema.name if schema is not None else "", message.publish_time, message.log_time,
-                   message.data)
+            yield RawMessage(channel.topic, schema.name if schema is not None else "", message.publish_time,
+                             message.log_time, message.data)
 
 
 def read_inputs(path: str | os.PathLike[str]) -> dict[str, JointStateColumns | PressureColumns]:
@@ -207,7 +229,7 @@ Undecoded = dict[tuple[str, str, str], tuple[int, str]]   # (file, topic, type) 
 
 def _messages(path: str | os.PathLike[str], topics: Collection[str] | None,
               types: Collection[str] | None, undecoded: Undecoded | None = None
-              ) -> Iterator[tuple[str, str, int, int, Any]]:
+              ) -> Iterator[BagMessage]:
     """The decoded messages of every storage file; those that do not decode are left out, counted in
     ``undecoded`` when given (the caller reports them), else logged as one warning per topic."""
     for file in storage_files(path):
@@ -225,7 +247,7 @@ def undecoded_lines(undecoded: Undecoded) -> list[str]:
 
 
 def _decoded(file: Path, topics: Collection[str] | None, types: Collection[str] | None,
-             undecoded: Undecoded) -> Iterator[tuple[str, str, int, int, Any]]:
+             undecoded: Undecoded) -> Iterator[BagMessage]:
     """``_messages`` of one storage file; the messages that do not decode counted in ``undecoded``."""
     recorded: dict[tuple[str, bytes], Any] = {}   # (type, schema text) -> its typestore when it is not the installed
     for schema, channel, message in _raw_messages(file, topics):
@@ -254,7 +276,7 @@ def _decoded(file: Path, topics: Collection[str] | None, types: Collection[str] 
             continue
         header = getattr(msg, "header", None)
         stamp = stamp_ns(header) if header is not None else message.publish_time
-        yield channel.topic, type_name, stamp, message.log_time, msg
+        yield BagMessage(channel.topic, type_name, stamp, message.log_time, msg)
 
 
 def _fields(text: str, type_name: str) -> dict[str, Any]:

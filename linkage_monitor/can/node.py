@@ -132,8 +132,8 @@ class CanBridgeNode(LinkageMonitorNode):
         if decoded.finding is not None:
             self._publish(Step(frame.stamp_ns, self.source_name, (decoded.finding,)), now)
         for event in decoded.events:
-            type_name, data = input_record(event)
-            self._record_input(event.topic, type_name, data, event.stamp_ns, now)
+            record = input_record(event)
+            self._record_input(event.topic, record.type_name, record.data, event.stamp_ns, now)
             self._publish(self.monitor.step(event), now)
 
     def _check_silence(self) -> None:

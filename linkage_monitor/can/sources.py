@@ -107,9 +107,9 @@ def read_bag_frames(path: str | Path, topic: str) -> Iterator[Frame]:
     from .frame_msg import FRAME_TYPE, from_cdr
 
     found = False
-    for _, type_name, _, _, data in read_bag_raw(path, topics=[topic]):
-        if type_name == FRAME_TYPE:
+    for raw in read_bag_raw(path, topics=[topic]):
+        if raw.type_name == FRAME_TYPE:
             found = True
-            yield from_cdr(data)
+            yield from_cdr(raw.data)
     if not found:
         raise InputError(f"bag {path} holds no {FRAME_TYPE} on {topic}: it was not recorded from CAN frames")

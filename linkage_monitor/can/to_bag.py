@@ -18,7 +18,7 @@ from __future__ import annotations
 from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable
+from typing import Iterable, NamedTuple
 
 import numpy as np
 
@@ -39,12 +39,19 @@ RAW_TOPIC = "/from_can_bus"
 """Topic of the raw frames (can_msgs/msg/Frame), ros2_socketcan's default."""
 
 
-def input_record(event: InputEvent) -> tuple[str, bytes]:
-    """(type name, CDR bytes) of the sensor message a decoded input event stands for."""
+class InputRecord(NamedTuple):
+    """The sensor message a decoded input event stands for: its type name and CDR bytes."""
+
+    type_name: str
+    data: bytes
+
+
+def input_record(event: InputEvent) -> InputRecord:
+    """The sensor message (``InputRecord``) a decoded input event stands for."""
     if isinstance(event, JointStateEvent):
-        return JOINT_STATE, joint_state_cdr(event.stamp_ns, event.names, event.positions)
+        return InputRecord(JOINT_STATE, joint_state_cdr(event.stamp_ns, event.names, event.positions))
     assert isinstance(event, PressureEvent)
-    return FLUID_PRESSURE, fluid_pressure_cdr(event.stamp_ns, event.fluid_pressure)
+    return InputRecord(FLUID_PRESSURE, fluid_pressure_cdr(event.stamp_ns, event.fluid_pressure))
 
 
 @dataclass(frozen=True)
@@ -106,13 +113,24 @@ def block_records(block: FrameBlock, decoded: BlockDecoded, raw_topic: str = RAW
 def _single_records(block: FrameBlock, decoded: BlockDecoded, raw_at: np.ndarray) -> list[MessageRows]:
     """The inputs of the frames decoded one by one, each right after its frame's raw message, gathered
     by topic, type and size."""
-    gathered: dict[tuple[str, str, int], list[tuple[bytes, int, int, int]]] = defaultdict(list)
+    gathered: dict[tuple[str, str, int], list[_Single]] = defaultdict(list)
     for k, one in sorted(decoded.single.items()):
         for j, event in enumerate(one.events):
-            type_name, data = input_record(event)
-            gathered[(event.topic, type_name, len(data))].append((data, int(raw_at[k]) + 1 + j, event.stamp_ns,
-                                                                   int(block.stamp_ns[k])))
-    return [MessageRows(topic, type_name, np.frombuffer(b"".join(r[0] for r in rows), np.uint8).reshape(len(rows), size),
-                        np.array([r[1] for r in rows], np.int64), np.array([r[2] for r in rows], np.int64),
-                        np.array([r[3] for r in rows], np.int64))
+            record = input_record(event)
+            gathered[(event.topic, record.type_name, len(record.data))].append(
+                _Single(record.data, int(raw_at[k]) + 1 + j, event.stamp_ns, int(block.stamp_ns[k])))
+    return [MessageRows(topic, type_name,
+                        np.frombuffer(b"".join(r.data for r in rows), np.uint8).reshape(len(rows), size),
+                        np.array([r.position for r in rows], np.int64), np.array([r.stamp_ns for r in rows], np.int64),
+                        np.array([r.log_time_ns for r in rows], np.int64))
             for (topic, type_name, size), rows in gathered.items()]
+
+
+class _Single(NamedTuple):
+    """One input decoded one frame at a time: its CDR bytes, its place in the block's order, its
+    stamp and its frame's (ns)."""
+
+    data: bytes
+    position: int
+    stamp_ns: int
+    log_time_ns: int

@@ -119,7 +119,7 @@ class Replayed:
 def _default_config(bag: Path, description: Mechanism) -> MonitorConfig:
     """The default configuration, with the default pressure topics the bag actually holds."""
     config = MonitorConfig.default(description.name, description)
-    held = {topic for topic, *_ in read_bag_raw(bag, topics=list(config.pressure_topics))}
+    held = {raw.topic for raw in read_bag_raw(bag, topics=list(config.pressure_topics))}
     return replace(config, pressure_topics={t: s for t, s in config.pressure_topics.items() if t in held})
 
 
@@ -129,7 +129,8 @@ def _events(path: Path, config: MonitorConfig, raw: list[RecordedInput]) -> Iter
     that are not their type (the node records them as they came) are an UnreadableEvent, as in the node."""
     wanted = [config.topics.joint_states, *config.pressure_topics, CONFIG_TOPIC]
     first_config = True
-    for topic, type_name, _, log_time, data in read_bag_raw(path, topics=wanted):
+    for message in read_bag_raw(path, topics=wanted):
+        topic, type_name, log_time, data = message.topic, message.type_name, message.log_time_ns, message.data
         if topic == CONFIG_TOPIC:
             if not first_config:
                 try:

@@ -29,8 +29,10 @@ PLAYER_QOS = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
 def recorded_inputs(bag: Path) -> list[RecordedInput]:
     """Every sensor message of ``bag`` as recorded, in order (the stamp of bytes that do not read as
     their type: their log time)."""
-    return [RecordedInput(topic, type_name, input_event(type_name, data, topic, log_time).stamp_ns, log_time, data)
-            for topic, type_name, _, log_time, data in read_bag_raw(bag) if type_name in (JOINT_STATE, FLUID_PRESSURE)]
+    return [RecordedInput(raw.topic, raw.type_name,
+                          input_event(raw.type_name, raw.data, raw.topic, raw.log_time_ns).stamp_ns, raw.log_time_ns,
+                          raw.data)
+            for raw in read_bag_raw(bag) if raw.type_name in (JOINT_STATE, FLUID_PRESSURE)]
 
 
 def play(node: Node, messages: list[RecordedInput], rate: float = 1.0,
