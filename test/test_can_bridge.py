@@ -5,11 +5,14 @@ raw frames turned into a candump log, through can-to-bag and replay: the same ou
 The bus: python-can's `udp_multicast` interface on the loopback. Its `virtual` interface carries
 frames inside one process only, and a kernel `vcan0` cannot be made here (`ip link add vcan0
 type vcan`: "Unknown device type", no vcan module), so udp_multicast is the bus two processes
-share. Each test uses its own multicast group (runs at the same time do not hear each other).
+share. Each test uses its own multicast group and UDP port (python-can binds the port on every
+address, and Linux hands a socket every group joined on its port: a group alone does not keep runs
+at the same time apart); the port reaches both processes as python-can's CAN_CONFIG.
 """
 
 from __future__ import annotations
 
+import json
 import random
 import subprocess
 import sys
@@ -114,8 +117,11 @@ def _wait_for(path: Path, text: str, proc: subprocess.Popen, timeout: float = 60
 
 
 @pytest.mark.parametrize("source", ["bus", "topic"])
-def test_live_bridge_equals_replay_and_can_to_bag(source: str, tmp_path: Path, ros: None) -> None:
-    group = f"239.74.{random.randint(0, 255)}.{random.randint(1, 254)}"
+def test_live_bridge_equals_replay_and_can_to_bag(source: str, tmp_path: Path, ros: None,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    chance = random.SystemRandom()   # not the test-wide random state, which test runs may share
+    group = f"239.74.{chance.randint(0, 255)}.{chance.randint(1, 254)}"
+    monkeypatch.setenv("CAN_CONFIG", json.dumps({"port": chance.randint(20000, 60000)}))
     where = ["--bus", f"udp_multicast:{group}"] if source == "bus" else ["--topic"]
     bridge_log = tmp_path / "bridge.log"
     bridge = subprocess.Popen(_cli("can", "--map", str(MAP), *where, "--ros-args", "-p",
