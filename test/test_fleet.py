@@ -92,6 +92,7 @@ def test_fleet_rows_equal_single_bag_replays(fleet_run):
         assert shares == pytest.approx(sum(single.summary.kinds.values()) / len(single.steps), rel=1e-12)
 
 
+@pytest.mark.slow
 def test_overload_bag_spends_time_below_the_margin(fleet_run):
     """belarus_1221_overload is simulated past the steerability limit (tools/make_bags.py): the
     fleet row says for how long; the lift/transport bag never goes below it."""
@@ -101,11 +102,13 @@ def test_overload_bag_spends_time_below_the_margin(fleet_run):
     assert rows["belarus_1221_lift_transport"]["below_margin_s"] == 0.0
 
 
+@pytest.mark.slow
 def test_fleet_png_written(fleet_run):
     _, out, _ = fleet_run
     assert (out / "fleet.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.slow
 def test_replay_spectra_prints_each_hinge(capsys):
     bag = BAGS / "belarus_1221_lift_transport"
     assert cli_main(["replay", str(bag), "--spectra", "--quiet"]) == 0
