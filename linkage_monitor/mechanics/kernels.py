@@ -1387,6 +1387,15 @@ def smallest_sine(sine: np.ndarray, weakest: int) -> float:
 
 
 @njit(cache=True)
+def smallest_sines(sine: np.ndarray, weakest: np.ndarray) -> np.ndarray:
+    """``smallest_sine`` of N poses: sine (N, measures), weakest (N,)."""
+    out = np.empty(weakest.shape[0])
+    for i in range(weakest.shape[0]):
+        out[i] = smallest_sine(sine[i], weakest[i])
+    return out
+
+
+@njit(cache=True)
 def _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition, statics, outputs, reduced) -> bool:
     """Equilibrium of pose i of ``live_series`` into u_out (1, n_unknowns), member axes and lengths,
     its residual, condition and transmission into ``rows``: False at a dead centre — the smallest

@@ -79,11 +79,9 @@ class ReducedSolution(NamedTuple):
 
 def smallest_sine(sine: np.ndarray, weakest: np.ndarray) -> np.ndarray:
     """The pose's measure (N,) as |sin| in [0, 1]: its weakest step's, 1 without one, 0 where that is
-    undefined (``kernels.smallest_sine`` of N poses)."""
-    smallest = np.ones(weakest.shape[0])
-    has = weakest >= 0
-    smallest[has] = np.minimum(np.nan_to_num(sine[has, weakest[has]], nan=0.0), 1.0)
-    return smallest
+    undefined (``kernels.smallest_sine``, the live path's rule, of N poses)."""
+    return kernels.smallest_sines(np.ascontiguousarray(sine, dtype=float),
+                                  np.ascontiguousarray(weakest, dtype=np.int64))
 
 
 def transmission_angle(sine: np.ndarray, weakest: np.ndarray) -> np.ndarray:
