@@ -2,8 +2,9 @@
 the same run. Run: .venv/bin/python bench/bench_reduced_coordinates.py
 
 belarus_1221, stroke measured only (as bench/bench_solver.py's batch), 100,000 poses within ±3 % of
-the reference stroke, one thread: the pose from the chain of dyads (``Kinematics.continue_from``,
-shared by both paths), then the statics either by the general path (``kernels.solve_statics``: the
+the reference stroke, one thread: the pose from the chain of dyads (``Kinematics.continue_from``;
+the general path also computes the constraint Jacobian's condition number, its kinematic verdict,
+which the reduced path leaves to the transmission measure), then the statics either by the general path (``kernels.solve_statics``: the
 15×15 equilibrium system per pose, LU and its exact 1-norm condition number, the dead-centre
 verdict) or in reduced coordinates (``kernels.solve_reduced_statics``: moment equations about each
 dyad's hinges, no linear system, the transmission measure as the verdict). The general path is the
@@ -53,7 +54,8 @@ def main() -> int:
           f"({np.abs(u_reduced - u_general).max() / largest:.2g} of the largest force, {largest / 1e3:.1f} kN)")
     numba.set_num_threads(1)
     t_general, t_reduced = best_of(general, 3), best_of(in_reduced, 5)
-    t_kinematics = best_of(lambda: kin.positions(kin.continue_from(kin.reference, strokes[:, None])[0]), 3)
+    t_kinematics = best_of(lambda: kin.positions(kin.continue_from(kin.reference, strokes[:, None], False)[0]), 3)
+    t_kinematics_cond = best_of(lambda: kin.positions(kin.continue_from(kin.reference, strokes[:, None])[0]), 3)
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     n_sys = kin.n
     a = np.random.default_rng(1).standard_normal((N_POSES, n_sys, n_sys)) + n_sys * np.eye(n_sys)
@@ -62,7 +64,8 @@ def main() -> int:
     print("one thread, per pose:")
     for label, seconds in (("statics, general (15x15 LU + condition number)", t_general),
                            ("statics, reduced coordinates (+ transmission)", t_reduced),
-                           ("kinematics (chain of dyads, shared)", t_kinematics),
+                           ("kinematics (chain of dyads), reduced path", t_kinematics),
+                           ("kinematics + condition number, general path", t_kinematics_cond),
                            (f"numpy batched {n_sys}x{n_sys} np.linalg.solve (baseline)", t_numpy)):
         print(f"  {label:<52} {N_POSES / seconds / 1e6:6.2f} M poses/s  {seconds / N_POSES * 1e9:7.0f} ns/pose")
     print(f"  reduced statics {t_general / t_reduced:.1f}x faster than the general; kinematics + reduced statics "

@@ -634,8 +634,9 @@ def loop_signs(jac: np.ndarray, loop_rows: np.ndarray, loop_cols: np.ndarray, lo
 @njit(cache=True)
 def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, jac_out: np.ndarray, cond: np.ndarray,
                     on_branch: np.ndarray, q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray,
-                    s: np.ndarray, max_iter: int, kin: KinematicsProgram) -> None:
-    """Pose i of ``solve_poses``, written into the output arrays."""
+                    s: np.ndarray, max_iter: int, with_condition: bool, kin: KinematicsProgram) -> None:
+    """Pose i of ``solve_poses``, written into the output arrays (the condition number NaN unless
+    ``with_condition``)."""
     m, n = jac_start.shape[1], jac_start.shape[2]
     n_in = s.shape[1]
     nc = kin.cyl_att.shape[1]
@@ -665,7 +666,7 @@ def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, jac_out: np.
     q_out[i], phi_out[i] = q, phi
     if i == s.shape[0] - 1:   # the last pose's Jacobian: where the next solve continues (not N of them: memory)
         jac_out[0] = jac
-    cond[i] = condition(jac, kin.column_scale)
+    cond[i] = condition(jac, kin.column_scale) if with_condition else math.nan
     signs = loop_signs(jac, kin.loop_rows, kin.loop_cols, kin.loop_ptr)
     on_branch[i] = True
     for k in range(signs.shape[0]):
@@ -680,7 +681,7 @@ def _kinematic_outputs(s: np.ndarray, jac_start: np.ndarray) -> tuple[np.ndarray
 
 
 def solve_poses(q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray, s: np.ndarray, max_iter: int,
-                kin: KinematicsProgram) -> tuple[np.ndarray, ...]:
+                kin: KinematicsProgram, with_condition: bool = True) -> tuple[np.ndarray, ...]:
     """Assemble N poses for inputs s (N, n_inputs): Newton from the tangent prediction off one solved
     pose (q_start (1, n), its Jacobian (1, m, n) and inputs (1, n_inputs)) — J·dq = E·(s − s_start)
     as a ``closed_step``, E the input rows' unit / lc entries — then the condition number and the
@@ -688,16 +689,17 @@ def solve_poses(q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray,
 
     ``kin``: the mechanism (``Kinematics.program``). Returns q (N, n), Φ (N, m), ∂Φ/∂q at the last pose (1, m, n)
     (where the next solve continues; N of them would be 1.9 kB per pose for belarus_1221), condition
-    (N,), on_branch (N,): False where a loop is in the opposite assembly of ``ref_branch`` (a loop
+    (N,; NaN without ``with_condition``: where the reduced path's transmission measure is the
+    verdict, the Jacobian's 1-norm condition number is not needed and is most of a pose's time), on_branch (N,): False where a loop is in the opposite assembly of ``ref_branch`` (a loop
     at a dead centre, sign 0, counts as on it). Large batches run on every core (``allow_threads``).
     """
     out = _kinematic_outputs(s, jac_start)
     driver: Any = _kinematics_parallel if _parallel(s.shape[0]) else _kinematics_serial
-    driver(s.shape[0], *out, q_start, jac_start, s_start, s, max_iter, *kin)
+    driver(s.shape[0], *out, q_start, jac_start, s_start, s, max_iter, with_condition, *kin)
     return out
 
 
-_KINEMATIC_ARGS = 10   # ``_kinematic_pose``'s arguments before its program (outputs, start, inputs, max_iter)
+_KINEMATIC_ARGS = 11   # ``_kinematic_pose``'s arguments before its program (outputs, start, inputs, max_iter, with_condition)
 
 
 @njit(cache=True)
@@ -1343,7 +1345,8 @@ def live_series(s, pressure_forces, q_start, jac_start, s_start, limit, max_cond
     (1, n_inputs)). s (N, n_inputs): inputs (m, rad); pressure_forces (N, 3, C): per cylinder the
     measured force (N, NaN = not measured), cap and rod gauge pressures (Pa, NaN = not measured).
     limit: largest constraint residual accepted (m); max_condition: the dead-centre condition
-    number (the kinematics', and the statics' on the general path). The programs, each as a plain
+    number of the general path (the kinematics' and the statics'; the reduced path's verdict is
+    the transmission measure, and its kinematic condition number is NaN). The programs, each as a plain
     tuple of its fields (``programs.fields``): ``Kinematics.program``, ``StaticsLayout.program``,
     ``Solver.outputs_program`` of that layout, ``ReducedStatics.program`` of it,
     ``MachineModel.program`` (empty arrays for a part the mechanism does not support).
@@ -1432,9 +1435,9 @@ def _live_pose_at(i, rows, s, pressure_forces, q_start, jac_start, s_start, limi
     n_members = n_springs + n_cylinders
     on_branch = np.empty(1, dtype=np.bool_)
     _kinematic_pose(0, rows.q[i:i + 1], rows.phi[i:i + 1], rows.jac[0:1], rows.kinematic_condition[i:i + 1],
-                    on_branch, q_start, jac_start, s_start, s[i:i + 1], 25, kin)
+                    on_branch, q_start, jac_start, s_start, s[i:i + 1], 25, not outputs.reduced, kin)
     if not (on_branch[0] and assembled(rows.phi[i], 2 * kin.hinge_att.shape[1], kin.lc, limit)
-            and rows.kinematic_condition[i] <= max_condition):
+            and (outputs.reduced or rows.kinematic_condition[i] <= max_condition)):
         return
     p1, _ = positions(rows.q[i], kin.att_body, kin.att_ref)
     p = p1.reshape((1, p1.shape[0], 2))

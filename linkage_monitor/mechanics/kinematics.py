@@ -251,7 +251,7 @@ class Kinematics:
         dead centre, sign 0, is left to the dead-centre check)."""
         return ~np.any(self.branch(jac) * self._ref_branch < 0.0, axis=1)
 
-    def solve(self, s: np.ndarray, previous: KinematicState | None, dead_centre_cond: float,
+    def solve(self, s: np.ndarray, previous: KinematicState | None, dead_centre_cond: float | None,
               consistency_tol: float, reach: bool = True) -> KinematicState:
         """Assemble N poses for inputs s (N, n_inputs), keeping the reference pose's assembly branch.
 
@@ -260,11 +260,15 @@ class Kinematics:
         poses that fail or land on another branch are redone by continuation from the reference pose.
         ``reach``: the message of a pose out of reach says how far it is (``reachable_fraction``, a
         bisection of ~30 Newton solves); False: which constraint stays open at the closest pose.
+        ``dead_centre_cond``: a pose whose constraint Jacobian's condition number is above it is a
+        kinematic dead centre; None: the condition number is not computed (NaN), the caller's
+        statics decide (the reduced path's transmission measure covers every step of the chain).
         """
         n_pose = s.shape[0]
         s = self.wrap_angles(s)
         start = self._reference if previous is None else previous
-        q, phi, jac, cond, on_branch = self.continue_from(start, s)
+        with_condition = dead_centre_cond is not None
+        q, phi, jac, cond, on_branch = self.continue_from(start, s, with_condition)
         limit = 1e-9 * self.lc if self.m == self.n else consistency_tol
         retry = np.flatnonzero(~on_branch | ~self.assembled(phi, limit))
         still = np.zeros(0, dtype=int)
@@ -278,7 +282,8 @@ class Kinematics:
             q[retry], phi[retry] = qr, phir
             if retry[-1] == n_pose - 1:
                 jac = jacr[-1:]
-            cond[retry] = [kernels.condition(j, self.column_scale) for j in jacr]
+            if with_condition:
+                cond[retry] = [kernels.condition(j, self.column_scale) for j in jacr]
             closed = self.assembled(phir, limit)
             still = retry[~closed]
             off = retry[~self.on_branch(jacr) & closed]
@@ -297,10 +302,11 @@ class Kinematics:
         for i in np.flatnonzero(~self.assembled(phi, limit) & (status == Status.OK)):
             status[i] = Status.ASSEMBLY
             messages[i] = self.assembly_message(phi[i], s[i])
-        for i in np.flatnonzero((status == Status.OK) & ~(cond <= dead_centre_cond)):
-            status[i] = Status.DEAD_CENTRE
-            messages[i] = (f"kinematic dead centre at {self.describe_inputs(s[i])}: constraint Jacobian "
-                           f"condition number {cond[i]:.3g} > {dead_centre_cond:.3g}")
+        if dead_centre_cond is not None:
+            for i in np.flatnonzero((status == Status.OK) & ~(cond <= dead_centre_cond)):
+                status[i] = Status.DEAD_CENTRE
+                messages[i] = (f"kinematic dead centre at {self.describe_inputs(s[i])}: constraint Jacobian "
+                               f"condition number {cond[i]:.3g} > {dead_centre_cond:.3g}")
         return KinematicState(s=s, q=q, phi=phi, jac=jac, status=status, messages=messages, condition=cond)
 
     def wrap_angles(self, s: np.ndarray) -> np.ndarray:
@@ -311,12 +317,13 @@ class Kinematics:
         s[..., nc:] = self.angle_reference + wrap_angle(s[..., nc:] - self.angle_reference)
         return s
 
-    def continue_from(self, start: KinematicState, s: np.ndarray) -> tuple[np.ndarray, ...]:
+    def continue_from(self, start: KinematicState, s: np.ndarray, with_condition: bool = True
+                      ) -> tuple[np.ndarray, ...]:
         """``kernels.solve_poses`` from the last pose of ``start`` for inputs s (N, n_inputs): q, Φ,
-        ∂Φ/∂q at the last pose (1, m, n), condition number and whether each pose is on the reference
-        assembly branch."""
+        ∂Φ/∂q at the last pose (1, m, n), condition number (NaN without ``with_condition``) and
+        whether each pose is on the reference assembly branch."""
         return kernels.solve_poses(start.q[-1:], start.jac[-1:], start.s[-1:], np.ascontiguousarray(s, dtype=float),
-                                   25, self.program)
+                                   25, self.program, with_condition)
 
     @property
     def reference(self) -> KinematicState:

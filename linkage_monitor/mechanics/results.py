@@ -112,8 +112,9 @@ class Result:
     ``implement_load`` = vertical load (N, + = down) at ``implement_cg``: estimated when a
     cylinder force is measured, else the configured weight. ``residual`` = norm of the
     equilibrium residual (N; moments divided by the length scale), ``condition`` = the
-    kinematic Jacobian's condition number and, on the general path, the equilibrium matrix's
-    if larger, ``consistency_residual`` =
+    general path's dead-centre measure: the larger of the kinematic Jacobian's and the
+    equilibrium matrix's condition numbers (NaN where the reduced path serves: its measure is
+    ``transmission_angle``), ``consistency_residual`` =
     norm of the kinematic constraint residual (m). ``status`` = "ok" or "lift_off" (a contact
     pulls: N < 0; ``message`` names it).
     """

@@ -146,9 +146,9 @@ class Solver:
         why, a line each (``reduced.ReducedStatics.describe``; the rule in reduced.py's docstring),
         and the dead-centre verdict each path gives."""
         served = (f"reduced coordinates: a dead centre where the smallest transmission angle is below "
-                  f"{self.dead_centre_transmission_deg:g} deg")
-        general = (f"general path: a dead centre where the equilibrium matrix's condition number exceeds "
-                   f"{self.dead_centre_cond:.3g}")
+                  f"{self.dead_centre_transmission_deg:g} deg (the kinematic steps' and the statics' alike)")
+        general = (f"general path: a dead centre where the constraint Jacobian's or the equilibrium matrix's "
+                   f"condition number exceeds {self.dead_centre_cond:.3g}")
         return [*(reduced.describe() for reduced in self._reduced.values()), served, general]
 
     def solve_batch(self, cylinders: ArrayMap | None = None, angles: ArrayMap | None = None,
@@ -403,7 +403,11 @@ class Solver:
         problems = self._input_problems(s, arrays)
         bad = np.array([bool(p) for p in problems])
         s_clean = np.where(bad[:, None], kin.reference_inputs(), s)
-        ks = kin.solve(s_clean, previous, self.dead_centre_cond, self.consistency_tol, reach)
+        sensors = self._sensors
+        force_known = frozenset(sensors[n].cylinder for n in arrays["pressures"])
+        reduced = self._reduced[force_known]   # served: its transmission measure is the dead-centre verdict
+        ks = kin.solve(s_clean, previous, None if reduced.served else self.dead_centre_cond, self.consistency_tol,
+                       reach)
         status, messages = ks.status.copy(), list(ks.messages)
         for i in np.flatnonzero(bad):
             status[i], messages[i] = Status.INPUT, problems[i]
@@ -419,20 +423,17 @@ class Solver:
             _, centripetal = kin.point_rates(q_dot, rel)
             accel = (linear + centripetal, q_ddot[:, 2::3])
         # measured cylinder forces (_measured_force)
-        sensors = self._sensors
         nan = np.full(n_pose, np.nan)
         cap = {c.name: nan for c in mech.cylinders}
         rod = {c.name: nan for c in mech.cylinders}
         for name, values in arrays["pressures"].items():
             ps = sensors[name]
             (cap if ps.chamber == "cap" else rod)[ps.cylinder] = values
-        force_known = frozenset(sensors[n].cylinder for n in arrays["pressures"])
         measured_force = np.full((n_pose, len(mech.cylinders)), np.nan)
         for k, c in enumerate(mech.cylinders):
             if c.name in force_known:
                 measured_force[:, k] = _measured_force(c, cap[c.name], rod[c.name])
         layout = self.statics_layout(force_known)
-        reduced = self._reduced[force_known]
         sol: StaticsSolution | ReducedSolution
         if reduced.served:   # along the chain of dyads; a dead centre where the transmission is lost
             sol = reduced.solve(p, measured_force, accel)
@@ -441,7 +442,7 @@ class Solver:
             names = self._weakest_names(reduced, weakest)
             for i in np.flatnonzero((status == Status.OK) & ~(smallest >= self._dead_centre_sine)):
                 status[i] = Status.DEAD_CENTRE
-                messages[i] = (f"static dead centre at {kin.describe_inputs(s[i])}: transmission angle "
+                messages[i] = (f"dead centre at {kin.describe_inputs(s[i])}: transmission angle "
                                f"{math.degrees(math.asin(smallest[i])):.3g} deg at {names[i]} < "
                                f"{self.dead_centre_transmission_deg:g} deg (the linkage cannot hold a load there; "
                                f"forces would be unbounded)")
