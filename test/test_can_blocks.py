@@ -368,11 +368,20 @@ def _parts(n: int, seed: int) -> list[MessageRows]:
                         raw_at[chosen] + 1, stamps[chosen], stamps[chosen])]
 
 
+def _messages(part: MessageRows) -> list[bytes]:
+    """A part's messages: its rows, or its bytes cut at its sizes."""
+    if part.sizes is None:
+        return [row.tobytes() for row in part.data]
+    ends = np.cumsum(part.sizes).tolist()
+    return [part.data[end - size:end].tobytes() for end, size in zip(ends, part.sizes.tolist())]
+
+
 def _one_by_one(writer: BagWriter, parts: list[MessageRows]) -> None:
     order = sorted((int(p.position[r]), k, r) for k, p in enumerate(parts) for r in range(len(p.position)))
+    messages = [_messages(p) for p in parts]
     for _, k, r in order:
         p = parts[k]
-        writer.write(p.topic, p.data[r].tobytes(), int(p.stamp_ns[r]), type_name=p.type_name,
+        writer.write(p.topic, messages[k][r], int(p.stamp_ns[r]), type_name=p.type_name, qos=p.qos,
                      log_time_ns=int(p.log_time_ns[r]))
 
 
@@ -399,6 +408,66 @@ def test_rows_written_in_chunks_read_as_written_one_by_one(tmp_path: Path, optio
         (single / "metadata.yaml").read_text().replace("single_", "X_")
     files = len(list(rows.glob("*.mcap")))
     assert files == len(list(single.glob("*.mcap"))) and (files > 2) == ("max_bag_duration_s" in options)
+
+
+def _sized_parts(n: int, seed: int) -> list[MessageRows]:
+    """n messages on three topics in a random order, several to a log time, one going back: two of messages
+    of any sizes (0 to 300 B, ``MessageRows.of_messages``), one of them with a QoS of its own, and one of rows;
+    the topic of the block's first message comes last among the parts."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+
+    rng = np.random.default_rng(seed)
+    topic = rng.integers(0, 3, n)
+    topic[0] = 2
+    log_time = T0 + np.cumsum(rng.integers(0, 2, n)) * 1_000_000 + seed * 10**9
+    log_time[n // 2] -= 5_000_000
+    stamp = log_time - rng.integers(0, 1000, n)
+    where = [np.flatnonzero(topic == k) for k in range(3)]
+    return [MessageRows.of_messages("/any", "std_msgs/msg/String",
+                                    [rng.bytes(int(size)) for size in rng.integers(0, 301, len(where[0]))],
+                                    where[0], stamp[where[0]], log_time[where[0]]),
+            MessageRows("/rows", "sensor_msgs/msg/FluidPressure", rng.integers(0, 256, (len(where[1]), 48), np.uint8),
+                        where[1], stamp[where[1]], log_time[where[1]]),
+            MessageRows.of_messages(RAW_TOPIC, FRAME_TYPE,
+                                    [rng.bytes(int(size)) for size in rng.integers(0, 301, len(where[2]))],
+                                    where[2], stamp[where[2]], log_time[where[2]],
+                                    QoSProfile(depth=3, durability=DurabilityPolicy.TRANSIENT_LOCAL))]
+
+
+@pytest.mark.parametrize("options", [{}, {"chunk_size": 4096}, {"chunk_size": 4096, "max_bag_duration_s": 0.15}],
+                         ids=["one chunk", "small chunks", "split by duration"])
+def test_rows_of_any_sizes_read_as_written_one_by_one(tmp_path: Path, options: dict) -> None:
+    """Messages of any sizes, a part's own QoS, parts not in the order of their first messages: the bag
+    written in chunks is the bag written message by message (topics and channels registered in the order
+    of their first messages, the QoS offered for each topic, the same records)."""
+    blocks = [_sized_parts(700, seed=1), _sized_parts(600, seed=2)]
+    for name in ("single", "rows"):
+        with BagWriter(tmp_path / name, **options) as writer:
+            for parts in blocks:
+                if name == "single":
+                    _one_by_one(writer, parts)
+                else:
+                    writer.write_rows(parts)
+    single, rows = tmp_path / "single", tmp_path / "rows"
+    assert _mcap_messages(rows) == _mcap_messages(single)
+    assert _mcap_messages(rows, indexed=False) == _mcap_messages(single, indexed=False)
+    assert _rosbags_messages(rows) == _rosbags_messages(single)
+    with Reader(rows) as reader:
+        assert reader.connections[0].topic == RAW_TOPIC
+    assert (rows / "metadata.yaml").read_text().replace("rows_", "X_") == \
+        (single / "metadata.yaml").read_text().replace("single_", "X_")
+    files = len(list(rows.glob("*.mcap")))
+    assert files == len(list(single.glob("*.mcap"))) and (files > 2) == ("max_bag_duration_s" in options)
+
+
+def test_rows_of_sizes_that_do_not_cut_their_bytes_are_refused(tmp_path: Path) -> None:
+    part = MessageRows.of_messages("/any", "std_msgs/msg/String", [b"abc", b"de"], np.array([0, 1]),
+                                   np.array([T0, T0]), np.array([T0, T0]))
+    with BagWriter(tmp_path / "bag") as writer:
+        for wrong in (part._replace(sizes=np.array([3, 3])), part._replace(sizes=np.array([5])),
+                      part._replace(data=part.data.reshape(1, 5))):
+            with pytest.raises(ValueError, match="/any"):
+                writer.write_rows([wrong])
 
 
 def test_rows_split_by_size_and_every_file_reads_alone(tmp_path: Path) -> None:

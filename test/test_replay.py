@@ -6,18 +6,20 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pytest
-from mcap.reader import make_reader
+from mcap.reader import NonSeekingReader, make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rerun.chunk import McapReader, RrdReader
 from rosbags.highlevel import AnyReader
-from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from linkage_monitor.cli.main import main as cli_main
 from linkage_monitor.mechanics import load_preset
+from linkage_monitor.offline import replay as replay_module
 from linkage_monitor.mechanics.reduced import DEAD_CENTRE_TRANSMISSION_DEG
 from linkage_monitor.sim.telemetry import Noise, simulate
 
@@ -116,6 +118,52 @@ def _series(rrd: Path) -> dict[str, np.ndarray]:
             values = batch.column("Scalars:scalars").to_pylist()
             samples.setdefault(chunk.entity_path.lstrip("/"), []).extend(zip(times, (v[0] for v in values)))
     return {path: np.array([v for _, v in sorted(rows)]) for path, rows in samples.items()}
+
+
+class Recorded(NamedTuple):
+    """What a bag holds, as mcap and rosbags read it: its channels in id order (topic, offered QoS), its
+    messages in log-time order and in file order (topic, type, sequence, log time, publish time, bytes),
+    rosbags' messages (topic, type, log time, bytes) and its metadata.yaml with the bag's name taken out."""
+
+    channels: list[tuple]
+    in_time: list[tuple]
+    in_file: list[tuple]
+    by_rosbags: list[tuple]
+    metadata: str
+
+
+def _recorded(bag: Path) -> Recorded:
+    (file,) = bag.glob("*.mcap")
+    with open(file, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary is not None
+        channels = [(c.topic, c.metadata["offered_qos_profiles"]) for _, c in sorted(summary.channels.items())]
+        in_time = [(c.topic, s.name, m.sequence, m.log_time, m.publish_time, m.data)
+                   for s, c, m in reader.iter_messages()]
+    with open(file, "rb") as f:
+        in_file = [(c.topic, s.name, m.sequence, m.log_time, m.publish_time, m.data)
+                   for s, c, m in NonSeekingReader(f).iter_messages()]
+    with Reader(bag) as reader:
+        by_rosbags = [(c.topic, c.msgtype, t, bytes(d)) for c, t, d in reader.messages()]
+    metadata = (bag / "metadata.yaml").read_text().replace(bag.name, "BAG")
+    return Recorded(channels, in_time, in_file, by_rosbags, metadata)
+
+
+@pytest.mark.parametrize("block", [replay_module.ENCODE_BLOCK, 37], ids=["one block", "blocks of 37 steps"])
+def test_the_bag_written_in_blocks_is_the_bag_written_message_by_message(ros2_bag, tmp_path, monkeypatch, block):
+    """The replay writes a block of steps' messages at once (``StepRecorder.steps``: one ``BagWriter.write_rows``);
+    at a ``rate`` it writes them one by one (``StepRecorder.input``, ``step``). The two bags of one run hold the
+    same messages in the same order: topics, types, QoS, sequence numbers, log and publish times, bytes."""
+    monkeypatch.setattr(replay_module, "ENCODE_BLOCK", block)
+    mech = load_preset("belarus_1221")
+    replay_module.replay(ros2_bag, mech, out_dir=tmp_path / "blocks", progress=None)
+    replay_module.replay(ros2_bag, mech, out_dir=tmp_path / "messages", rate=1e6, progress=None)   # no wait
+    blocks, messages = _recorded(tmp_path / "blocks"), _recorded(tmp_path / "messages")
+    assert blocks == messages
+    topics = {topic for topic, *_ in blocks.in_time}
+    assert {"/joint_states", "/pressure/lift_cap_pressure", "/hinge_reactions", "/hitch_state", "/steerability",
+            "/linkage_markers", "/diagnostics"} <= topics
 
 
 def test_replay_cli_errors_name_the_bag(tmp_path, capsys):

@@ -6,12 +6,17 @@ header cannot be read), followed by what its step sent (``wire.step_messages``):
 HitchState, Steerability, the linkage markers, the DiagnosticArray, each stamped with the step's
 stamp. Everything of one input is logged at its receive time (ns, the monitor's clock), so the
 replay of a node's bag writes the node's bag again, message for message.
+
+The node records message by message as the messages come (``input``, ``step``, ``status``); the
+replay records many inputs and their steps at once (``steps``: one ``BagWriter.write_rows`` call, the
+same messages in the same order). ``STEP_SENDS`` is the order of a step's messages for both.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Callable, NamedTuple, Sequence
 
+import numpy as np
 import yaml
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
@@ -23,7 +28,7 @@ from linkage_monitor.wire.markers import MARKER_ARRAY
 from linkage_monitor.wire.outputs import HINGE_REACTIONS, HITCH_STATE, STEERABILITY
 from linkage_monitor.wire.step_messages import StepMessages
 
-from .writer import BagWriter
+from .writer import BagWriter, MessageRows
 
 CONFIG_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -37,6 +42,24 @@ class RecordedInput(NamedTuple):
     stamp_ns: int
     receive_ns: int
     data: bytes
+
+
+class StepSend(NamedTuple):
+    """A message a step may send: ``topic`` the ``Topics`` field naming its topic, its type name, and
+    ``of``: its CDR bytes among a step's messages (None: not sent)."""
+
+    topic: str
+    type_name: str
+    of: Callable[[StepMessages], bytes | None]
+
+
+STEP_SENDS = (   # what a step sends, in the order it is recorded after its input
+    StepSend("hinge_reactions", HINGE_REACTIONS, lambda m: None if m.outputs is None else m.outputs.hinge_reactions),
+    StepSend("hitch_state", HITCH_STATE, lambda m: None if m.outputs is None else m.outputs.hitch_state),
+    StepSend("steerability", STEERABILITY, lambda m: None if m.outputs is None else m.outputs.steerability),
+    StepSend("markers", MARKER_ARRAY, lambda m: m.markers),
+    StepSend("diagnostics", DIAGNOSTIC_ARRAY, lambda m: m.diagnostic),
+)
 
 
 def mechanism_yaml(description: Mechanism) -> str:
@@ -71,19 +94,42 @@ class StepRecorder:
         self.writer.write(topic, data, stamp_ns, type_name=type_name, qos=self.input_qos, log_time_ns=receive_ns)
 
     def step(self, messages: StepMessages, receive_ns: int) -> None:
-        """What a step sent, after its input: the outputs, the markers, the diagnostic (those sent)."""
-        topics, write, stamp, qos = self.topics, self.writer.write, messages.stamp_ns, self.output_qos
-        out = messages.outputs
-        if out is not None:
-            write(topics.hinge_reactions, out.hinge_reactions, stamp, type_name=HINGE_REACTIONS, qos=qos,
-                  log_time_ns=receive_ns)
-            write(topics.hitch_state, out.hitch_state, stamp, type_name=HITCH_STATE, qos=qos, log_time_ns=receive_ns)
-            write(topics.steerability, out.steerability, stamp, type_name=STEERABILITY, qos=qos,
-                  log_time_ns=receive_ns)
-        if messages.markers is not None:
-            write(topics.markers, messages.markers, stamp, type_name=MARKER_ARRAY, qos=qos, log_time_ns=receive_ns)
-        if messages.diagnostic is not None:
-            self.status(messages.diagnostic, stamp, receive_ns)
+        """What a step sent, after its input: the outputs, the markers, the diagnostic (those sent, in the
+        order of ``STEP_SENDS``), stamped with the step's stamp, logged at ``receive_ns`` (ns)."""
+        for send in STEP_SENDS:
+            data = send.of(messages)
+            if data is not None:
+                self.writer.write(getattr(self.topics, send.topic), data, messages.stamp_ns, type_name=send.type_name,
+                                  qos=self.output_qos, log_time_ns=receive_ns)
+
+    def steps(self, inputs: Sequence[RecordedInput], messages: Sequence[StepMessages]) -> None:
+        """Each of ``inputs`` and what its step sent (``messages``, one per input), as ``input`` then ``step``
+        of each in turn record them (the step's messages logged at its input's receive time), in one
+        ``BagWriter.write_rows``: the inputs gathered by topic and type, each kind of step message by kind."""
+        n = len(inputs)
+        sent = [[send.of(m) for m in messages] for send in STEP_SENDS]
+        recorded = np.ones((n, 1 + len(STEP_SENDS)), bool)   # per input: its own message, then each its step may send
+        for k, column in enumerate(sent):
+            recorded[:, 1 + k] = np.fromiter((data is not None for data in column), bool, n)
+        place = np.cumsum(recorded).reshape(recorded.shape) - 1   # each recorded message's place in the block
+        receive = np.fromiter((r.receive_ns for r in inputs), np.int64, n)
+        input_stamp = np.fromiter((r.stamp_ns for r in inputs), np.int64, n)
+        step_stamp = np.fromiter((m.stamp_ns for m in messages), np.int64, n)
+        by_topic: dict[tuple[str, str], list[int]] = {}
+        for i, r in enumerate(inputs):
+            by_topic.setdefault((r.topic, r.type_name), []).append(i)
+        parts = []
+        for (topic, type_name), which in by_topic.items():
+            at = np.array(which, np.int64)
+            parts.append(MessageRows.of_messages(topic, type_name, [inputs[i].data for i in which], place[at, 0],
+                                                 input_stamp[at], receive[at], self.input_qos))
+        for k, (send, column) in enumerate(zip(STEP_SENDS, sent)):
+            at = np.flatnonzero(recorded[:, 1 + k])
+            if len(at):
+                parts.append(MessageRows.of_messages(getattr(self.topics, send.topic), send.type_name,
+                                                     [data for data in column if data is not None],
+                                                     place[at, 1 + k], step_stamp[at], receive[at], self.output_qos))
+        self.writer.write_rows(parts)
 
     def status(self, diagnostic: bytes, stamp_ns: int, receive_ns: int) -> None:
         """A DiagnosticArray (CDR bytes) on the diagnostics topic, stamped ``stamp_ns``, logged at ``receive_ns``."""

@@ -27,10 +27,10 @@ above MAX_QUEUED queued messages `write` writes the queue itself (memory stays b
 is dropped).
 
 Many messages at once: ``write_rows`` takes a block of messages as arrays (``MessageRows``: one topic's
-CDR payloads of one size as the rows of a uint8 array, with their places in the block, publish and
-receive times) and writes them straight into MCAP chunks built with numpy (``_RowBlock``), with the
-records, message indexes, chunk indexes and statistics `write` one by one would give them; the
-crash-safe tail, the splitting and the cut-back on a full disk hold as for `write`.
+CDR payloads as the rows of a uint8 array, or of any sizes one after another with their sizes, with their
+places in the block, publish and receive times) and writes them straight into MCAP chunks built with
+numpy (``_RowBlock``), with the records, message indexes, chunk indexes and statistics `write` one by
+one would give them; the crash-safe tail, the splitting and the cut-back on a full disk hold as for `write`.
 """
 
 from __future__ import annotations
@@ -309,10 +309,12 @@ class _StorageFile:
 
 
 class MessageRows(NamedTuple):
-    """Messages of one topic and type, all of one size, for ``BagWriter.write_rows``: ``data`` (n, size)
-    uint8, each row a message's CDR bytes; ``position`` (n,) their places in the block's order (the
-    parts of a block take every place 0..N-1 once); ``stamp_ns`` (n,) header stamps (MCAP publish time)
-    and ``log_time_ns`` (n,) receive times (MCAP log time), ns since the epoch."""
+    """Messages of one topic and type for ``BagWriter.write_rows``: ``data`` their CDR bytes, (n, size) uint8
+    with a row per message of one size, or, with ``sizes`` (n,) given, (total,) uint8 holding the messages one
+    after another (message k: ``sizes[k]`` B); ``position`` (n,) their places in the block's order (the parts
+    of a block take every place 0..N-1 once); ``stamp_ns`` (n,) header stamps (MCAP publish time) and
+    ``log_time_ns`` (n,) receive times (MCAP log time), ns since the epoch; ``qos``: the offered QoS recorded
+    for the topic at its first message (None: the one ``write_rows`` is given)."""
 
     topic: str
     type_name: str
@@ -320,6 +322,30 @@ class MessageRows(NamedTuple):
     position: np.ndarray
     stamp_ns: np.ndarray
     log_time_ns: np.ndarray
+    sizes: np.ndarray | None = None
+    qos: QoSProfile | None = None
+
+    @staticmethod
+    def of_messages(topic: str, type_name: str, messages: Sequence[bytes], position: np.ndarray,
+                    stamp_ns: np.ndarray, log_time_ns: np.ndarray, qos: QoSProfile | None = None) -> MessageRows:
+        """The rows of ``messages`` (CDR bytes of any sizes), one after another with their sizes."""
+        sizes = np.fromiter(map(len, messages), np.int64, len(messages))
+        return MessageRows(topic, type_name, np.frombuffer(b"".join(messages), np.uint8), position, stamp_ns,
+                           log_time_ns, sizes, qos)
+
+    def payloads(self) -> tuple[np.ndarray, np.ndarray]:
+        """The messages' bytes one after another (1-D uint8) and each message's size (B); ValueError when
+        ``data`` does not hold ``position``'s messages."""
+        n = len(self.position)
+        if self.sizes is None:
+            if self.data.ndim != 2 or len(self.data) != n:
+                raise ValueError(f"{self.topic}: data of shape {self.data.shape} is not one row per message ({n})")
+            return np.ascontiguousarray(self.data, np.uint8).reshape(-1), np.full(n, self.data.shape[1], np.int64)
+        sizes = np.asarray(self.sizes, np.int64)
+        if self.data.ndim != 1 or len(sizes) != n or (n and sizes.min() < 0) or int(sizes.sum()) != len(self.data):
+            raise ValueError(f"{self.topic}: {len(sizes)} sizes summing to {int(sizes.sum())} B do not cut data of "
+                             f"shape {self.data.shape} into {n} messages")
+        return np.ascontiguousarray(self.data, np.uint8), sizes
 
 
 _RECORD_HEAD = np.dtype([("opcode", "u1"), ("length", "<u8"), ("channel", "<u2"), ("sequence", "<u4"),
@@ -329,16 +355,16 @@ _INDEX_ENTRY = np.dtype([("log_time", "<u8"), ("offset", "<u8")])       # a Mess
 
 @dataclass(frozen=True)
 class _RowBlock:
-    """A block of messages in writing order, as columns (one entry per message): ``part`` and ``row``
-    where its bytes are (``parts[part].data[row]``), ``topic`` its topic's index in ``entries``, ``size``
-    its payload bytes, ``log_time`` / ``publish_time`` as MCAP stores them (log times never before the
-    previous one), ``sequence`` per topic; ``record_end`` / ``payload_end``: cumulative record and payload
-    bytes up to and including it."""
+    """A block of messages in writing order, as columns (one entry per message): ``part`` and ``start``
+    where its bytes are (``data[part][start:start + size]``, ``data`` each part's messages one after
+    another), ``topic`` its topic's index in ``entries``, ``size`` its payload bytes, ``log_time`` /
+    ``publish_time`` as MCAP stores them (log times never before the previous one), ``sequence`` per
+    topic; ``record_end`` / ``payload_end``: cumulative record and payload bytes up to and including it."""
 
-    parts: Sequence[MessageRows]
+    data: list[np.ndarray]
     entries: list[_Topic]
     part: np.ndarray
-    row: np.ndarray
+    start: np.ndarray
     topic: np.ndarray
     size: np.ndarray
     log_time: np.ndarray
@@ -353,7 +379,7 @@ class _RowBlock:
         as ``_write_queued`` does, the first to at least ``last_log_time``; times MCAP cannot store as
         ``write`` stores them (a log time: now; a publish time: 0)."""
         n = sum(len(p.position) for p in parts)
-        part, row = np.empty(n, np.int64), np.empty(n, np.int64)
+        part, start = np.empty(n, np.int64), np.empty(n, np.int64)
         topic, size = np.empty(n, np.int64), np.empty(n, np.int64)
         log_time, publish_time = np.empty(n, np.int64), np.empty(n, np.int64)
         unique: list[_Topic] = []
@@ -365,10 +391,13 @@ class _RowBlock:
         every = np.concatenate([np.asarray(p.position, np.int64) for p in parts]) if parts else np.zeros(0, np.int64)
         if n and (every.min() < 0 or every.max() >= n or np.bincount(every, minlength=n).max() != 1):
             raise ValueError(f"the parts' positions must take every place of the block (0..{n - 1}) exactly once")
+        data = []
         for k, (p, entry) in enumerate(zip(parts, entries)):
             where = np.asarray(p.position, np.int64)
-            part[where], row[where] = k, np.arange(len(where))
-            topic[where], size[where] = topic_index[id(entry)], p.data.shape[1]
+            payloads, sizes = p.payloads()
+            data.append(payloads)
+            part[where], start[where] = k, np.cumsum(sizes) - sizes
+            topic[where], size[where] = topic_index[id(entry)], sizes
             log_time[where] = _storable(p.log_time_ns, time.time_ns())
             publish_time[where] = _storable(p.stamp_ns, 0)
         log_time[:1] = np.maximum(log_time[:1], last_log_time)
@@ -377,7 +406,7 @@ class _RowBlock:
         for k, entry in enumerate(unique):
             mine = np.flatnonzero(topic == k)
             sequence[mine] = (entry.count + np.arange(len(mine))) % (1 << 32)
-        return _RowBlock(parts, unique, part, row, topic, size, log_time, publish_time, sequence,
+        return _RowBlock(data, unique, part, start, topic, size, log_time, publish_time, sequence,
                          np.cumsum(size + _RECORD_HEAD.itemsize), np.cumsum(size))
 
     def __len__(self) -> int:
@@ -386,8 +415,9 @@ class _RowBlock:
     def records(self, lo: int, hi: int, channels: np.ndarray, lead: bytes) -> tuple[bytes, np.ndarray]:
         """The uncompressed records of a chunk of messages ``lo``..``hi - 1``: ``lead`` (schema and channel
         records) then each message's Message record (its topic's channel id in ``channels``), and each
-        message's record offset in them. Each part's records are copied as rows into a view of the chunk
-        whose row k starts at byte k (``as_strided``): a row copy per message, no index per byte."""
+        message's record offset in them. The records' heads, then each part's payloads of one size, are
+        copied as rows into a view of the chunk whose row k starts at byte k (``_starting_at``), from such a
+        view of the part's bytes: a row copy per message, no index per byte."""
         head_size = _RECORD_HEAD.itemsize
         size = self.size[lo:hi]
         head = np.empty(hi - lo, _RECORD_HEAD)
@@ -397,20 +427,24 @@ class _RowBlock:
         head["sequence"] = self.sequence[lo:hi]
         head["log_time"] = self.log_time[lo:hi]
         head["publish_time"] = self.publish_time[lo:hi]
-        heads = head.view(np.uint8).reshape(hi - lo, head_size)
         before = int(self.record_end[lo - 1]) if lo else 0
         offset = len(lead) + self.record_end[lo:hi] - size - head_size - before
         out = np.empty(len(lead) + int(self.record_end[hi - 1]) - before, np.uint8)
         out[:len(lead)] = np.frombuffer(lead, np.uint8)
-        part, row = self.part[lo:hi], self.row[lo:hi]
+        _starting_at(out, head_size)[offset] = head.view(np.uint8).reshape(hi - lo, head_size)
+        part, start, payload = self.part[lo:hi], self.start[lo:hi], offset + head_size
         for k in np.unique(part).tolist():
             mine = np.flatnonzero(part == k)
-            data = self.parts[k].data
-            width = head_size + data.shape[1]
-            starting_at = as_strided(out, shape=(len(out) - width + 1, width), strides=(1, 1))
-            starting_at[offset[mine], :head_size] = heads[mine]
-            starting_at[offset[mine], head_size:] = data[row[mine]]
+            sizes = size[mine]
+            for width in np.unique(sizes).tolist():
+                these = mine[sizes == width]
+                _starting_at(out, width)[payload[these]] = _starting_at(self.data[k], width)[start[these]]
         return out.tobytes(), offset
+
+
+def _starting_at(data: np.ndarray, width: int) -> np.ndarray:
+    """A view of the 1-D ``data`` whose row k is the ``width`` bytes starting at byte k."""
+    return as_strided(data, shape=(len(data) - width + 1, width), strides=(1, 1))
 
 
 def _storable(times: np.ndarray, instead: int) -> np.ndarray:
@@ -556,13 +590,16 @@ class BagWriter:
     def write_rows(self, parts: Sequence[MessageRows], qos: QoSProfile | None = None) -> None:
         """Record a block of messages (``MessageRows``) in the order of their positions, as ``write`` of each
         in that order would record them (the same records, sequence numbers, log times never before the
-        last one; ``qos`` offered for a topic at its first message), written now into chunks of their own
-        instead of queued; what ``write`` queued before goes first. The file is split where ``write``
-        would split it; an I/O error shows in ``error`` and ``unwritten`` as for ``write``."""
+        last one, topics and channels registered in the order of their first messages; a part's ``qos``, else
+        ``qos``, offered for a topic at its first message), written now into chunks of their own instead of
+        queued; what ``write`` queued before goes first. The file is split where ``write`` would split it;
+        an I/O error shows in ``error`` and ``unwritten`` as for ``write``."""
         n = sum(len(p.position) for p in parts)
+        parts = sorted(parts, key=lambda p: int(np.min(p.position)) if len(p.position) else n)
         with self._lock:
             self._check_open()
-            entries = [self._topic(p.topic, p.type_name, qos) for p in parts] if self.error is None else []
+            entries = ([self._topic(p.topic, p.type_name, p.qos if p.qos is not None else qos) for p in parts]
+                       if self.error is None else [])
             self._write_queued()
             written = 0
             if self.error is None and n:
@@ -609,9 +646,9 @@ class BagWriter:
         the channels they need registered, the chunk counted in the file's summary and the spans."""
         current, writer = self._current, self._current.writer
         topic = block.topic[lo:hi]
-        present, counts = np.unique(topic, return_counts=True)
+        present, first_at, counts = np.unique(topic, return_index=True, return_counts=True)
         channels = np.zeros(len(block.entries), np.int64)
-        for t in present.tolist():
+        for t in present[np.argsort(first_at)].tolist():   # registered in the order of their first messages
             channels[t] = current.channel(block.entries[t])
         data, offset = block.records(lo, hi, channels, writer.take_pending_records())
         log = block.log_time[lo:hi]

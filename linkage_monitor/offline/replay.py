@@ -199,9 +199,13 @@ def replay(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None
 def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: MonitorConfig,
                raw: list[RecordedInput], run: Run, rate: float | None, progress: TextIO | None) -> None:
     """Inputs (their recorded bytes, unchanged), outputs and diagnostics in recording order, as the
-    node records them (``bag.step_recorder``)."""
+    node records them (``bag.step_recorder``), ENCODE_BLOCK steps at a time: their outputs encoded
+    at once (``OutputEncoder.outputs_of``) and, as fast as possible, all their messages written at once
+    (``StepRecorder.steps``). With ``rate`` the messages go one by one (``StepRecorder.input``, ``step``),
+    each input's written at its receive time scaled by 1 / ``rate`` from the first: a block written at
+    once cannot keep that pace."""
     from linkage_monitor.wire.markers import DEFAULT_RATE_HZ
-    from linkage_monitor.wire.outputs import OutputEncoder, Outputs
+    from linkage_monitor.wire.outputs import OutputEncoder
     from linkage_monitor.wire.step_messages import StepMessenger
 
     writer = BagWriter(out_dir)
@@ -211,22 +215,25 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
         recorder.begin(description, config, first)
         messenger = StepMessenger(description, f"linkage_monitor: {description.name}", DEFAULT_RATE_HZ)
         encoder = OutputEncoder()
-
-        def encoded() -> Iterator[tuple[RecordedInput, Step, Outputs | None]]:
-            """The steps with their outputs, encoded ENCODE_BLOCK steps at once (as the node's encoder writes them)."""
-            for start in range(0, len(raw), ENCODE_BLOCK):
-                steps = run.steps[start:start + ENCODE_BLOCK]
-                yield from zip(raw[start:start + ENCODE_BLOCK], steps, encoder.outputs_of(monitor, steps))
         pace_start = time.perf_counter()
-        for recorded, step, out in tqdm(encoded(), total=len(raw), desc="replay", unit="msg", file=progress,
-                                        disable=progress is None, mininterval=0.5):
-            receive = recorded.receive_ns
-            if rate:
-                delay = (receive - first) * 1e-9 / rate - (time.perf_counter() - pace_start)
-                if delay > 0:
-                    time.sleep(delay)
-            recorder.input(recorded.topic, recorded.type_name, recorded.data, recorded.stamp_ns, receive)
-            recorder.step(messenger.messages(step, out, receive), receive)
+        with tqdm(total=len(raw), desc="replay", unit="msg", file=progress, disable=progress is None,
+                  mininterval=0.5) as bar:
+            for start in range(0, len(raw), ENCODE_BLOCK):
+                inputs, steps = raw[start:start + ENCODE_BLOCK], run.steps[start:start + ENCODE_BLOCK]
+                sent = [messenger.messages(step, out, recorded.receive_ns)
+                        for recorded, step, out in zip(inputs, steps, encoder.outputs_of(monitor, steps))]
+                if not rate:
+                    recorder.steps(inputs, sent)
+                    bar.update(len(inputs))
+                    continue
+                for recorded, messages in zip(inputs, sent):
+                    receive = recorded.receive_ns
+                    delay = (receive - first) * 1e-9 / rate - (time.perf_counter() - pace_start)
+                    if delay > 0:
+                        time.sleep(delay)
+                    recorder.input(recorded.topic, recorded.type_name, recorded.data, recorded.stamp_ns, receive)
+                    recorder.step(messages, receive)
+                    bar.update()
     finally:
         writer.close()
 
