@@ -1298,18 +1298,17 @@ def steerability_rows(points: np.ndarray, forces: np.ndarray, implement_load: np
 
 
 # ---- one live pose, end to end; a series of them -----------------------------------------------
-@njit(cache=True)
-def _live_rows(n_pose: int, n: int, m: int, outputs: OutputsProgram, machine: MachineProgram) -> LiveRows:
-    """``LiveRows`` for n_pose poses (the Jacobian two slots, not n_pose): the rows of a pose that
-    is not plain are left as they are (the general path writes them); the implement cg and the
-    capacities NaN until written (no implement; a capacity that is not computed); a pose without a
-    transmission measure NaN and −1."""
+def live_rows(n_pose: int, n: int, m: int, outputs: OutputsProgram, machine: MachineProgram) -> LiveRows:
+    """Empty ``LiveRows`` for n_pose poses, for ``live_pose`` / ``live_series`` to write (the Jacobian
+    two slots, not n_pose): the rows of a pose that is not plain are left as they are (the general
+    path writes them); the implement cg and the capacities NaN until written (no implement; a
+    capacity that is not computed); a pose without a transmission measure NaN and −1. Allocated by
+    the caller: numba returns a record of fresh arrays slower than it takes one in."""
     n_steer = N_STEERABILITY if machine.parameters.shape[0] > 0 else 0
     n_capacity = machine.point_att.shape[0] + 1 if machine.point_att.shape[0] > 0 else 0
     n_frame = outputs.frame_att.shape[0]
     pose = np.empty(n_pose, dtype=POSE_VALUES)
-    for i in range(n_pose):
-        pose[i].transmission_angle, pose[i].weakest = math.nan, -1
+    pose["transmission_angle"], pose["weakest"] = math.nan, -1
     return LiveRows(
         plain=np.zeros(n_pose, dtype=np.bool_), q=np.empty((n_pose, n)), phi=np.empty((n_pose, m)),
         jac=np.empty((2, m, n)), kinematic_condition=np.empty(n_pose),
@@ -1323,23 +1322,24 @@ def _live_rows(n_pose: int, n: int, m: int, outputs: OutputsProgram, machine: Ma
 
 
 @njit(cache=True)
-def live_pose(s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin_fields, statics_fields,
-              outputs_fields, reduced_fields, machine_fields):
+def live_pose(rows_fields, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin_fields,
+              statics_fields, outputs_fields, reduced_fields, machine_fields):
     """The live node's pose in one call: ``live_series`` of one pose (s (1, n_inputs), pressure_forces
-    (3, C)) from the solved pose (q_start (1, n), jac_start (1, m, n), s_start (1, n_inputs)).
-    Returns its ``LiveRows`` (one pose; ``jac[0]`` its Jacobian)."""
+    (3, C)) from the solved pose (q_start (1, n), jac_start (1, m, n), s_start (1, n_inputs)),
+    written into ``rows_fields`` (``live_rows`` of one pose, as a plain tuple; ``jac[0]`` its
+    Jacobian)."""
     kin, statics = KinematicsProgram(*kin_fields), StaticsProgram(*statics_fields)
     outputs, reduced, machine = (OutputsProgram(*outputs_fields), ReducedProgram(*reduced_fields),
                                  MachineProgram(*machine_fields))
-    rows = _live_rows(1, q_start.shape[1], jac_start.shape[1], outputs, machine)
+    rows = LiveRows(*rows_fields)
     _live_pose_at(0, rows, s, pressure_forces.reshape((1,) + pressure_forces.shape), q_start, jac_start, s_start,
                   limit, max_condition, kin, statics, outputs, reduced, machine)
     return rows
 
 
 @njit(cache=True)
-def live_series(s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin_fields, statics_fields,
-                outputs_fields, reduced_fields, machine_fields):
+def live_series(rows_fields, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin_fields,
+                statics_fields, outputs_fields, reduced_fields, machine_fields):
     """A recorded series of poses as the live node solves them (replay): pose i from the last pose
     before it that took this path, the first from (q_start (1, n), jac_start (1, m, n), s_start
     (1, n_inputs)). s (N, n_inputs): inputs (m, rad); pressure_forces (N, 3, C): per cylinder the
@@ -1349,13 +1349,14 @@ def live_series(s, pressure_forces, q_start, jac_start, s_start, limit, max_cond
     the transmission measure, and its kinematic condition number is NaN). The programs, each as a plain
     tuple of its fields (``programs.fields``): ``Kinematics.program``, ``StaticsLayout.program``,
     ``Solver.outputs_program`` of that layout, ``ReducedStatics.program`` of it,
-    ``MachineModel.program`` (empty arrays for a part the mechanism does not support).
+    ``MachineModel.program`` (empty arrays for a part the mechanism does not support). Writes
+    ``rows_fields``: ``live_rows`` of N poses, as a plain tuple.
 
     Each pose, from the per-pose kernels above: loop closure (``_kinematic_pose``), equilibrium with
     the measured cylinder forces — along the chain of dyads with the transmission verdict
     (``_reduced_pose``) where ``outputs.reduced``, else in one linear system with the
     condition-number verdict (``_statics_pose``) —, the arrays of a ``Result``, lift capacity
-    (``_capacity_pose``) and steerability (``steerability_pose``). Returns ``LiveRows``;
+    (``_capacity_pose``) and steerability (``steerability_pose``), into the rows;
     ``plain[i]`` is False when pose i is not the usual one — off the reference branch, not
     assembled to ``limit``, at a dead centre, a contact lifting off — and then its rows are not
     meaningful: the general path (``Solver._solve``) words the verdict.
@@ -1364,7 +1365,7 @@ def live_series(s, pressure_forces, q_start, jac_start, s_start, limit, max_cond
     outputs, reduced, machine = (OutputsProgram(*outputs_fields), ReducedProgram(*reduced_fields),
                                  MachineProgram(*machine_fields))
     n_pose = s.shape[0]
-    rows = _live_rows(n_pose, q_start.shape[1], jac_start.shape[1], outputs, machine)
+    rows = LiveRows(*rows_fields)
     last = -1
     for i in range(n_pose):
         if last < 0:
@@ -1376,7 +1377,6 @@ def live_series(s, pressure_forces, q_start, jac_start, s_start, limit, max_cond
         if rows.plain[i]:
             last = i
             rows.jac[1] = rows.jac[0]
-    return rows
 
 
 @njit(cache=True)

@@ -189,10 +189,13 @@ class Solver:
             if layout.force_measured[k]:
                 measured[:, k] = _measured_force(c, cap[:, k], rod[:, k])
         start = kin.reference
-        rows = kernels.live_series(
-            s, np.ascontiguousarray(np.stack([measured, cap, rod], axis=1)), start.q[-1:], start.jac[-1:],
-            start.s[-1:], self._assembly_limit, self.dead_centre_cond, fields(kin.program), fields(layout.program),
-            fields(self.outputs_program(layout)), fields(self._reduced[layout.force_known].program), fields(machine))
+        outputs = self.outputs_program(layout)
+        rows = kernels.live_rows(n_pose, kin.n, kin.m, outputs, machine)
+        kernels.live_series(
+            fields(rows), s, np.ascontiguousarray(np.stack([measured, cap, rod], axis=1)), start.q[-1:],
+            start.jac[-1:], start.s[-1:], self._assembly_limit, self.dead_centre_cond, fields(kin.program),
+            fields(layout.program), fields(outputs), fields(self._reduced[layout.force_known].program),
+            fields(machine))
         plain = rows.plain & ~bad
         batch = BatchResult.from_stacked(
             self.names, {h.name: h.bodies for h in mech.hinges}, rows.point_xz, rows.q.reshape(n_pose, -1, 3),
@@ -371,16 +374,19 @@ class Solver:
         if programs is None:   # the layout of these measured cylinder forces, once per set of pressure sensors
             layout = self.statics_layout(frozenset(ps.cylinder for ps, _ in pressures))
             reduced = self._reduced[layout.force_known]
+            outputs = self.outputs_program(layout)
             programs = self._programs_by_sensors[tuple(inputs.pressures)] = _PlainPrograms(
-                layout.force_measured.tolist(), fields(kin.program), fields(layout.program),
-                fields(self.outputs_program(layout)), fields(reduced.program), [*reduced.measure_names, ""])
+                force_measured=layout.force_measured.tolist(), kinematics=fields(kin.program),
+                statics=fields(layout.program), outputs=outputs, outputs_fields=fields(outputs),
+                reduced=fields(reduced.program), measure_names=[*reduced.measure_names, ""])
         measured = [_measured_force(c, cap[k], rod[k]) if known else math.nan
                     for k, (c, known) in enumerate(zip(cylinders, programs.force_measured))]
         start = start if start is not None else kin.reference
         s = np.array([values])
-        rows = kernels.live_pose(s, np.array([measured, cap, rod]), start.q[-1:], start.jac[-1:], start.s[-1:],
-                                 self._assembly_limit, self.dead_centre_cond, programs.kinematics, programs.statics,
-                                 programs.outputs, programs.reduced, fields(machine))
+        rows = kernels.live_rows(1, kin.n, kin.m, programs.outputs, machine)
+        kernels.live_pose(fields(rows), s, np.array([measured, cap, rod]), start.q[-1:], start.jac[-1:],
+                          start.s[-1:], self._assembly_limit, self.dead_centre_cond, programs.kinematics,
+                          programs.statics, programs.outputs_fields, programs.reduced, fields(machine))
         if not rows.plain[0]:
             return None
         q = rows.q
@@ -534,13 +540,15 @@ class SolvedPose(NamedTuple):
 class _PlainPrograms(NamedTuple):
     """What ``Solver._solve_plain`` takes for one set of pressure sensors: which cylinders' forces
     they measure, the programs of the kinematics, of the statics layout, of the outputs and of the
-    reduced statics, each as ``kernels.live_pose`` takes it (``programs.fields``), the
-    transmission measures' names (then '' for none, index −1)."""
+    reduced statics, each as ``kernels.live_pose`` takes it (``programs.fields``; the outputs'
+    also as the record ``kernels.live_rows`` sizes the rows from), the transmission measures' names
+    (then '' for none, index −1)."""
 
     force_measured: list[bool]
     kinematics: tuple
     statics: tuple
-    outputs: tuple
+    outputs: OutputsProgram
+    outputs_fields: tuple
     reduced: tuple
     measure_names: list[str]
 
