@@ -2,7 +2,7 @@
 
 Each stage is wrapped with a wall-clock timer (``time.perf_counter``; a wrapper adds ~0.3 µs):
 ``Monitor.step`` (the whole step), its acceptance (``_accept``), the solve with the machine level
-(``MachineModel.solve``; inside it the one compiled call, ``kernels.live_pose``), the findings
+(``MachineModel.solve``; inside it the one compiled call, ``kernels.live_series``), the findings
 (``_finish``) and the three output messages (``OutputEncoder.outputs``). Printed: µs per event, averaged over three passes of
 belarus_1221's simulated lift at 100 Hz (2 events per sample). Not a benchmark with a baseline:
 a profile, for docs/performance.md.
@@ -34,7 +34,7 @@ from linkage_monitor.sim.telemetry import simulate  # noqa: E402
 PRESSURE_TOPIC = "/pressure/lift_cap_pressure"
 STAGES = [(core.Monitor, "step", "step (whole)"), (core.Monitor, "_accept", "  acceptance"),
           (machine.MachineModel, "solve", "  solve with machine level"),
-          (kernels, "live_pose", "    compiled call (kernels.live_pose)"),
+          (kernels, "live_series", "    compiled call (kernels.live_series)"),
           (core.Monitor, "_finish", "  findings"), (OutputEncoder, "outputs", "three CDR messages (after the step)")]
 
 

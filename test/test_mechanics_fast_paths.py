@@ -115,7 +115,7 @@ def _mechanism(name: str) -> tuple[Mechanism, Solver, MachineModel]:
 
 @pytest.mark.parametrize("name", MECHANISMS)
 def test_one_pose_path_gives_what_the_batch_path_gives(name: str) -> None:
-    """MachineModel.solve takes a usual pose through one compiled call (kernels.live_pose, via
+    """MachineModel.solve takes a usual pose through one compiled call (kernels.live_series, via
     Solver._solve_plain); the same inputs through the general batched path (solve_batch from the
     reference pose, then MachineModel.evaluate_batch) give the same Result and machine-level rows.
     Poses: a live sequence around the reference inputs (warm starts), pressures from 0.3 to 3

@@ -1299,7 +1299,7 @@ def steerability_rows(points: np.ndarray, forces: np.ndarray, implement_load: np
 
 # ---- one live pose, end to end; a series of them -----------------------------------------------
 def live_rows(n_pose: int, n: int, m: int, outputs: OutputsProgram, machine: MachineProgram) -> LiveRows:
-    """Empty ``LiveRows`` for n_pose poses, for ``live_pose`` / ``live_series`` to write (the Jacobian
+    """Empty ``LiveRows`` for n_pose poses, for ``live_series`` to write (the Jacobian
     two slots, not n_pose): the rows of a pose that is not plain are left as they are (the general
     path writes them); the implement cg and the capacities NaN until written (no implement; a
     capacity that is not computed); a pose without a transmission measure NaN and −1. Allocated by
@@ -1322,25 +1322,10 @@ def live_rows(n_pose: int, n: int, m: int, outputs: OutputsProgram, machine: Mac
 
 
 @njit(cache=True)
-def live_pose(rows_fields, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin_fields,
-              statics_fields, outputs_fields, reduced_fields, machine_fields):
-    """The live node's pose in one call: ``live_series`` of one pose (s (1, n_inputs), pressure_forces
-    (3, C)) from the solved pose (q_start (1, n), jac_start (1, m, n), s_start (1, n_inputs)),
-    written into ``rows_fields`` (``live_rows`` of one pose, as a plain tuple; ``jac[0]`` its
-    Jacobian)."""
-    kin, statics = KinematicsProgram(*kin_fields), StaticsProgram(*statics_fields)
-    outputs, reduced, machine = (OutputsProgram(*outputs_fields), ReducedProgram(*reduced_fields),
-                                 MachineProgram(*machine_fields))
-    rows = LiveRows(*rows_fields)
-    _live_pose_at(0, rows, s, pressure_forces.reshape((1,) + pressure_forces.shape), q_start, jac_start, s_start,
-                  limit, max_condition, kin, statics, outputs, reduced, machine)
-    return rows
-
-
-@njit(cache=True)
 def live_series(rows_fields, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin_fields,
                 statics_fields, outputs_fields, reduced_fields, machine_fields):
-    """A recorded series of poses as the live node solves them (replay): pose i from the last pose
+    """Poses as the live node solves them, in one compiled call: the live node's one pose, a
+    recorded series (replay). Pose i from the last pose
     before it that took this path, the first from (q_start (1, n), jac_start (1, m, n), s_start
     (1, n_inputs)). s (N, n_inputs): inputs (m, rad); pressure_forces (N, 3, C): per cylinder the
     measured force (N, NaN = not measured), cap and rod gauge pressures (Pa, NaN = not measured).
@@ -1506,7 +1491,7 @@ def _live_pose_at(i, rows, s, pressure_forces, q_start, jac_start, s_start, limi
     rows.plain[i] = True
 
 
-# ``live_pose``'s machine program when no machine-level results are wanted
+# ``live_series``' machine program when no machine-level results are wanted
 NO_MACHINE = MachineProgram(parameters=np.zeros(0), hinge_att=np.zeros((2, 0), dtype=np.int64),
                             cylinder_att=np.zeros((2, 0), dtype=np.int64), lift=0, lift_force=math.nan,
                             gravity=math.nan, weight_att=np.zeros(0, dtype=np.int64), weight_mass=np.zeros(0),

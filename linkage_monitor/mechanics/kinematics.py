@@ -133,7 +133,7 @@ class Kinematics:
     def program(self) -> KinematicsProgram:
         """``geometry`` with what ``kernels.solve_poses`` also takes: the driving and fitted rows
         (``_driving_system``), the chain of dyads (``chain.decompose``), the column scale, the loops'
-        index arrays and the reference assembly branch (``kernels.live_pose``'s ``kinematics``)."""
+        index arrays and the reference assembly branch (``kernels.live_series``' ``kinematics``)."""
         if self._program is None:
             loop_rows, loop_cols, loop_ptr = self._loop_arrays
             self._program = KinematicsProgram(

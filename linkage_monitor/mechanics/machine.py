@@ -152,7 +152,7 @@ class MachineModel:
         # the keys of MachineResult's rows: empty for a part the mechanism does not support
         self.steerability_keys: tuple[str, ...] = STEERABILITY_KEYS if self._tractor is not None else ()
         self.capacity_keys: tuple[str, ...] = ()
-        # what kernels.live_pose takes to give this model's rows in the live solve (kernels.NO_MACHINE's types)
+        # what kernels.live_series takes to give this model's rows in the live solve (kernels.NO_MACHINE's types)
         self.program = kernels.NO_MACHINE._replace(parameters=self._tractor if self._tractor is not None else _EMPTY)
         if mech.implement is None or not any(c.relief_pressure is not None for c in mech.cylinders):
             self.capacity_error = "no implement or no cylinder with relief_pressure: lift capacity not computed"

@@ -194,5 +194,5 @@ class LiveRows(NamedTuple):
 
 
 def fields(program: NamedTuple) -> tuple:
-    """A program as the live calls take it (``kernels.live_pose``): a plain tuple of its fields."""
+    """A program as the live calls take it (``kernels.live_series``): a plain tuple of its fields."""
     return tuple(program)

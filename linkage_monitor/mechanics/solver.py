@@ -310,7 +310,7 @@ class Solver:
         return problems
 
     def outputs_program(self, layout: StaticsLayout) -> OutputsProgram:
-        """What ``kernels.live_pose`` needs, beyond the layout's own program, to write a Result's
+        """What ``kernels.live_series`` needs, beyond the layout's own program, to write a Result's
         arrays for poses solved with ``layout`` (its ``outputs``; built once per layout)."""
         program = self._outputs_programs.get(layout.force_known)
         if program is None:
@@ -345,7 +345,7 @@ class Solver:
 
     def _solve_plain(self, inputs: Inputs, start: KinematicState | None, machine: MachineProgram
                      ) -> SolvedPose | None:
-        """The usual live pose in one compiled call (``kernels.live_pose``): every input given, finite
+        """The usual live pose in one compiled call (``kernels.live_series`` of one pose): every input given, finite
         and in range, no rates, assembled on the reference branch from ``start`` (or the reference
         pose), no dead centre, no contact lifting off. None for anything else: ``_solve`` then solves
         the pose and words what is wrong. Gives what ``_solve`` and ``MachineModel.evaluate`` would
@@ -384,9 +384,9 @@ class Solver:
         start = start if start is not None else kin.reference
         s = np.array([values])
         rows = kernels.live_rows(1, kin.n, kin.m, programs.outputs, machine)
-        kernels.live_pose(fields(rows), s, np.array([measured, cap, rod]), start.q[-1:], start.jac[-1:],
-                          start.s[-1:], self._assembly_limit, self.dead_centre_cond, programs.kinematics,
-                          programs.statics, programs.outputs_fields, programs.reduced, fields(machine))
+        kernels.live_series(fields(rows), s, np.array([[measured, cap, rod]]), start.q[-1:], start.jac[-1:],
+                            start.s[-1:], self._assembly_limit, self.dead_centre_cond, programs.kinematics,
+                            programs.statics, programs.outputs_fields, programs.reduced, fields(machine))
         if not rows.plain[0]:
             return None
         q = rows.q
@@ -540,7 +540,7 @@ class SolvedPose(NamedTuple):
 class _PlainPrograms(NamedTuple):
     """What ``Solver._solve_plain`` takes for one set of pressure sensors: which cylinders' forces
     they measure, the programs of the kinematics, of the statics layout, of the outputs and of the
-    reduced statics, each as ``kernels.live_pose`` takes it (``programs.fields``; the outputs'
+    reduced statics, each as ``kernels.live_series`` takes it (``programs.fields``; the outputs'
     also as the record ``kernels.live_rows`` sizes the rows from), the transmission measures' names
     (then '' for none, index −1)."""
 
