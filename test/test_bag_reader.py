@@ -223,3 +223,53 @@ def test_every_recorded_output_of_the_bundled_bag_reads() -> None:
     topics = ["/hitch_state", "/hinge_reactions", "/steerability"]
     recorded = sum(1 for _ in read_bag_raw(bag, topics=topics))
     assert recorded > 0 and sum(1 for _ in read_bag(bag, topics=topics)) == recorded
+
+
+# log times (ns) of the messages of each chunk, chunks in file order; topic "/a" or "/b" by position.
+# Chunks apart in log time: messages out of order inside a chunk, chunks not in file order, equal log
+# times where one chunk ends and the next begins.
+IN_SEQUENCE = [[400, 410], [100, 130, 120, 130], [130, 200, 150], [200, 200, 250], [300], [300, 390]]
+# Chunks whose log times overlap, with equal log times in two chunks.
+OVERLAPPING = [[100, 300, 200], [150, 300, 300, 250], [300, 310], [50, 400, 120], [310, 305]]
+# Chunks apart but for one log time where the later one in time ends: its messages at that time come first.
+TOUCHING_BACKWARDS = [[500, 600, 500], [100, 400], [450, 500, 480]]
+
+
+def _chunked_mcap(file: Path, chunks: list[list[int]]) -> Path:
+    """An MCAP file of one chunk per entry of ``chunks`` (mcap's Writer, flushed after each), message k of a
+    chunk on "/a" when k is even, else "/b", its bytes naming its chunk and position."""
+    from mcap.writer import Writer as McapWriter
+
+    with open(file, "wb") as stream:
+        writer = McapWriter(stream)
+        writer.start()
+        schema = writer.register_schema("std_msgs/msg/String", "ros2msg", b"string data")
+        channels = [writer.register_channel(topic, "cdr", schema) for topic in ("/a", "/b")]
+        for c, log_times in enumerate(chunks):
+            for k, log_time in enumerate(log_times):
+                writer.add_message(channels[k % 2], log_time, f"{c}.{k}".encode(), log_time)
+            writer.flush()
+        writer.finish()
+    return file
+
+
+@pytest.mark.parametrize("chunks", [IN_SEQUENCE, OVERLAPPING, TOUCHING_BACKWARDS],
+                         ids=["in_sequence", "overlapping", "touching_backwards"])
+def test_messages_come_in_mcaps_log_time_order(tmp_path: Path, chunks: list[list[int]]) -> None:
+    """read_bag_raw yields an MCAP file's messages in the order of mcap's SeekingReader (log time; equal
+    log times by chunk offset, then position in the chunk), on all topics and on one."""
+    from mcap.reader import SeekingReader
+
+    file = _chunked_mcap(tmp_path / "chunks.mcap", chunks)
+    with open(file, "rb") as stream:
+        summary = SeekingReader(stream).get_summary()
+        assert summary is not None and len(summary.chunk_indexes) == len(chunks)
+        spans = sorted((c.message_start_time, c.message_end_time) for c in summary.chunk_indexes)
+        assert any(end == start for (_, end), (start, _) in zip(spans, spans[1:]))   # a tie across chunks
+        assert all(end <= start for (_, end), (start, _) in zip(spans, spans[1:])) == (chunks is not OVERLAPPING)
+    for topics in (None, ["/b"]):
+        with open(file, "rb") as stream:
+            expected = [(channel.topic, message.log_time, message.data) for _, channel, message
+                        in SeekingReader(stream).iter_messages(topics=topics, log_time_order=True)]
+        assert [(m.topic, m.log_time_ns, m.data) for m in read_bag_raw(file, topics=topics)] == expected
+        assert len(expected) == sum(len(c) if topics is None else len(c) // 2 for c in chunks)

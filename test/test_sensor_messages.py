@@ -135,3 +135,57 @@ def test_a_damaged_fluid_pressure_fares_as_in_rclpy(data, how):
 def test_a_refusal_says_what_is_wrong(data, words):
     with pytest.raises(CdrError, match=words):
         read_joint_state(data, "/joint_states", 0)
+
+
+def _joint_state_padded(frame: str, names: list[str], fill: int) -> bytes:
+    """A JointState's CDR (wire.compose) with every byte of alignment padding ``fill``, as a writer that
+    leaves its padding uninitialised may send it: one position per name, no velocities or efforts."""
+    from linkage_monitor.wire.compose import Composer
+    from linkage_monitor.wire.sensor_messages import JOINT_STATE
+
+    composer = Composer().message(JOINT_STATE, {"header": {"stamp": {"sec": 1, "nanosec": 2}, "frame_id": frame},
+                                                "name": names, "position": [0.5] * len(names)})
+    data = bytearray(composer.data)
+    for start, end in composer.writer.padding:
+        data[start:end] = bytes([fill]) * (end - start)
+    return bytes(data)
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.lists(texts, max_size=5), texts, texts, st.integers(0, 255), st.integers(0, 255), damage)
+def test_joint_names_read_after_the_same_names_read_as_rclpy_reads_them(names, frame, other_frame, fill, other_fill,
+                                                                       how):
+    """A JointState whose names (their bytes) are those of the JointState read before, at another offset (another
+    frame_id), other bytes in the padding, whole or damaged: read as rclpy reads it."""
+    first = _joint_state_padded(frame, names, fill)
+    assert _ours_joint_state(first) == _rclpy_joint_state(first) is not None
+    second = _joint_state_padded(other_frame, names, other_fill)
+    assert _ours_joint_state(second) == _rclpy_joint_state(second) is not None
+    assert _ours_joint_state(first) == _rclpy_joint_state(first)
+    bad = _damaged(second, *how)
+    assert _ours_joint_state(bad) == _rclpy_joint_state(bad)
+
+
+def test_a_refusal_is_the_same_after_the_names_were_read_whole():
+    """A JointState cut in its names is refused as when it is the first read, after the whole of it was read."""
+    whole = _joint_state("base", (1, 2), ["lift_cylinder", "top_link"], [0.6, 0.1], [], [])
+    refusals = []
+    for _ in range(2):
+        with pytest.raises(CdrError) as refused:
+            read_joint_state(whole[:56], "/joint_states", 0)
+        refusals.append(str(refused.value))
+        assert read_joint_state(whole, "/joint_states", 0).names == ["lift_cylinder", "top_link"]
+    assert refusals[0] == refusals[1] and "name[1]" in refusals[0], refusals
+
+
+def test_every_joint_state_of_the_bundled_bag_reads_as_rclpy_reads_it():
+    """The bundled bag's JointStates (one after the other, the same names every time, the recording
+    node's padding bytes) read as rclpy reads them."""
+    from pathlib import Path
+
+    from linkage_monitor.bag.reader import read_bag_raw
+
+    bag = Path(__file__).resolve().parents[1] / "bags" / "belarus_1221_lift_transport"
+    recorded = [raw.data for raw in read_bag_raw(bag, topics=["/joint_states"])]
+    assert len(recorded) > 1000
+    assert [_ours_joint_state(data) for data in recorded] == [_rclpy_joint_state(data) for data in recorded]

@@ -355,6 +355,14 @@ class _Message(NamedTuple):
     data: bytes
 
 
+class _Record(NamedTuple):
+    """A message of an MCAP file with its schema (None: the channel has none) and channel records."""
+
+    schema: Any
+    channel: Any
+    message: Message
+
+
 def _raw_messages(file: Path, topics: Collection[str] | None) -> Iterator[tuple[Any, Any, Any]]:
     """(schema, channel, message) records of one storage file, in log-time order."""
     if _storage_of(file) == "sqlite3":
@@ -418,35 +426,74 @@ def _mcap_messages(file: Path, topics: Collection[str] | None) -> Iterator[tuple
 def _indexed_messages(file: Path, stream: Any, summary: Any, topics: list[str] | None
                       ) -> Iterator[tuple[Any, Any, Any]]:
     """The (schema, channel, message) records of an indexed MCAP file in log-time order, as mcap's
-    SeekingReader.iter_messages yields them (its queue: chunks by their first log time, messages by
-    log time, ties by position), every chunk's CRC checked: a chunk that fails it is skipped and
-    named in one warning with the messages it held, never decoded."""
+    SeekingReader.iter_messages yields them: sorted by (log time, byte offset of the chunk, position
+    in the chunk), as the chunk indexes' time ranges place them. Chunks are read one at a time, every
+    chunk's CRC checked: a chunk that fails it is skipped and named in one warning with the messages
+    it held, never decoded.
+
+    When no chunk's time range overlaps the next one's (``_in_sequence``), that order is chunk after
+    chunk, each chunk's messages sorted by log time (ties in their order in the chunk); otherwise
+    mcap's queue merges the chunks (a heap of chunks by first log time and of the messages read)."""
+    chunks = sorted(summary.chunk_indexes, key=_chunk_start)
+    if _in_sequence(chunks):
+        for chunk_index in chunks:
+            records = _chunk_records(file, stream, chunk_index, summary, topics)
+            records.sort(key=_log_time)   # stable; a chunk's messages are usually in log-time order already
+            yield from records
+        return
     queue = make_message_queue(log_time_order=True)
-    for chunk_index in summary.chunk_indexes:
+    for chunk_index in chunks:
         queue.push(chunk_index)
     while queue:
         item = queue.pop()
-        if not isinstance(item, ChunkIndex):
+        if isinstance(item, ChunkIndex):
+            for position, record in enumerate(_chunk_records(file, stream, item, summary, topics)):
+                queue.push((record, item.chunk_start_offset, position))
+        else:
             yield item[0]
-            continue
-        stream.seek(item.chunk_start_offset + 1 + 8)   # past the record's opcode and length
-        chunk = None
-        try:
-            chunk = Chunk.read(ReadDataStream(stream))
-            records = breakup_chunk(chunk, validate_crc=True)
-        except Exception as exc:  # noqa: BLE001 - a CRC mismatch, data that does not decompress, a broken header
-            what = ("fails its CRC" if isinstance(exc, CRCValidationError) else
-                    f"is unreadable ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'damaged'})")
-            _log.warning("%s: the chunk at byte %d (%s messages, log times %d to %d ns) %s: skipped, not decoded",
-                         file, item.chunk_start_offset, _message_count(chunk), item.message_start_time,
-                         item.message_end_time, what)
-            continue
-        for position, record in enumerate(records):
-            if isinstance(record, Message):
-                channel = summary.channels[record.channel_id]
-                if topics is None or channel.topic in topics:
-                    schema = summary.schemas[channel.schema_id] if channel.schema_id else None
-                    queue.push(((schema, channel, record), item.chunk_start_offset, position))
+
+
+def _chunk_start(chunk_index: ChunkIndex) -> tuple[int, int]:
+    """Where a chunk's messages begin in log time (ns), then the chunk's byte offset in its file."""
+    return chunk_index.message_start_time, chunk_index.chunk_start_offset
+
+
+def _in_sequence(chunks: list[ChunkIndex]) -> bool:
+    """Whether every chunk of ``chunks`` (sorted by ``_chunk_start``) holds only messages that sort before
+    the next chunk's: its last log time before the next one's first, or at the same ns with the next
+    chunk further in the file."""
+    return all((before.message_end_time, before.chunk_start_offset) < _chunk_start(after)
+               for before, after in zip(chunks, chunks[1:]))
+
+
+def _log_time(record: _Record) -> int:
+    return record.message.log_time
+
+
+def _chunk_records(file: Path, stream: Any, chunk_index: ChunkIndex, summary: Any, topics: list[str] | None
+                   ) -> list[_Record]:
+    """The messages of one chunk on ``topics`` (None: all), in their order in the chunk; none, with a
+    warning naming the chunk, when it fails its CRC or does not read."""
+    stream.seek(chunk_index.chunk_start_offset + 1 + 8)   # past the record's opcode and length
+    chunk = None
+    try:
+        chunk = Chunk.read(ReadDataStream(stream))
+        records = breakup_chunk(chunk, validate_crc=True)
+    except Exception as exc:  # noqa: BLE001 - a CRC mismatch, data that does not decompress, a broken header
+        what = ("fails its CRC" if isinstance(exc, CRCValidationError) else
+                f"is unreadable ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'damaged'})")
+        _log.warning("%s: the chunk at byte %d (%s messages, log times %d to %d ns) %s: skipped, not decoded",
+                     file, chunk_index.chunk_start_offset, _message_count(chunk), chunk_index.message_start_time,
+                     chunk_index.message_end_time, what)
+        return []
+    messages = []
+    for record in records:
+        if isinstance(record, Message):
+            channel = summary.channels[record.channel_id]
+            if topics is None or channel.topic in topics:
+                messages.append(_Record(summary.schemas[channel.schema_id] if channel.schema_id else None, channel,
+                                        record))
+    return messages
 
 
 def _message_count(chunk: Any) -> str:
