@@ -23,8 +23,8 @@ from numba import njit, prange
 
 from .chain import (A_BODY, A_BODY2, A_END, A_JOINT1, A_JOINT2, A_OTHER, A_PARENT, A_PARENT2, ANGLE, ANGLE_INPUT,
                     ANGLE_SIGN, BODY, BODY2, CYLINDER, CYLINDER_INPUT, KIND, RRR, STEP_HINGE, STEP_HINGE2, STEP_JOINT)
-from .programs import (POSE_VALUES, KinematicsProgram, LiveRows, MachineProgram, OutputsProgram, ReducedProgram,
-                       StaticsProgram)
+from .programs import (POSE_VALUES, KinematicsProgram, LivePrograms, LiveRows, MachineProgram, OutputsProgram,
+                       ReducedProgram, StaticsProgram)
 
 TWO_PI = 2.0 * math.pi
 PARALLEL_MIN = 512  # poses: smaller batches stay on the calling thread (no thread-pool wake-up)
@@ -1322,8 +1322,18 @@ def live_rows(n_pose: int, n: int, m: int, outputs: OutputsProgram, machine: Mac
 
 
 @njit(cache=True)
-def live_series(rows_fields, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin_fields,
-                statics_fields, outputs_fields, reduced_fields, machine_fields):
+def live_programs(kin_fields, statics_fields, outputs_fields, reduced_fields, machine_fields):
+    """The ``LivePrograms`` of one configuration from each program as a plain tuple of its fields
+    (``programs.fields``): ``Kinematics.program``, ``StaticsLayout.program``,
+    ``Solver.outputs_program`` of that layout, ``ReducedStatics.program`` of it,
+    ``MachineModel.program`` (``NO_MACHINE`` when no machine-level results are wanted)."""
+    return LivePrograms(KinematicsProgram(*kin_fields), StaticsProgram(*statics_fields),
+                        OutputsProgram(*outputs_fields), ReducedProgram(*reduced_fields),
+                        MachineProgram(*machine_fields))
+
+
+@njit(cache=True)
+def live_series(programs, rows_fields, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition):
     """Poses as the live node solves them, in one compiled call: the live node's one pose, a
     recorded series (replay). Pose i from the last pose
     before it that took this path, the first from (q_start (1, n), jac_start (1, m, n), s_start
@@ -1331,11 +1341,9 @@ def live_series(rows_fields, s, pressure_forces, q_start, jac_start, s_start, li
     measured force (N, NaN = not measured), cap and rod gauge pressures (Pa, NaN = not measured).
     limit: largest constraint residual accepted (m); max_condition: the dead-centre condition
     number of the general path (the kinematics' and the statics'; the reduced path's verdict is
-    the transmission measure, and its kinematic condition number is NaN). The programs, each as a plain
-    tuple of its fields (``programs.fields``): ``Kinematics.program``, ``StaticsLayout.program``,
-    ``Solver.outputs_program`` of that layout, ``ReducedStatics.program`` of it,
-    ``MachineModel.program`` (empty arrays for a part the mechanism does not support). Writes
-    ``rows_fields``: ``live_rows`` of N poses, as a plain tuple.
+    the transmission measure, and its kinematic condition number is NaN). ``programs``: the
+    configuration's ``LivePrograms`` (``live_programs``). Writes ``rows_fields``: ``live_rows``
+    of N poses, as a plain tuple.
 
     Each pose, from the per-pose kernels above: loop closure (``_kinematic_pose``), equilibrium with
     the measured cylinder forces — along the chain of dyads with the transmission verdict
@@ -1346,9 +1354,8 @@ def live_series(rows_fields, s, pressure_forces, q_start, jac_start, s_start, li
     assembled to ``limit``, at a dead centre, a contact lifting off — and then its rows are not
     meaningful: the general path (``Solver._solve``) words the verdict.
     """
-    kin, statics = KinematicsProgram(*kin_fields), StaticsProgram(*statics_fields)
-    outputs, reduced, machine = (OutputsProgram(*outputs_fields), ReducedProgram(*reduced_fields),
-                                 MachineProgram(*machine_fields))
+    kin, statics, outputs, reduced, machine = (programs.kin, programs.statics, programs.outputs, programs.reduced,
+                                               programs.machine)
     n_pose = s.shape[0]
     rows = LiveRows(*rows_fields)
     last = -1

@@ -16,7 +16,7 @@ from .constants import ATMOSPHERIC_PRESSURE   # a gauge pressure below −1 atm 
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
 from .kinematics import Kinematics, KinematicState
 from .model import Cylinder, Mechanism
-from .programs import POSE_VALUES, MachineProgram, OutputsProgram, fields
+from .programs import POSE_VALUES, LivePrograms, MachineProgram, OutputsProgram, fields
 from .reduced import DEAD_CENTRE_TRANSMISSION_DEG, ReducedSolution, ReducedStatics, smallest_sine
 from .results import BatchResult, Result, ResultNames, Status
 from .statics import StaticsLayout, StaticsSolution
@@ -106,6 +106,7 @@ class Solver:
         self._cylinder_index = {c.name: k for k, c in enumerate(mech.cylinders)}
         self._outputs_programs: dict[frozenset[str], OutputsProgram] = {}
         self._programs_by_sensors: dict[tuple[str, ...], _PlainPrograms] = {}   # pressure sensors given -> _solve_plain's
+        self._live_programs: dict[tuple[frozenset[str], int], tuple[MachineProgram, LivePrograms]] = {}
         # largest constraint residual (m) of an assembled pose (kin.solve's): 1e-9·lc when closed exactly
         self._assembly_limit = 1e-9 * kin.lc if kin.m == kin.n else consistency_tol
 
@@ -189,13 +190,11 @@ class Solver:
             if layout.force_measured[k]:
                 measured[:, k] = _measured_force(c, cap[:, k], rod[:, k])
         start = kin.reference
-        outputs = self.outputs_program(layout)
-        rows = kernels.live_rows(n_pose, kin.n, kin.m, outputs, machine)
+        rows = kernels.live_rows(n_pose, kin.n, kin.m, self.outputs_program(layout), machine)
         kernels.live_series(
-            fields(rows), s, np.ascontiguousarray(np.stack([measured, cap, rod], axis=1)), start.q[-1:],
-            start.jac[-1:], start.s[-1:], self._assembly_limit, self.dead_centre_cond, fields(kin.program),
-            fields(layout.program), fields(outputs), fields(self._reduced[layout.force_known].program),
-            fields(machine))
+            self.live_programs(layout, machine), fields(rows), s,
+            np.ascontiguousarray(np.stack([measured, cap, rod], axis=1)), start.q[-1:], start.jac[-1:],
+            start.s[-1:], self._assembly_limit, self.dead_centre_cond)
         plain = rows.plain & ~bad
         batch = BatchResult.from_stacked(
             self.names, {h.name: h.bodies for h in mech.hinges}, rows.point_xz, rows.q.reshape(n_pose, -1, 3),
@@ -337,6 +336,19 @@ class Solver:
             self._outputs_programs[layout.force_known] = program
         return program
 
+    def live_programs(self, layout: StaticsLayout, machine: MachineProgram) -> LivePrograms:
+        """The ``LivePrograms`` ``kernels.live_series`` takes for poses solved with ``layout`` and the
+        machine-level rows of ``machine`` (``MachineModel.program`` or ``kernels.NO_MACHINE``), built
+        once per layout and machine program."""
+        key = (layout.force_known, id(machine))
+        held = self._live_programs.get(key)
+        if held is None or held[0] is not machine:   # the machine kept with it: its id is not reused
+            programs = kernels.live_programs(fields(self.kin.program), fields(layout.program),
+                                             fields(self.outputs_program(layout)),
+                                             fields(self._reduced[layout.force_known].program), fields(machine))
+            held = self._live_programs[key] = (machine, programs)
+        return held[1]
+
     @staticmethod
     def _weakest_names(reduced: ReducedStatics, weakest: np.ndarray) -> list[str]:
         """The name of each pose's weakest transmission measure (``ReducedStatics.measure_names``; '' for −1)."""
@@ -373,20 +385,17 @@ class Solver:
         programs = self._programs_by_sensors.get(tuple(inputs.pressures))
         if programs is None:   # the layout of these measured cylinder forces, once per set of pressure sensors
             layout = self.statics_layout(frozenset(ps.cylinder for ps, _ in pressures))
-            reduced = self._reduced[layout.force_known]
-            outputs = self.outputs_program(layout)
             programs = self._programs_by_sensors[tuple(inputs.pressures)] = _PlainPrograms(
-                force_measured=layout.force_measured.tolist(), kinematics=fields(kin.program),
-                statics=fields(layout.program), outputs=outputs, outputs_fields=fields(outputs),
-                reduced=fields(reduced.program), measure_names=[*reduced.measure_names, ""])
+                layout=layout, force_measured=layout.force_measured.tolist(), outputs=self.outputs_program(layout),
+                measure_names=[*self._reduced[layout.force_known].measure_names, ""])
         measured = [_measured_force(c, cap[k], rod[k]) if known else math.nan
                     for k, (c, known) in enumerate(zip(cylinders, programs.force_measured))]
         start = start if start is not None else kin.reference
         s = np.array([values])
         rows = kernels.live_rows(1, kin.n, kin.m, programs.outputs, machine)
-        kernels.live_series(fields(rows), s, np.array([[measured, cap, rod]]), start.q[-1:], start.jac[-1:],
-                            start.s[-1:], self._assembly_limit, self.dead_centre_cond, programs.kinematics,
-                            programs.statics, programs.outputs_fields, programs.reduced, fields(machine))
+        kernels.live_series(self.live_programs(programs.layout, machine), fields(rows), s,
+                            np.array([[measured, cap, rod]]), start.q[-1:], start.jac[-1:], start.s[-1:],
+                            self._assembly_limit, self.dead_centre_cond)
         if not rows.plain[0]:
             return None
         q = rows.q
@@ -538,18 +547,13 @@ class SolvedPose(NamedTuple):
 
 
 class _PlainPrograms(NamedTuple):
-    """What ``Solver._solve_plain`` takes for one set of pressure sensors: which cylinders' forces
-    they measure, the programs of the kinematics, of the statics layout, of the outputs and of the
-    reduced statics, each as ``kernels.live_series`` takes it (``programs.fields``; the outputs'
-    also as the record ``kernels.live_rows`` sizes the rows from), the transmission measures' names
-    (then '' for none, index −1)."""
+    """What ``Solver._solve_plain`` takes for one set of pressure sensors: the statics layout of the
+    cylinder forces they measure, which those are, the outputs' program (``kernels.live_rows``
+    sizes the rows from it), the transmission measures' names (then '' for none, index −1)."""
 
+    layout: StaticsLayout
     force_measured: list[bool]
-    kinematics: tuple
-    statics: tuple
     outputs: OutputsProgram
-    outputs_fields: tuple
-    reduced: tuple
     measure_names: list[str]
 
 
