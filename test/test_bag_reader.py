@@ -3,17 +3,22 @@ BagWriter, and their errors."""
 
 from __future__ import annotations
 
+import zlib
 from pathlib import Path
 
 import numpy as np
 import pytest
+from mcap.data_stream import ReadDataStream
+from mcap.reader import SeekingReader
+from mcap.records import Chunk, Message
+from mcap.stream_reader import breakup_chunk
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import String
 
 from linkage_monitor.bag.reader import (
-    JointStateColumns, PressureColumns, read_bag, read_bag_raw, read_inputs)
+    JointStateColumns, PressureColumns, _chunk_messages, read_bag, read_bag_raw, read_inputs)
 from linkage_monitor.bag.writer import BagError, BagWriter
 
 T0 = 1_700_000_000_000_000_000  # ns since the epoch
@@ -273,3 +278,37 @@ def test_messages_come_in_mcaps_log_time_order(tmp_path: Path, chunks: list[list
                         in SeekingReader(stream).iter_messages(topics=topics, log_time_order=True)]
         assert [(m.topic, m.log_time_ns, m.data) for m in read_bag_raw(file, topics=topics)] == expected
         assert len(expected) == sum(len(c) if topics is None else len(c) // 2 for c in chunks)
+
+
+SAMPLE_BAGS = Path(__file__).resolve().parents[1] / "bags"
+
+
+@pytest.mark.parametrize("bag", ["belarus_1221_lift_transport", "damping_hitch_lift"])
+def test_chunk_messages_are_mcaps_own(bag: str) -> None:
+    """The chunk reader's records (``_chunk_messages``: split by their heads, only the wanted channels
+    built) are, field for field, the Message records mcap's ``breakup_chunk`` gives for the same
+    channels, for every chunk of a bundled bag, with every channel wanted and with one."""
+    def fields(m: Message) -> tuple:
+        return m.channel_id, m.sequence, m.log_time, m.publish_time, bytes(m.data)
+
+    for file in sorted((SAMPLE_BAGS / bag).glob("*.mcap")):
+        with open(file, "rb") as stream:
+            summary = SeekingReader(stream).get_summary()
+            assert summary is not None and summary.chunk_indexes
+            one = {next(i for i, c in summary.channels.items() if c.topic == "/joint_states")}
+            for index in summary.chunk_indexes:
+                stream.seek(index.chunk_start_offset + 1 + 8)
+                chunk = Chunk.read(ReadDataStream(stream))
+                theirs = [fields(r) for r in breakup_chunk(chunk, validate_crc=True) if isinstance(r, Message)]
+                assert [fields(m) for m in _chunk_messages(chunk, set(summary.channels))] == theirs
+                assert [fields(m) for m in _chunk_messages(chunk, one)] == [t for t in theirs if t[0] in one]
+
+
+def test_chunk_messages_refuse_a_record_past_the_chunk_end() -> None:
+    """A chunk whose last record claims more bytes than the chunk holds is refused (ValueError; the
+    bag reader then skips the chunk by name), never read short."""
+    record = bytes([0x05]) + (40).to_bytes(8, "little") + bytes(30)   # a Message claiming 40 bytes, 30 there
+    chunk = Chunk(compression="", data=record, message_end_time=0, message_start_time=0,
+                  uncompressed_crc=zlib.crc32(record), uncompressed_size=len(record))
+    with pytest.raises(ValueError, match="runs past"):
+        _chunk_messages(chunk, {0})

@@ -37,7 +37,8 @@ from mcap._message_queue import make_message_queue
 from mcap.data_stream import ReadDataStream
 from mcap.reader import NonSeekingReader, SeekingReader
 from mcap.records import Chunk, ChunkIndex, Message
-from mcap.stream_reader import CRCValidationError, breakup_chunk
+from mcap.opcode import Opcode
+from mcap.stream_reader import CRCValidationError, breakup_chunk, get_chunk_data_stream
 from rclpy.serialization import deserialize_message
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosidl_parser.definition import AbstractNestedType, BasicType, NamespacedType
@@ -476,23 +477,52 @@ def _chunk_records(file: Path, stream: Any, chunk_index: ChunkIndex, summary: An
     warning naming the chunk, when it fails its CRC or does not read."""
     stream.seek(chunk_index.chunk_start_offset + 1 + 8)   # past the record's opcode and length
     chunk = None
+    channels = summary.channels
+    wanted = {i for i, c in channels.items() if topics is None or c.topic in topics}
     try:
         chunk = Chunk.read(ReadDataStream(stream))
-        records = breakup_chunk(chunk, validate_crc=True)
-    except Exception as exc:  # noqa: BLE001 - a CRC mismatch, data that does not decompress, a broken header
+        records = _chunk_messages(chunk, wanted)
+    except Exception as exc:  # noqa: BLE001 - a CRC mismatch, data that does not decompress, a broken record
         what = ("fails its CRC" if isinstance(exc, CRCValidationError) else
                 f"is unreadable ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'damaged'})")
         _log.warning("%s: the chunk at byte %d (%s messages, log times %d to %d ns) %s: skipped, not decoded",
                      file, chunk_index.chunk_start_offset, _message_count(chunk), chunk_index.message_start_time,
                      chunk_index.message_end_time, what)
         return []
+    schemas = summary.schemas
+    return [_Record(schemas[channels[m.channel_id].schema_id] if channels[m.channel_id].schema_id else None,
+                    channels[m.channel_id], m) for m in records]
+
+
+_RECORD_HEAD = struct.Struct("<BQ")          # a record's opcode and the length of its body (MCAP spec)
+_MESSAGE_HEAD = struct.Struct("<HIQQ")       # a Message record's channel id, sequence, log and publish time
+
+
+def _chunk_messages(chunk: Chunk, channel_ids: Collection[int]) -> list[Message]:
+    """The Message records of ``chunk`` on ``channel_ids``, in their order in the chunk. The chunk is
+    decompressed and its CRC checked by mcap (``get_chunk_data_stream``, as ``breakup_chunk`` does);
+    the records are then split by their heads, and only the wanted messages are built (most of a
+    node's recording are outputs a replay does not read). Raises ValueError for a record that runs
+    past the chunk's end."""
+    data_stream, size = get_chunk_data_stream(chunk, validate_crc=True)
+    data = data_stream.read(size)
     messages = []
-    for record in records:
-        if isinstance(record, Message):
-            channel = summary.channels[record.channel_id]
-            if topics is None or channel.topic in topics:
-                messages.append(_Record(summary.schemas[channel.schema_id] if channel.schema_id else None, channel,
-                                        record))
+    position = 0
+    while position < size:
+        if size - position < _RECORD_HEAD.size:
+            raise ValueError(f"a record head at byte {position} of the chunk is cut off")
+        opcode, length = _RECORD_HEAD.unpack_from(data, position)
+        body = position + _RECORD_HEAD.size
+        position = body + length
+        if position > size:
+            raise ValueError(f"a record at byte {body - _RECORD_HEAD.size} runs past the chunk's end")
+        if opcode == Opcode.MESSAGE:
+            if length < _MESSAGE_HEAD.size:
+                raise ValueError(f"a message record at byte {body - _RECORD_HEAD.size} is shorter than its head")
+            channel_id, sequence, log_time, publish_time = _MESSAGE_HEAD.unpack_from(data, body)
+            if channel_id in channel_ids:
+                messages.append(Message(channel_id=channel_id, log_time=log_time, publish_time=publish_time,
+                                        sequence=sequence, data=data[body + _MESSAGE_HEAD.size:position]))
     return messages
 
 
