@@ -55,12 +55,12 @@ def main() -> int:
                 running[workers] = time.perf_counter() - started
     n = len(bags)
     print(f"{n} bags, {os.cpu_count()} cores")
-    print(f"{'run':<52} {'wall [s]':>9} {'bags/s':>8} {'ratio':>8}")
-    print(f"{'single process, no Dask (baseline)':<52} {single:9.2f} {n / single:8.2f} {1.0:8.2f}")
+    print(f"{'run':<58} {'wall [s]':>9} {'bags/s':>8} {'ratio':>8}")
+    print(f"{'single process, no Dask (baseline)':<58} {single:9.2f} {n / single:8.2f} {1.0:8.2f}")
     for label, times in (("LocalCluster started and stopped in the run", walls),
                          ("running cluster, workers warm", running)):
         for workers, wall in times.items():
-            print(f"{f'{label}, {workers} worker(s)':<52} {wall:9.2f} {n / wall:8.2f} {single / wall:8.2f}")
+            print(f"{f'{label}, {workers} worker(s)':<58} {wall:9.2f} {n / wall:8.2f} {single / wall:8.2f}")
     print(f"\nspeed-up 2 workers over 1, the cluster started in the run: {walls[1] / walls[2]:.2f}x "
           "(ideal 2.00x, goal >= 1.8x)")
     print(f"speed-up 2 workers over 1, on a running cluster:         {running[1] / running[2]:.2f}x")
