@@ -436,9 +436,10 @@ def _indexed_messages(file: Path, stream: Any, summary: Any, topics: list[str] |
     chunk, each chunk's messages sorted by log time (ties in their order in the chunk); otherwise
     mcap's queue merges the chunks (a heap of chunks by first log time and of the messages read)."""
     chunks = sorted(summary.chunk_indexes, key=_chunk_start)
+    channel_ids = {i for i, c in summary.channels.items() if topics is None or c.topic in topics}
     if _in_sequence(chunks):
         for chunk_index in chunks:
-            records = _chunk_records(file, stream, chunk_index, summary, topics)
+            records = _chunk_records(file, stream, chunk_index, summary, channel_ids)
             records.sort(key=_log_time)   # stable; a chunk's messages are usually in log-time order already
             yield from records
         return
@@ -448,7 +449,7 @@ def _indexed_messages(file: Path, stream: Any, summary: Any, topics: list[str] |
     while queue:
         item = queue.pop()
         if isinstance(item, ChunkIndex):
-            for position, record in enumerate(_chunk_records(file, stream, item, summary, topics)):
+            for position, record in enumerate(_chunk_records(file, stream, item, summary, channel_ids)):
                 queue.push((record, item.chunk_start_offset, position))
         else:
             yield item[0]
@@ -471,17 +472,16 @@ def _log_time(record: _Record) -> int:
     return record.message.log_time
 
 
-def _chunk_records(file: Path, stream: Any, chunk_index: ChunkIndex, summary: Any, topics: list[str] | None
+def _chunk_records(file: Path, stream: Any, chunk_index: ChunkIndex, summary: Any, channel_ids: set[int]
                    ) -> list[_Record]:
-    """The messages of one chunk on ``topics`` (None: all), in their order in the chunk; none, with a
-    warning naming the chunk, when it fails its CRC or does not read."""
+    """The messages of one chunk on the channels ``channel_ids``, in their order in the chunk; none, with
+    a warning naming the chunk, when it fails its CRC or does not read."""
     stream.seek(chunk_index.chunk_start_offset + 1 + 8)   # past the record's opcode and length
     chunk = None
     channels = summary.channels
-    wanted = {i for i, c in channels.items() if topics is None or c.topic in topics}
     try:
         chunk = Chunk.read(ReadDataStream(stream))
-        records = _chunk_messages(chunk, wanted)
+        records = _chunk_messages(chunk, channel_ids)
     except Exception as exc:  # noqa: BLE001 - a CRC mismatch, data that does not decompress, a broken record
         what = ("fails its CRC" if isinstance(exc, CRCValidationError) else
                 f"is unreadable ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'damaged'})")
