@@ -7,9 +7,9 @@ programs of a configuration as one ``LivePrograms`` object, built once (``kernel
 from plain tuples of their fields, ``fields``): numba types a NamedTuple argument in Python, and
 unboxes every array of a tuple argument at every call (about 0.2 µs an array: some 20 µs for
 the ~80 arrays of the five programs), while an object holding them passes as one pointer.
-``LiveRows`` is what the live solve writes, per pose. Indices are attachments (points fixed on bodies, ``Kinematics.attach``),
-hinges, members (springs then cylinders) or columns of the statics' unknowns. SI units: m, rad, N,
-kg; frame x forward, z up.
+``LiveRows`` is what the live solve writes, per pose. Indices are attachments (points fixed on
+bodies, ``Kinematics.attach``), hinges, members (springs then cylinders) or columns of the
+statics' unknowns. SI units: m, rad, N, kg; frame x forward, z up.
 """
 
 from __future__ import annotations
