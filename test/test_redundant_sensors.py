@@ -119,7 +119,7 @@ def _disagreements(angle_offset: float) -> tuple[int, int]:
 
 
 def test_healthy_sensors_rarely_disagree_and_a_miscalibrated_angle_sensor_always_does() -> None:
-    """The sensors_disagree WARN (monitoring core, CONSISTENCY_WARN_M) on the fit's misfit: quiet on
+    """The sensors_disagree WARN (monitoring.checks, CONSISTENCY_WARN_M) on the fit's misfit: quiet on
     healthy sensors with the simulator's default noise (a ~0.1° angle sensor, 0.5 mm stroke; on at
     most 1 % of the poses), on every pose when the angle sensor is off by 2° (a calibration error)."""
     solved, warned = _disagreements(0.0)

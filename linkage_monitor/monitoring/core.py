@@ -3,9 +3,9 @@
 One core, two drivers. The live node hands each input event (``monitoring.events``) to ``step``
 (each solve warm-starts from the last solved pose, which the core holds explicitly); the
 replay hands a whole recording to ``run``, which takes every event through the same
-acceptance stage, solves the due poses of each configuration segment in one batch, and
-finishes each pose with the same function as the live path. Both return one ``Step`` per
-input event: a level, the findings (code + sentence naming the input and the reason), the
+acceptance stage, solves the due poses of each configuration segment in one batch, and checks
+them all at once with the live path's rule (``checks.pose_checks``). Both return one ``Step``
+per input event: a level, the findings (code + sentence naming the input and the reason), the
 key-values for the diagnostic, and the solved ``Pose`` or None — nothing with garbage values.
 Units SI (m, rad, N, Pa, kg); frame x forward, z up, origin at the rear wheels' ground contact.
 """
@@ -23,25 +23,15 @@ from linkage_monitor.mechanics import (AssemblyError, BatchResult, DeadCentreErr
                                        Mechanism, Result, Solver, Status, apply_overrides)
 from linkage_monitor.mechanics.machine import MachineBatch, MachineModel, MachineResult
 
+from .checks import CONSISTENCY_WARN_M, RESIDUAL_WARN_SHARE, Check, CheckedValues, largest_force, pose_checks
 from .config import MonitorConfig
 from .events import ConfigEvent, Event, InputEvent, JointStateEvent, PressureEvent, UnreadableEvent
 from .findings import Code, Finding, Level, fmt
 from .inputs import InputTracker, Refused
 
-# Redundant measurements (e.g. stroke and lift-arm angle) never agree exactly: the solver closes
-# every hinge and fits the sensors in least squares; up to CONSISTENCY_WARN_M of their misfit
-# (the kinematic residual) is sensor noise, above it a WARN, above ASSEMBLY_LIMIT_M the pose
-# cannot be assembled from the inputs (ERROR). With a ~0.1° rockshaft angle sensor and a 0.5 mm
-# stroke sensor (the simulator's default noise) the misfit's sigma is ~0.55 mm on belarus_1221, and
-# an angle sensor off by 1° adds only 1.8-2.6 mm (the stroke predicts the angle closely): at 1.5 mm
-# a simulated lift WARNs on 2 of 252 healthy poses, on 219 of 252 with the angle off by 1°, on every
-# pose with 2° (test_redundant_sensors.py); on the bundled bag it WARNs on 14 of 1630 poses.
-CONSISTENCY_WARN_M = 1.5e-3
+# A pose whose sensors misfit the closed linkage by more than this cannot be assembled from the inputs
+# (an ERROR; up to checks.CONSISTENCY_WARN_M the misfit is sensor noise, between the two a WARN).
 ASSEMBLY_LIMIT_M = 20e-3
-# With more measured forces than needed (e.g. two cylinder pressures), equilibrium is met in
-# the least-squares sense; a residual above this share of the largest force means the
-# pressures disagree beyond sensor noise.
-RESIDUAL_WARN_SHARE = 0.01
 MESSAGE_JOIN = " | "  # between the sentences of several findings of one step
 FAILURE_CODE = {Status.INPUT: Code.MALFORMED_INPUT, Status.ASSEMBLY: Code.CANNOT_ASSEMBLE,
                 Status.DEAD_CENTRE: Code.DEAD_CENTRE}
@@ -256,8 +246,9 @@ class Monitor:
         else:   # each pose from the one before, as the live path solves them
             batch, machine = self.machine.solve_series(column("cylinders"), column("angles"), column("pressures"))
         results, machine_results = batch.results(), machine.results()
-        for k, ((i, due), status) in enumerate(zip(segment, batch.status.tolist())):
-            steps[i] = (self._finish(due, results[k], machine_results[k]) if status < Status.INPUT
+        checks = _segment_checks(batch, machine).tolist()
+        for k, ((i, due), status, check) in enumerate(zip(segment, batch.status.tolist(), checks)):
+            steps[i] = (self._pose_step(due, results[k], machine_results[k], check) if status < Status.INPUT
                         else self._failed(due, Status(status), batch.messages[k]))
         segments.append(Segment(np.array([i for i, _ in segment]), np.array([d.stamp_ns for d in dues], dtype=np.int64),
                                 batch, machine, self.mechanism, self.config))
@@ -296,35 +287,60 @@ class Monitor:
         return Step(event.stamp_ns, event.topic, (Finding(Code.INTERNAL_ERROR, text),))
 
     def _finish(self, due: _Due, result: Result, machine: MachineResult) -> Step:
-        """Findings and key-values of one solved pose with its machine-level results."""
+        """The Step of one solved pose with its machine-level results (``checks.pose_checks``)."""
+        checks = pose_checks(CheckedValues(
+            result.status == _LIFT_OFF, result.consistency_residual, result.residual,
+            largest_force(result.hinge_force, result.cylinder_values[:, 1]), machine.value("front_axle_load"),
+            machine.value("rear_axle_load"), machine.value("margin"), machine.value("reserve")))
+        return self._pose_step(due, result, machine, int(checks))
+
+    def _pose_step(self, due: _Due, result: Result, machine: MachineResult, checks: int) -> Step:
+        """The Step of a solved pose whose failed checks are ``checks`` (``Check`` bits)."""
+        findings = self._findings(Check(checks), result, machine) if checks else ()
+        return Step(due.stamp_ns, due.trigger, findings, Pose(result, machine), due.inputs)
+
+    def _findings(self, checks: Check, result: Result, machine: MachineResult) -> tuple[Finding, ...]:
+        """The findings of the failed ``checks`` of a solved pose, worded with its numbers."""
         findings = []
-        if result.status == _LIFT_OFF:
+        if Check.LIFT_OFF in checks:
             findings.append(Finding(Code.LIFT_OFF, result.message or "a ground contact lifts off"))
-        if result.consistency_residual > CONSISTENCY_WARN_M:
+        if Check.SENSORS_DISAGREE in checks:
             findings.append(Finding(Code.SENSORS_DISAGREE, f"measurements disagree: kinematic residual "
                                     f"{fmt(result.consistency_residual * 1e3)} mm > {fmt(CONSISTENCY_WARN_M * 1e3)} mm "
                                     "(check sensor calibration)"))
-        largest = max(result.hinge_magnitude.max(initial=0.0), np.abs(result.cylinder_values[:, 1]).max(initial=0.0))
-        if result.residual > RESIDUAL_WARN_SHARE * largest:
+        if Check.PRESSURES_DISAGREE in checks:
+            largest = float(largest_force(result.hinge_force, result.cylinder_values[:, 1]))
             findings.append(Finding(Code.PRESSURES_DISAGREE, f"equilibrium residual {fmt(result.residual)} N > "
                                     f"{RESIDUAL_WARN_SHARE:.0%} of the largest force ({fmt(largest)} N): the measured "
                                     "pressures disagree"))
-        margin, reserve = machine.value("margin"), machine.value("reserve")
-        for axle in ("front", "rear"):
-            load = machine.value(f"{axle}_axle_load")
-            if load < 0.0:
+        for axle, check in (("front", Check.FRONT_AXLE_LIFT_OFF), ("rear", Check.REAR_AXLE_LIFT_OFF)):
+            if check in checks:
+                load = machine.value(f"{axle}_axle_load")
                 findings.append(Finding(Code.AXLE_LIFT_OFF, f"{axle} axle load {fmt(load / 1e3)} kN < 0: the machine "
                                         f"tips over its {'rear' if axle == 'front' else 'front'} axle (check the "
                                         "tractor, ballast and implement masses and their positions)"))
-        if margin < 0.0:
+        if Check.STEERABILITY_LOW in checks:
             steer = machine.steerability
             reference = self.mechanism.tractor.steerability_reference if self.mechanism.tractor else "unit"
-            findings.append(Finding(Code.STEERABILITY_LOW, f"steerability margin {margin:+.3f} < 0: the front axle "
-                                    f"carries {steer['ratio']:.1%} of the {reference} weight, below ratio_min "
+            findings.append(Finding(Code.STEERABILITY_LOW, f"steerability margin {steer['margin']:+.3f} < 0: the front "
+                                    f"axle carries {steer['ratio']:.1%} of the {reference} weight, below ratio_min "
                                     f"{steer['ratio_min']:.0%}; extra front ballast needed "
                                     f"{fmt(round(steer['front_ballast_needed']))} kg"))
-        if reserve < 1.0:
-            findings.append(Finding(Code.LIFT_RESERVE_LOW, f"lift reserve {reserve:.2f} < 1: implement load "
-                                    f"{fmt(result.implement_load / 1e3)} kN exceeds the lift capacity "
+        if Check.LIFT_RESERVE_LOW in checks:
+            findings.append(Finding(Code.LIFT_RESERVE_LOW, f"lift reserve {machine.value('reserve'):.2f} < 1: implement "
+                                    f"load {fmt(result.implement_load / 1e3)} kN exceeds the lift capacity "
                                     f"{fmt(machine.value('implement_cg') / 1e3)} kN at its centre of gravity"))
-        return Step(due.stamp_ns, due.trigger, tuple(findings), Pose(result, machine), due.inputs)
+        return tuple(findings)
+
+
+def _segment_checks(batch: BatchResult, machine: MachineBatch) -> np.ndarray:
+    """``pose_checks`` of every pose of a solved segment at once ((N,) ints; a failed pose's NaN
+    values pass every check, and its verdict is worded from its status)."""
+    n = len(batch)
+    hinges = np.stack(list(batch.hinge_force.values()), axis=1) if batch.hinge_force else np.zeros((n, 0, 2))
+    cylinders = np.stack(list(batch.cylinder_force.values()), axis=1) if batch.cylinder_force else np.zeros((n, 0))
+    steer, capacity, missing = machine.steerability, machine.lift_capacity, np.full(n, math.nan)
+    return np.asarray(pose_checks(CheckedValues(
+        batch.status == Status.LIFT_OFF, batch.consistency_residual, batch.residual, largest_force(hinges, cylinders),
+        steer.get("front_axle_load", missing), steer.get("rear_axle_load", missing), steer.get("margin", missing),
+        capacity.get("reserve", missing))))

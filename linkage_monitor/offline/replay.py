@@ -23,6 +23,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Iterator, ParamSpec, TextIO, TypeVar
 
+import numpy as np
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 from tqdm import tqdm
@@ -30,7 +31,7 @@ from tqdm import tqdm
 from linkage_monitor.bag.reader import read_bag, read_bag_raw
 from linkage_monitor.bag.step_recorder import RecordedInput, StepRecorder
 from linkage_monitor.bag.writer import MECHANISM_TOPIC, BagError, BagWriter
-from linkage_monitor.mechanics import Mechanism, mechanism_from_text
+from linkage_monitor.mechanics import Mechanism, Status, mechanism_from_text
 from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
 from linkage_monitor.monitoring.core import Monitor, Run, Step
 from linkage_monitor.monitoring.events import ConfigEvent, Event
@@ -211,8 +212,7 @@ def replay(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None
         raise BagError(f"bag {bag} holds no {JOINT_STATE} on {config.topics.joint_states} or {FLUID_PRESSURE} on "
                        f"{', '.join(config.pressure_topics) or '(none configured)'}: nothing to replay")
     summary.inputs, summary.start_ns = len(raw), raw[0].stamp_ns
-    for step in run.steps:
-        _account(summary, step)
+    _account(summary, run)
     if out_dir is not None:
         _write_bag(out_dir, monitor, description, config, raw, run, rate, progress)
     if rrd is not None:
@@ -263,23 +263,36 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
         writer.close()
 
 
-def _account(summary: Summary, step: Step) -> None:
-    at = (step.stamp_ns - summary.start_ns) * 1e-9
-    for finding in step.findings:
-        summary.kinds[(finding.level.name, finding.code.ident)] += 1
-    if step.pose is None:
-        return
-    summary.solved += 1
-    result = step.pose.result
-    for (name, _, _), magnitude in zip(result.names.hinges, result.hinge_magnitude.tolist()):
-        if magnitude > summary.peak_hinge.get(name, (-1.0, 0.0))[0]:
-            summary.peak_hinge[name] = (magnitude, at)
-    margin = step.pose.machine.value("margin")
-    if math.isfinite(margin) and (summary.min_margin is None or margin < summary.min_margin[0]):
-        summary.min_margin = (margin, at)
-    reserve = step.pose.machine.value("reserve")
-    if math.isfinite(reserve) and (summary.min_reserve is None or reserve < summary.min_reserve[0]):
-        summary.min_reserve = (reserve, at)
+def _account(summary: Summary, run: Run) -> None:
+    """The run's findings by level and code, its solved poses, and the peaks and minima of its
+    segments' columns with their times (the first pose where a value ties)."""
+    for step in run.steps:
+        for finding in step.findings:
+            summary.kinds[(finding.level.name, finding.code.ident)] += 1
+    for segment in run.segments:
+        solved = segment.batch.status < Status.INPUT
+        summary.solved += int(solved.sum())
+        at = (segment.stamps_ns - summary.start_ns) * 1e-9
+        for name, force in segment.batch.hinge_force.items():
+            magnitude = np.where(solved, np.hypot(force[:, 0], force[:, 1]), -math.inf)
+            k = int(np.argmax(magnitude))   # a segment holds at least one pose
+            if magnitude[k] > summary.peak_hinge.get(name, (-1.0, 0.0))[0]:
+                summary.peak_hinge[name] = (float(magnitude[k]), float(at[k]))
+        machine = segment.machine
+        summary.min_margin = _smallest(machine.steerability.get("margin"), solved, at, summary.min_margin)
+        summary.min_reserve = _smallest(machine.lift_capacity.get("reserve"), solved, at, summary.min_reserve)
+
+
+def _smallest(values: np.ndarray | None, solved: np.ndarray, at: np.ndarray,
+              smallest: tuple[float, float] | None) -> tuple[float, float] | None:
+    """The smaller of ``smallest`` (value, s) and the first smallest finite value of the solved poses."""
+    if values is None:
+        return smallest
+    candidates = np.where(solved & np.isfinite(values), values, math.inf)
+    k = int(np.argmin(candidates))
+    if candidates[k] < math.inf and (smallest is None or candidates[k] < smallest[0]):
+        return float(candidates[k]), float(at[k])
+    return smallest
 
 
 def _log_rerun(path: Path, description: Mechanism, run: Run) -> None:

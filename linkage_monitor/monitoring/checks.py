@@ -1,0 +1,78 @@
+"""The numeric checks of a solved pose: one rule for the live pose and for a replayed segment.
+
+Each check is a bit of a :class:`Check` flag set. ``pose_checks`` takes the values of one pose
+as floats (the live node) or of N poses as arrays (N,) (a replay segment) and makes the same
+comparisons either way. NaN, a value not computed (no ``tractor`` block, no lift capacity),
+passes every check. ``monitoring.core`` words the findings of the bits that are set.
+Units SI (m, N).
+"""
+
+from __future__ import annotations
+
+from enum import IntFlag
+from typing import NamedTuple
+
+import numpy as np
+
+# Redundant measurements (e.g. stroke and lift-arm angle) never agree exactly: the solver closes
+# every hinge and fits the sensors in least squares. Up to CONSISTENCY_WARN_M of their misfit
+# (the kinematic residual) is sensor noise; above it a WARN (above core.ASSEMBLY_LIMIT_M the pose
+# cannot be assembled from the inputs: an ERROR). With a ~0.1° rockshaft angle sensor and a 0.5 mm
+# stroke sensor (the simulator's default noise) the misfit's sigma is ~0.55 mm on belarus_1221, and
+# an angle sensor off by 1° adds only 1.8-2.6 mm (the stroke predicts the angle closely): at 1.5 mm
+# a simulated lift WARNs on 2 of 252 healthy poses, on 219 of 252 with the angle off by 1°, on every
+# pose with 2° (test_redundant_sensors.py); on the bundled bag it WARNs on 14 of 1630 poses.
+CONSISTENCY_WARN_M = 1.5e-3
+# With more measured forces than needed (e.g. two cylinder pressures), equilibrium is met in
+# the least-squares sense; a residual above this share of the largest force means the
+# pressures disagree beyond sensor noise.
+RESIDUAL_WARN_SHARE = 0.01
+
+
+class Check(IntFlag):
+    """One failed check of a solved pose, in the order its finding is worded."""
+
+    LIFT_OFF = 1              # a ground contact would pull
+    SENSORS_DISAGREE = 2      # kinematic residual > CONSISTENCY_WARN_M
+    PRESSURES_DISAGREE = 4    # equilibrium residual > RESIDUAL_WARN_SHARE of the largest force
+    FRONT_AXLE_LIFT_OFF = 8   # front axle load < 0
+    REAR_AXLE_LIFT_OFF = 16   # rear axle load < 0
+    STEERABILITY_LOW = 32     # steerability margin < 0
+    LIFT_RESERVE_LOW = 64     # lift reserve < 1
+
+
+class CheckedValues(NamedTuple):
+    """What the checks look at, for one pose (floats) or N poses (arrays (N,)).
+
+    lift_off: the solver's LIFT_OFF verdict; consistency_residual m, residual N: the solver's
+    kinematic and equilibrium residuals; largest_force N (``largest_force``); front/rear_axle_load
+    N, margin (steerability margin, -), reserve (lift reserve, -): the machine-level results.
+    """
+
+    lift_off: bool | np.ndarray
+    consistency_residual: float | np.ndarray
+    residual: float | np.ndarray
+    largest_force: float | np.ndarray
+    front_axle_load: float | np.ndarray
+    rear_axle_load: float | np.ndarray
+    margin: float | np.ndarray
+    reserve: float | np.ndarray
+
+
+def pose_checks(values: CheckedValues) -> int | np.ndarray:
+    """The :class:`Check` bits that fail: an int for one pose, an int array (N,) for N poses."""
+    v = values
+    return (v.lift_off * int(Check.LIFT_OFF)
+            + (v.consistency_residual > CONSISTENCY_WARN_M) * int(Check.SENSORS_DISAGREE)
+            + (v.residual > RESIDUAL_WARN_SHARE * v.largest_force) * int(Check.PRESSURES_DISAGREE)
+            + (v.front_axle_load < 0.0) * int(Check.FRONT_AXLE_LIFT_OFF)
+            + (v.rear_axle_load < 0.0) * int(Check.REAR_AXLE_LIFT_OFF)
+            + (v.margin < 0.0) * int(Check.STEERABILITY_LOW)
+            + (v.reserve < 1.0) * int(Check.LIFT_RESERVE_LOW))
+
+
+def largest_force(hinge_force: np.ndarray, cylinder_force: np.ndarray) -> np.ndarray:
+    """The largest hinge reaction or cylinder force magnitude (N; 0 with neither): of one pose from
+    hinge_force (H, 2) and cylinder_force (C,) (a 0-d array), of N poses from (N, H, 2) and (N, C) ((N,))."""
+    hinge = np.hypot(hinge_force[..., 0], hinge_force[..., 1]).max(axis=-1, initial=0.0)
+    return np.maximum(hinge, np.abs(cylinder_force).max(axis=-1, initial=0.0))
