@@ -14,7 +14,7 @@ from rerun.chunk import RrdReader
 from linkage_monitor.mechanics import BatchResult, Inputs, Mechanism, Solver, load_preset, mechanism_from_dict
 from linkage_monitor.viz.drawing import ARROW_LENGTH, CYLINDER_COLOR
 from linkage_monitor.mechanics.reduced import DEAD_CENTRE_TRANSMISSION_DEG
-from linkage_monitor.viz.rerun_view import RerunView, default_blueprint, largest_hinges, linkage_bounds
+from linkage_monitor.viz.rerun_view import APPLICATION_ID, RerunView, default_blueprint, largest_hinges, linkage_bounds
 from linkage_monitor.viz.rerun_view import machine_series as view_series
 from support.rerun_shot import RERUN, pixels_of, screenshot
 
@@ -198,3 +198,17 @@ def test_viewer_screenshot_shows_the_linkage(replay, tmp_path):
     rgb = screenshot(replay[0], tmp_path)
     assert rgb.std() > 10.0  # not a blank window (the viewer chrome alone gives ~26: the check below matters)
     assert pixels_of(rgb, CYLINDER_COLOR) > 500  # the lift cylinder is drawn in the linkage view
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(180)
+def test_a_finished_file_opens_on_a_pose_the_viewer_draws(tmp_path):
+    """A recording of the live node (belarus_1221 lifting, 82 poses; written under
+    test_rerun_live.py) on which Rerun 0.41's viewer, its time cursor following the end of the
+    recording as a live viewer's does, draws an empty side view (0 cylinder pixels, every time).
+    Opened in the file blueprint (paused, on the first pose) it draws the linkage."""
+    fixture = Path(__file__).parent / "fixtures" / "rerun" / "node_lift_following_draws_nothing.rrd"
+    blueprint = tmp_path / "file.rbl"
+    default_blueprint(load_preset("belarus_1221")).save(APPLICATION_ID, str(blueprint))
+    rgb = screenshot(fixture, tmp_path / "viewer", blueprint=blueprint)
+    assert pixels_of(rgb, CYLINDER_COLOR) > 500

@@ -102,11 +102,14 @@ def largest_hinges(batch: BatchResult, n: int = LARGEST_HINGES) -> list[str]:
 
 
 def default_blueprint(mechanism: Mechanism, *, hinges: Sequence[str] | None = None,
-                      extent_xz: np.ndarray | None = None) -> rrb.Blueprint:
+                      extent_xz: np.ndarray | None = None, live: bool = False) -> rrb.Blueprint:
     """The layout a recording opens in: linkage side view + status log (left), five time series (right).
 
     hinges: hinge names shown in the hinge-reaction plot (default all; see :func:`largest_hinges`);
-    extent_xz: points (x, z) in m the 2D view must fit (default the mechanism's reference points).
+    extent_xz: points (x, z) in m the 2D view must fit (default the mechanism's reference points);
+    live: the time cursor follows the latest pose (a running viewer); else (an .rrd file) it opens
+    paused on the first pose. (Rerun 0.41's viewer, following the end of some finished files, draws
+    an empty side view: test_rerun_view.py.)
     """
     extent = np.array(list(mechanism.points.values())) if extent_xz is None else extent_xz
     hinge_contents = ("$origin/**" if hinges is None
@@ -128,7 +131,8 @@ def default_blueprint(mechanism: Mechanism, *, hinges: Sequence[str] | None = No
     left = rrb.Vertical(linkage, status, row_shares=[5, 1])
     return rrb.Blueprint(rrb.Horizontal(left, plots, column_shares=[3, 2]),
                          rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
-                         rrb.TimePanel(state="collapsed", timeline=TIMELINE, play_state="following"))
+                         rrb.TimePanel(state="collapsed", timeline=TIMELINE,
+                                       play_state="following" if live else "paused"))
 
 
 class RerunView:
@@ -168,7 +172,7 @@ class RerunView:
                   force_scale: float | None = None) -> "RerunView":
         """A view streaming to a running Rerun viewer (``url`` as ``connect_grpc``; None = local default)."""
         recording = rr.RecordingStream(APPLICATION_ID)
-        recording.connect_grpc(url, default_blueprint=blueprint or default_blueprint(mechanism))
+        recording.connect_grpc(url, default_blueprint=blueprint or default_blueprint(mechanism, live=True))
         return cls(mechanism, recording, force_scale=force_scale)
 
     def flush(self, timeout_s: float = FLUSH_TIMEOUT_S) -> None:

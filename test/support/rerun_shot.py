@@ -13,8 +13,9 @@ import numpy as np
 RERUN = Path(sys.executable).with_name("rerun")
 
 
-def screenshot(rrd: Path, work: Path, timeout: float = 150.0) -> np.ndarray:
-    """RGB (H, W, 3) in 0..255 of the viewer opening ``rrd`` (window 1200x700, default blueprint)."""
+def screenshot(rrd: Path, work: Path, timeout: float = 150.0, blueprint: Path | None = None) -> np.ndarray:
+    """RGB (H, W, 3) in 0..255 of the viewer opening ``rrd`` (window 1200x700) in its default
+    blueprint, or in the blueprint file ``blueprint`` (.rbl) when given."""
     import matplotlib.image as mpimg
 
     work.mkdir(parents=True, exist_ok=True)
@@ -23,7 +24,8 @@ def screenshot(rrd: Path, work: Path, timeout: float = 150.0) -> np.ndarray:
                XDG_CONFIG_HOME=str(work / "config"))
     os.chmod(work, 0o700)
     # screen larger than the window: the X pointer (screen centre) stays off the viewer, no hover tooltip
-    subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 2560x1600x24", str(RERUN), str(rrd),
+    files = [str(rrd)] if blueprint is None else [str(rrd), str(blueprint)]
+    subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 2560x1600x24", str(RERUN), *files,
                     "--screenshot-to", str(shot), "--window-size", "1200x700"],
                    env=env, capture_output=True, timeout=timeout, check=True)
     return mpimg.imread(shot)[..., :3] * 255.0
