@@ -23,11 +23,16 @@ def screenshot(rrd: Path, work: Path, timeout: float = 150.0, blueprint: Path | 
     env = dict(os.environ, HOME=str(work), XDG_RUNTIME_DIR=str(work), XDG_DATA_HOME=str(work / "data"),
                XDG_CONFIG_HOME=str(work / "config"))
     os.chmod(work, 0o700)
-    # screen larger than the window: the X pointer (screen centre) stays off the viewer, no hover tooltip
+    # screen larger than the window: the X pointer (screen centre) stays off the viewer, no hover tooltip;
+    # --port auto: a viewer of its own (without it, a viewer another test has open on the default port
+    # is handed the file, and this one exits without a screenshot)
     files = [str(rrd)] if blueprint is None else [str(rrd), str(blueprint)]
-    subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 2560x1600x24", str(RERUN), *files,
-                    "--screenshot-to", str(shot), "--window-size", "1200x700"],
-                   env=env, capture_output=True, timeout=timeout, check=True)
+    run = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 2560x1600x24", str(RERUN), *files,
+                          "--screenshot-to", str(shot), "--window-size", "1200x700", "--port", "auto"],
+                         env=env, capture_output=True, timeout=timeout, check=True)
+    if not shot.is_file():   # the viewer exits 0 without one when it cannot take it: say what it printed
+        tail = (run.stdout + run.stderr).decode(errors="replace")[-2000:]
+        raise AssertionError(f"the viewer wrote no screenshot {shot}; its output ends:\n{tail}")
     return mpimg.imread(shot)[..., :3] * 255.0
 
 
