@@ -59,20 +59,23 @@ class CheckedValues(NamedTuple):
     reserve: float | np.ndarray
 
 
+# the bits as plain ints (an IntFlag member in arithmetic costs as much as the comparison)
+_LIFT_OFF, _SENSORS, _PRESSURES, _FRONT, _REAR, _STEER, _RESERVE = (int(c) for c in Check)
+
+
 def pose_checks(values: CheckedValues) -> int | np.ndarray:
     """The :class:`Check` bits that fail: an int for one pose, an int array (N,) for N poses."""
     v = values
-    return (v.lift_off * int(Check.LIFT_OFF)
-            + (v.consistency_residual > CONSISTENCY_WARN_M) * int(Check.SENSORS_DISAGREE)
-            + (v.residual > RESIDUAL_WARN_SHARE * v.largest_force) * int(Check.PRESSURES_DISAGREE)
-            + (v.front_axle_load < 0.0) * int(Check.FRONT_AXLE_LIFT_OFF)
-            + (v.rear_axle_load < 0.0) * int(Check.REAR_AXLE_LIFT_OFF)
-            + (v.margin < 0.0) * int(Check.STEERABILITY_LOW)
-            + (v.reserve < 1.0) * int(Check.LIFT_RESERVE_LOW))
+    return (v.lift_off * _LIFT_OFF
+            + (v.consistency_residual > CONSISTENCY_WARN_M) * _SENSORS
+            + (v.residual > RESIDUAL_WARN_SHARE * v.largest_force) * _PRESSURES
+            + (v.front_axle_load < 0.0) * _FRONT
+            + (v.rear_axle_load < 0.0) * _REAR
+            + (v.margin < 0.0) * _STEER
+            + (v.reserve < 1.0) * _RESERVE)
 
 
-def largest_force(hinge_force: np.ndarray, cylinder_force: np.ndarray) -> np.ndarray:
+def largest_force(hinge_magnitude: np.ndarray, cylinder_force: np.ndarray) -> np.ndarray:
     """The largest hinge reaction or cylinder force magnitude (N; 0 with neither): of one pose from
-    hinge_force (H, 2) and cylinder_force (C,) (a 0-d array), of N poses from (N, H, 2) and (N, C) ((N,))."""
-    hinge = np.hypot(hinge_force[..., 0], hinge_force[..., 1]).max(axis=-1, initial=0.0)
-    return np.maximum(hinge, np.abs(cylinder_force).max(axis=-1, initial=0.0))
+    the hinges' |F| (H,) and cylinder_force (C,) (a 0-d array), of N poses from (N, H) and (N, C) ((N,))."""
+    return np.maximum(hinge_magnitude.max(axis=-1, initial=0.0), np.abs(cylinder_force).max(axis=-1, initial=0.0))

@@ -91,7 +91,9 @@ class Step:
     @property
     def level(self) -> Level:
         """The worst level of the findings (OK without any)."""
-        return max((f.level for f in self.findings), default=Level.OK)
+        if not self.findings:   # most steps: asked several times per step (diagnostics, markers, the summary)
+            return Level.OK
+        return max(f.level for f in self.findings)
 
     @property
     def message(self) -> str:
@@ -288,10 +290,11 @@ class Monitor:
 
     def _finish(self, due: _Due, result: Result, machine: MachineResult) -> Step:
         """The Step of one solved pose with its machine-level results (``checks.pose_checks``)."""
+        largest = float(largest_force(result.hinge_magnitude, result.cylinder_values[:, 1]))   # Python floats: fast
         checks = pose_checks(CheckedValues(
-            result.status == _LIFT_OFF, result.consistency_residual, result.residual,
-            largest_force(result.hinge_force, result.cylinder_values[:, 1]), machine.value("front_axle_load"),
-            machine.value("rear_axle_load"), machine.value("margin"), machine.value("reserve")))
+            result.status == _LIFT_OFF, result.consistency_residual, result.residual, largest,
+            machine.value("front_axle_load"), machine.value("rear_axle_load"), machine.value("margin"),
+            machine.value("reserve")))
         return self._pose_step(due, result, machine, int(checks))
 
     def _pose_step(self, due: _Due, result: Result, machine: MachineResult, checks: int) -> Step:
@@ -309,7 +312,7 @@ class Monitor:
                                     f"{fmt(result.consistency_residual * 1e3)} mm > {fmt(CONSISTENCY_WARN_M * 1e3)} mm "
                                     "(check sensor calibration)"))
         if Check.PRESSURES_DISAGREE in checks:
-            largest = float(largest_force(result.hinge_force, result.cylinder_values[:, 1]))
+            largest = float(largest_force(result.hinge_magnitude, result.cylinder_values[:, 1]))
             findings.append(Finding(Code.PRESSURES_DISAGREE, f"equilibrium residual {fmt(result.residual)} N > "
                                     f"{RESIDUAL_WARN_SHARE:.0%} of the largest force ({fmt(largest)} N): the measured "
                                     "pressures disagree"))
@@ -337,7 +340,8 @@ def _segment_checks(batch: BatchResult, machine: MachineBatch) -> np.ndarray:
     """``pose_checks`` of every pose of a solved segment at once ((N,) ints; a failed pose's NaN
     values pass every check, and its verdict is worded from its status)."""
     n = len(batch)
-    hinges = np.stack(list(batch.hinge_force.values()), axis=1) if batch.hinge_force else np.zeros((n, 0, 2))
+    hinges = np.stack([np.hypot(f[:, 0], f[:, 1]) for f in batch.hinge_force.values()], axis=1) if batch.hinge_force \
+        else np.zeros((n, 0))
     cylinders = np.stack(list(batch.cylinder_force.values()), axis=1) if batch.cylinder_force else np.zeros((n, 0))
     steer, capacity, missing = machine.steerability, machine.lift_capacity, np.full(n, math.nan)
     return np.asarray(pose_checks(CheckedValues(
