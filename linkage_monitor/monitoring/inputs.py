@@ -14,8 +14,7 @@ assembles the inputs of one solve when every input is there and none is stale.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Mapping, NamedTuple, Sequence
 
 from linkage_monitor.mechanics import Inputs, Mechanism
 from linkage_monitor.mechanics.limits import Limit, input_limits
@@ -34,8 +33,7 @@ class Refused(Exception):
         self.finding = finding
 
 
-@dataclass(frozen=True)
-class Reading:
+class Reading(NamedTuple):
     """The latest accepted value of one input: value (m, rad or Pa gauge), rate (m/s, rad/s or
     NaN), its change since the previous reading (m/s², rad/s² or NaN: a finite difference over
     the header stamps), header stamp (ns)."""
@@ -122,18 +120,20 @@ class InputTracker:
             target = self._joint_to_input.get(name)
             if target is None:
                 continue
-            unit = "rad" if target in self.angle_names else "m"
             value = float(positions[k])
             rate = float(velocities[k]) if velocities else math.nan
             if not math.isfinite(value):
+                unit = "rad" if target in self.angle_names else "m"
                 raise Refused(Finding(Code.MALFORMED_INPUT, f"{what} joint '{name}' position is {value} {unit}: "
                                       "a finite value is required (sensor fault?)"))
             if velocities and not math.isfinite(rate):
+                unit = "rad" if target in self.angle_names else "m"
                 raise Refused(Finding(Code.MALFORMED_INPUT, f"{what} joint '{name}' velocity is {rate} {unit}/s: "
                                       "a finite value is required"))
-            self._check_limit(target, value, f"joint '{name}'")
+            self._check_limit(target, value, "joint", name)
             previous = self.readings.get(target)
-            self._check_order(previous, stamp_ns, f"{what} joint '{name}'")
+            if previous is not None and stamp_ns < previous.stamp_ns:   # the text only when refused
+                self._refuse_order(previous, stamp_ns, f"{what} joint '{name}'")
             updates[target] = (previous.then(value, rate, stamp_ns) if previous is not None
                                else Reading(value, rate, math.nan, stamp_ns))
         if not updates:
@@ -162,24 +162,27 @@ class InputTracker:
             raise Refused(Finding(Code.OUT_OF_RANGE, f"{what} is {fmt(value)} Pa {kind}: a negative absolute "
                                   f"pressure ({fmt(absolute)} Pa) is impossible; check the sensor and the "
                                   "pressure_absolute parameter"))
-        self._check_limit(sensor, absolute, f"topic '{topic}'")
-        self._check_order(self.readings.get(sensor), stamp_ns, what)
+        self._check_limit(sensor, absolute, "topic", topic)
+        previous = self.readings.get(sensor)
+        if previous is not None and stamp_ns < previous.stamp_ns:
+            self._refuse_order(previous, stamp_ns, what)
         self.readings[sensor] = Reading(absolute - cfg.atmospheric_pressure, math.nan, math.nan, stamp_ns)
         return sensor
 
     @staticmethod
-    def _check_order(previous: Reading | None, stamp_ns: int, what: str) -> None:
+    def _refuse_order(previous: Reading, stamp_ns: int, what: str) -> None:
         """Refuse a reading stamped before the one in use for the same input (the newest stamp wins)."""
-        if previous is not None and stamp_ns < previous.stamp_ns:
-            raise Refused(Finding(Code.OUT_OF_ORDER, f"{what}: stamped {fmt((previous.stamp_ns - stamp_ns) / NS)} s "
-                                  "before the reading in use: not applied (a second publisher, or a bag played "
-                                  "out of order); it is recorded"))
+        raise Refused(Finding(Code.OUT_OF_ORDER, f"{what}: stamped {fmt((previous.stamp_ns - stamp_ns) / NS)} s "
+                              "before the reading in use: not applied (a second publisher, or a bag played "
+                              "out of order); it is recorded"))
 
-    def _check_limit(self, name: str, value: float, source: str) -> None:
+    def _check_limit(self, name: str, value: float, source: str, source_name: str) -> None:
+        """Refuse ``value`` outside the plausibility limit of input ``name``; the finding names the
+        joint or topic (``source`` '``source_name``') it came from."""
         limit = self.limits.get(name)
         problem = limit.check(value) if limit is not None else None
         if problem:
-            raise Refused(Finding(Code.OUT_OF_RANGE, f"{problem} ({source})"))
+            raise Refused(Finding(Code.OUT_OF_RANGE, f"{problem} ({source} '{source_name}')"))
 
     # ---- the inputs of a solve ----------------------------------------------------------------
     def inputs_at(self, stamp_ns: int) -> Inputs | Finding:
