@@ -123,17 +123,14 @@ class InputTracker:
             value = float(positions[k])
             rate = float(velocities[k]) if velocities else math.nan
             if not math.isfinite(value):
-                unit = "rad" if target in self.angle_names else "m"
-                raise Refused(Finding(Code.MALFORMED_INPUT, f"{what} joint '{name}' position is {value} {unit}: "
-                                      "a finite value is required (sensor fault?)"))
+                raise Refused(Finding(Code.MALFORMED_INPUT, f"{what} joint '{name}' position is {value} "
+                                      f"{self._unit(target)}: a finite value is required (sensor fault?)"))
             if velocities and not math.isfinite(rate):
-                unit = "rad" if target in self.angle_names else "m"
-                raise Refused(Finding(Code.MALFORMED_INPUT, f"{what} joint '{name}' velocity is {rate} {unit}/s: "
-                                      "a finite value is required"))
+                raise Refused(Finding(Code.MALFORMED_INPUT, f"{what} joint '{name}' velocity is {rate} "
+                                      f"{self._unit(target)}/s: a finite value is required"))
             self._check_limit(target, value, "joint", name)
             previous = self.readings.get(target)
-            if previous is not None and stamp_ns < previous.stamp_ns:   # the text only when refused
-                self._refuse_order(previous, stamp_ns, f"{what} joint '{name}'")
+            self._check_order(previous, stamp_ns, what, name)
             updates[target] = (previous.then(value, rate, stamp_ns) if previous is not None
                                else Reading(value, rate, math.nan, stamp_ns))
         if not updates:
@@ -163,18 +160,23 @@ class InputTracker:
                                   f"pressure ({fmt(absolute)} Pa) is impossible; check the sensor and the "
                                   "pressure_absolute parameter"))
         self._check_limit(sensor, absolute, "topic", topic)
-        previous = self.readings.get(sensor)
-        if previous is not None and stamp_ns < previous.stamp_ns:
-            self._refuse_order(previous, stamp_ns, what)
+        self._check_order(self.readings.get(sensor), stamp_ns, what)
         self.readings[sensor] = Reading(absolute - cfg.atmospheric_pressure, math.nan, math.nan, stamp_ns)
         return sensor
 
+    def _unit(self, target: str) -> str:
+        """The unit of input ``target``'s value: rad for an angle sensor, m for a cylinder length."""
+        return "rad" if target in self.angle_names else "m"
+
     @staticmethod
-    def _refuse_order(previous: Reading, stamp_ns: int, what: str) -> None:
-        """Refuse a reading stamped before the one in use for the same input (the newest stamp wins)."""
-        raise Refused(Finding(Code.OUT_OF_ORDER, f"{what}: stamped {fmt((previous.stamp_ns - stamp_ns) / NS)} s "
-                              "before the reading in use: not applied (a second publisher, or a bag played "
-                              "out of order); it is recorded"))
+    def _check_order(previous: Reading | None, stamp_ns: int, what: str, joint: str | None = None) -> None:
+        """Refuse a reading stamped before the one in use for the same input (the newest stamp wins);
+        the finding names ``what`` (and the ``joint``), worded only when it refuses."""
+        if previous is not None and stamp_ns < previous.stamp_ns:
+            source = what if joint is None else f"{what} joint '{joint}'"
+            raise Refused(Finding(Code.OUT_OF_ORDER, f"{source}: stamped {fmt((previous.stamp_ns - stamp_ns) / NS)} s "
+                                  "before the reading in use: not applied (a second publisher, or a bag played "
+                                  "out of order); it is recorded"))
 
     def _check_limit(self, name: str, value: float, source: str, source_name: str) -> None:
         """Refuse ``value`` outside the plausibility limit of input ``name``; the finding names the
