@@ -113,3 +113,35 @@ def test_the_fit_along_the_chain_finds_the_closed_pose_newton_finds_over_all_coo
     difference = q - newton_q[0]
     difference[2::3] = np.remainder(difference[2::3] + np.pi, 2 * np.pi) - np.pi   # rotations: the same modulo 2π
     np.testing.assert_allclose(difference, 0.0, atol=1e-10)
+
+
+SQUARE = [name for name in CHAINS if KINEMATICS[name].m == KINEMATICS[name].n]
+
+
+@pytest.mark.parametrize("name", SQUARE)
+def test_a_batch_of_chain_poses_without_jacobians_takes_the_branch_the_jacobians_give(name: str) -> None:
+    """``solve_poses`` without the condition number takes a square chain's closed pose as it is
+    (no Newton, no Jacobian, on_branch by the chain's reference sides). Oracle: the same batch with
+    the condition number, where every pose's Jacobian is evaluated and its loop signs
+    (``Kinematics.on_branch``) decide the branch; and Φ of ``residual_jacobian`` at each pose. The
+    inputs sweep ±25 % of every length and ±0.6 rad of every angle (poses out of reach included
+    where a cylinder drives)."""
+    kin = KINEMATICS[name]
+    rng = np.random.default_rng(7)
+    n_pose = 400
+    nc = kin.cyl_att.shape[1]
+    s = np.repeat(kin.reference_inputs()[None], n_pose, axis=0)
+    s[:, :nc] *= rng.uniform(0.75, 1.25, (n_pose, nc))
+    s[:, nc:] += rng.uniform(-0.6, 0.6, (n_pose, s.shape[1] - nc))
+    start = kin.reference
+    args = (start.q[-1:], start.jac[-1:], start.s[-1:], s, 25, kin.program)
+    q, phi, _, cond, on_branch = kernels.solve_poses(*args, with_condition=False)
+    q_j, phi_j, _, cond_j, on_branch_j = kernels.solve_poses(*args, with_condition=True)
+    phi_at_q, jac_at_q = kin.residual_jacobian(q, s)
+    closed = np.abs(phi).max(axis=1) <= 1e-13 * kin.lc
+    assert closed.sum() > n_pose // 4
+    np.testing.assert_allclose(phi, phi_at_q, atol=1e-14)
+    np.testing.assert_array_equal(on_branch[closed], kin.on_branch(jac_at_q[closed]))
+    np.testing.assert_array_equal(on_branch, on_branch_j)
+    np.testing.assert_allclose(q, q_j, atol=1e-9)
+    assert np.isnan(cond[:-1]).all() and np.isfinite(cond_j[closed]).all()

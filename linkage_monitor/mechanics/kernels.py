@@ -250,16 +250,22 @@ def closed_step(jac: np.ndarray, rhs: np.ndarray, drive_rows: np.ndarray, fit_ro
 def positions(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Positions p (K, 2) m of all attachments for one pose q, and their offsets rel (K, 2) from their
     body's origin (rotated with the body; for ground attachments the position itself)."""
-    nb = q.shape[0] // 3
-    c = np.empty(nb)
-    s = np.empty(nb)
-    for b in range(nb):
-        c[b] = math.cos(q[3 * b + 2])
-        s[b] = math.sin(q[3 * b + 2])
     k_att = att_body.shape[0]
     p = np.empty((k_att, 2))
     rel = np.empty((k_att, 2))
-    for a in range(k_att):
+    _positions_into(q, att_body, att_ref, p, rel, np.empty((2, q.shape[0] // 3)))
+    return p, rel
+
+
+@njit(cache=True)
+def _positions_into(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray, p: np.ndarray, rel: np.ndarray,
+                    rotation: np.ndarray) -> None:
+    """``positions`` into p, rel (K, 2); ``rotation`` (2, bodies): room for each body's cos θ, sin θ."""
+    c, s = rotation[0], rotation[1]
+    for b in range(c.shape[0]):
+        c[b] = math.cos(q[3 * b + 2])
+        s[b] = math.sin(q[3 * b + 2])
+    for a in range(att_body.shape[0]):
         b = att_body[a]
         rx, rz = att_ref[a, 0], att_ref[a, 1]
         if b < 0:
@@ -270,7 +276,6 @@ def positions(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray) -> tuple
             rel[a, 1] = s[b] * rx + c[b] * rz
             p[a, 0] = q[3 * b] + rel[a, 0]
             p[a, 1] = q[3 * b + 1] + rel[a, 1]
-    return p, rel
 
 
 @njit(cache=True)
@@ -326,6 +331,20 @@ def _input_residuals(q: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_ref
         out[k] = math.sqrt((rx - bx) * (rx - bx) + (rz - bz) * (rz - bz)) - s[k]
     for k in range(angle_body.shape[1]):
         out[nc + k] = _angle_residual(q, k, s, nc, angle_body, angle_reference, lc)
+
+
+@njit(cache=True)
+def _residuals(q: np.ndarray, s: np.ndarray, kin: KinematicsProgram, out: np.ndarray) -> None:
+    """Φ (m,) m of pose q for inputs s into out, as ``residual_jacobian`` computes it, without the
+    Jacobian: the hinge gaps, then the input rows (``_input_residuals``)."""
+    hinge_att, att_body, att_ref = kin.hinge_att, kin.att_body, kin.att_ref
+    nh = hinge_att.shape[1]
+    for h in range(nh):
+        ax, az = _point(q, hinge_att[0, h], att_body, att_ref)
+        bx, bz = _point(q, hinge_att[1, h], att_body, att_ref)
+        out[2 * h], out[2 * h + 1] = ax - bx, az - bz
+    _input_residuals(q, s, att_body, att_ref, kin.cyl_att, kin.angle_body, kin.angle_reference, kin.lc,
+                     out[2 * nh:])
 
 
 @njit(cache=True)
@@ -632,11 +651,20 @@ def loop_signs(jac: np.ndarray, loop_rows: np.ndarray, loop_cols: np.ndarray, lo
 
 
 @njit(cache=True)
+def _nearest_turn(q: np.ndarray, q_start: np.ndarray) -> None:
+    """Each rotation in q by whole turns (as Newton or atan2 may give it) to its equivalent nearest q_start's."""
+    for b in range(q.shape[0] // 3):
+        q[3 * b + 2] = q_start[3 * b + 2] + _wrap(q[3 * b + 2] - q_start[3 * b + 2])
+
+
+@njit(cache=True)
 def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, jac_out: np.ndarray, cond: np.ndarray,
                     on_branch: np.ndarray, q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray,
                     s: np.ndarray, max_iter: int, with_condition: bool, kin: KinematicsProgram) -> None:
     """Pose i of ``solve_poses``, written into the output arrays (the condition number NaN unless
-    ``with_condition``)."""
+    ``with_condition``). A chain's closed pose with as many inputs as degrees of freedom is the
+    answer without Newton or a Jacobian, except at the last pose (the next solve continues from
+    its Jacobian) or where the condition number is asked for."""
     m, n = jac_start.shape[1], jac_start.shape[2]
     n_in = s.shape[1]
     nc = kin.cyl_att.shape[1]
@@ -655,14 +683,23 @@ def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, jac_out: np.
             ds = s[i, j] - s_start[0, j]
             shift[r0 + j] = ds if j < nc else lc * ds
         q0 = q_start[0] + closed_step(jac_start[0], shift, kin.drive_rows, kin.fit_rows, 2 * hinge_att.shape[1])
+    if closed and m == n and not with_condition and i < s.shape[0] - 1:
+        # the chain's closed form is the pose, on the reference side of every circle intersection
+        # (test_chain.py: on the Jacobian's branch there): Φ checks it, no Jacobian is needed
+        _residuals(q0, s[i], kin, phi_out[i])
+        if _max_abs(phi_out[i]) <= 1e-13 * lc:
+            _nearest_turn(q0, q_start[0])
+            q_out[i] = q0
+            cond[i] = math.nan
+            on_branch[i] = True
+            return
     if converged:
         q = q0
         phi, jac = residual_jacobian(q, s[i], att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc)
     else:
         q, phi, jac = newton(q0, s[i], max_iter, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference,
                              lc, kin.drive_rows, kin.fit_rows)
-    for b in range(q.shape[0] // 3):   # a rotation that Newton took by whole turns: the equivalent nearest the start
-        q[3 * b + 2] = q_start[0, 3 * b + 2] + _wrap(q[3 * b + 2] - q_start[0, 3 * b + 2])
+    _nearest_turn(q, q_start[0])
     q_out[i], phi_out[i] = q, phi
     if i == s.shape[0] - 1:   # the last pose's Jacobian: where the next solve continues (not N of them: memory)
         jac_out[0] = jac
@@ -753,8 +790,9 @@ def positions_batch(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray) ->
     k_att = att_body.shape[0]
     p = np.empty((n_pose, k_att, 2))
     rel = np.empty((n_pose, k_att, 2))
+    rotation = np.empty((2, q.shape[1] // 3))
     for i in range(n_pose):
-        p[i], rel[i] = positions(q[i], att_body, att_ref)
+        _positions_into(q[i], att_body, att_ref, p[i], rel[i], rotation)
     return p, rel
 
 
