@@ -658,51 +658,55 @@ def _nearest_turn(q: np.ndarray, q_start: np.ndarray) -> None:
 
 
 @njit(cache=True)
-def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, jac_out: np.ndarray, cond: np.ndarray,
-                    on_branch: np.ndarray, q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray,
-                    s: np.ndarray, max_iter: int, with_condition: bool, kin: KinematicsProgram) -> None:
+def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, cond: np.ndarray, on_branch: np.ndarray,
+                    q_start: np.ndarray, s_start: np.ndarray, s: np.ndarray, max_iter: int, with_condition: bool,
+                    kin: KinematicsProgram) -> None:
     """Pose i of ``solve_poses``, written into the output arrays (the condition number NaN unless
-    ``with_condition``). A chain's closed pose with as many inputs as degrees of freedom is the
-    answer without Newton or a Jacobian, except at the last pose (the next solve continues from
-    its Jacobian) or where the condition number is asked for."""
-    m, n = jac_start.shape[1], jac_start.shape[2]
+    ``with_condition``).
+
+    A chain's pose — in closed form, or fitted along the chain where sensors are redundant — places
+    every circle intersection on the reference pose's side: it is on the reference branch
+    (test_chain.py holds it against the Jacobian's loop signs), and Φ says it closes; no Newton,
+    and a Jacobian only for the condition number. Otherwise (no chain, a step out of reach, a fit
+    that does not converge, a closed form that does not close) Newton, from the tangent prediction
+    off the start pose (its Jacobian evaluated here) or from the chain's pose, and the loop signs
+    of the Jacobian decide the branch."""
+    m, n = phi_out.shape[1], q_out.shape[1]
     n_in = s.shape[1]
     nc = kin.cyl_att.shape[1]
     att_body, att_ref, hinge_att, cyl_att, lc = kin.att_body, kin.att_ref, kin.hinge_att, kin.cyl_att, kin.lc
     angle_body, angle_reference = kin.angle_body, kin.angle_reference
-    converged = False
     if m > n:   # redundant sensors: fitted along the chain's closed poses
         q0, closed, converged = chain_fit(s[i], n, att_body, att_ref, cyl_att, angle_body, angle_reference, lc,
                                           kin.chain_int, kin.chain_float, max_iter)
     else:
         q0, closed = chain_pose(s[i], n, att_body, att_ref, kin.chain_int, kin.chain_float)
-    if not closed:   # no chain, or a step out of reach: the tangent prediction
+        converged = closed
+    if converged:
+        _residuals(q0, s[i], kin, phi_out[i])
+        if m > n or _max_abs(phi_out[i]) <= 1e-13 * lc:   # (with redundant sensors Φ holds their misfit)
+            _nearest_turn(q0, q_start[0])
+            q_out[i] = q0
+            cond[i] = math.nan
+            if with_condition:
+                _, jac = residual_jacobian(q0, s[i], att_body, att_ref, hinge_att, cyl_att, angle_body,
+                                           angle_reference, lc)
+                cond[i] = condition(jac, kin.column_scale)
+            on_branch[i] = True
+            return
+    if not closed:   # the tangent prediction
+        _, jac_start = residual_jacobian(q_start[0], s_start[0], att_body, att_ref, hinge_att, cyl_att, angle_body,
+                                         angle_reference, lc)
         r0 = m - n_in
         shift = np.zeros(m)
         for j in range(n_in):
             ds = s[i, j] - s_start[0, j]
             shift[r0 + j] = ds if j < nc else lc * ds
-        q0 = q_start[0] + closed_step(jac_start[0], shift, kin.drive_rows, kin.fit_rows, 2 * hinge_att.shape[1])
-    if closed and m == n and not with_condition and i < s.shape[0] - 1:
-        # the chain's closed form is the pose, on the reference side of every circle intersection
-        # (test_chain.py: on the Jacobian's branch there): Φ checks it, no Jacobian is needed
-        _residuals(q0, s[i], kin, phi_out[i])
-        if _max_abs(phi_out[i]) <= 1e-13 * lc:
-            _nearest_turn(q0, q_start[0])
-            q_out[i] = q0
-            cond[i] = math.nan
-            on_branch[i] = True
-            return
-    if converged:
-        q = q0
-        phi, jac = residual_jacobian(q, s[i], att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference, lc)
-    else:
-        q, phi, jac = newton(q0, s[i], max_iter, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference,
-                             lc, kin.drive_rows, kin.fit_rows)
+        q0 = q_start[0] + closed_step(jac_start, shift, kin.drive_rows, kin.fit_rows, 2 * hinge_att.shape[1])
+    q, phi, jac = newton(q0, s[i], max_iter, att_body, att_ref, hinge_att, cyl_att, angle_body, angle_reference,
+                         lc, kin.drive_rows, kin.fit_rows)
     _nearest_turn(q, q_start[0])
     q_out[i], phi_out[i] = q, phi
-    if i == s.shape[0] - 1:   # the last pose's Jacobian: where the next solve continues (not N of them: memory)
-        jac_out[0] = jac
     cond[i] = condition(jac, kin.column_scale) if with_condition else math.nan
     signs = loop_signs(jac, kin.loop_rows, kin.loop_cols, kin.loop_ptr)
     on_branch[i] = True
@@ -711,32 +715,28 @@ def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, jac_out: np.
             on_branch[i] = False
 
 
-def _kinematic_outputs(s: np.ndarray, jac_start: np.ndarray) -> tuple[np.ndarray, ...]:
-    n_pose, (m, n) = s.shape[0], jac_start.shape[1:]
-    return (np.empty((n_pose, n)), np.empty((n_pose, m)), np.empty((1, m, n)), np.empty(n_pose),
-            np.empty(n_pose, dtype=np.bool_))
+def solve_poses(q_start: np.ndarray, s_start: np.ndarray, s: np.ndarray, max_iter: int, kin: KinematicsProgram,
+                with_condition: bool = True) -> tuple[np.ndarray, ...]:
+    """Assemble N poses for inputs s (N, n_inputs) (``_kinematic_pose``): the chain's pose, or Newton
+    from the tangent prediction off one solved pose (q_start (1, n), its inputs s_start (1, n_inputs))
+    — J·dq = E·(s − s_start) as a ``closed_step``, E the input rows' unit / lc entries —, then the
+    condition number and the assembly branch.
 
-
-def solve_poses(q_start: np.ndarray, jac_start: np.ndarray, s_start: np.ndarray, s: np.ndarray, max_iter: int,
-                kin: KinematicsProgram, with_condition: bool = True) -> tuple[np.ndarray, ...]:
-    """Assemble N poses for inputs s (N, n_inputs): Newton from the tangent prediction off one solved
-    pose (q_start (1, n), its Jacobian (1, m, n) and inputs (1, n_inputs)) — J·dq = E·(s − s_start)
-    as a ``closed_step``, E the input rows' unit / lc entries — then the condition number and the
-    assembly branch.
-
-    ``kin``: the mechanism (``Kinematics.program``). Returns q (N, n), Φ (N, m), ∂Φ/∂q at the last pose (1, m, n)
-    (where the next solve continues; N of them would be 1.9 kB per pose for belarus_1221), condition
-    (N,; NaN without ``with_condition``: where the reduced path's transmission measure is the
-    verdict, the Jacobian's 1-norm condition number is not needed and is most of a pose's time), on_branch (N,): False where a loop is in the opposite assembly of ``ref_branch`` (a loop
-    at a dead centre, sign 0, counts as on it). Large batches run on every core (``allow_threads``).
+    ``kin``: the mechanism (``Kinematics.program``). Returns q (N, n), Φ (N, m), condition (N,; NaN
+    without ``with_condition``: where the reduced path's transmission measure is the verdict, the
+    Jacobian's 1-norm condition number is not needed and is most of a pose's time), on_branch (N,):
+    False where a loop is in the opposite assembly of ``ref_branch`` (a loop at a dead centre, sign
+    0, counts as on it). Large batches run on every core (``allow_threads``).
     """
-    out = _kinematic_outputs(s, jac_start)
-    driver: Any = _kinematics_parallel if _parallel(s.shape[0]) else _kinematics_serial
-    driver(s.shape[0], *out, q_start, jac_start, s_start, s, max_iter, with_condition, *kin)
+    n_pose, n = s.shape[0], q_start.shape[1]
+    m = 2 * kin.hinge_att.shape[1] + kin.cyl_att.shape[1] + kin.angle_body.shape[1]
+    out = (np.empty((n_pose, n)), np.empty((n_pose, m)), np.empty(n_pose), np.empty(n_pose, dtype=np.bool_))
+    driver: Any = _kinematics_parallel if _parallel(n_pose) else _kinematics_serial
+    driver(n_pose, *out, q_start, s_start, s, max_iter, with_condition, *kin)
     return out
 
 
-_KINEMATIC_ARGS = 11   # ``_kinematic_pose``'s arguments before its program (outputs, start, inputs, max_iter, with_condition)
+_KINEMATIC_ARGS = 9   # ``_kinematic_pose``'s arguments before its program (outputs, start, inputs, max_iter, with_condition)
 
 
 @njit(cache=True)
@@ -1337,8 +1337,8 @@ def steerability_rows(points: np.ndarray, forces: np.ndarray, implement_load: np
 
 # ---- one live pose, end to end; a series of them -----------------------------------------------
 def live_rows(n_pose: int, n: int, m: int, outputs: OutputsProgram, machine: MachineProgram) -> LiveRows:
-    """Empty ``LiveRows`` for n_pose poses, for ``live_series`` to write (the Jacobian
-    two slots, not n_pose), which also fills what a pose may leave unwritten (``_live_pose_at``).
+    """Empty ``LiveRows`` for n_pose poses, for ``live_series`` to write, which also fills what a
+    pose may leave unwritten (``_live_pose_at``).
     Allocated by the caller, uninitialised: numba returns a record of fresh arrays slower than it
     takes one in, and filling them here cost a third of this function's time on the live pose."""
     n_steer = N_STEERABILITY if machine.parameters.shape[0] > 0 else 0
@@ -1346,7 +1346,7 @@ def live_rows(n_pose: int, n: int, m: int, outputs: OutputsProgram, machine: Mac
     n_frame = outputs.frame_att.shape[0]
     return LiveRows(
         plain=np.zeros(n_pose, dtype=np.bool_), q=np.empty((n_pose, n)), phi=np.empty((n_pose, m)),
-        jac=np.empty((2, m, n)), kinematic_condition=np.empty(n_pose),
+        kinematic_condition=np.empty(n_pose),
         point_xz=np.empty((n_pose, outputs.point_rows.shape[0], 2)),
         hinge_force=np.empty((n_pose, outputs.hinge_cols.shape[0], 2)),
         cylinder_values=np.empty((n_pose, outputs.per_cap_area.shape[0], 5)),
@@ -1368,11 +1368,10 @@ def live_programs(kin_fields, statics_fields, outputs_fields, reduced_fields, ma
 
 
 @njit(cache=True)
-def live_series(programs, rows_fields, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition):
+def live_series(programs, rows_fields, s, pressure_forces, q_start, s_start, limit, max_condition):
     """Poses as the live node solves them, in one compiled call: the live node's one pose, a
     recorded series (replay). Pose i from the last pose
-    before it that took this path, the first from (q_start (1, n), jac_start (1, m, n), s_start
-    (1, n_inputs)). s (N, n_inputs): inputs (m, rad); pressure_forces (N, 3, C): per cylinder the
+    before it that took this path, the first from (q_start (1, n), s_start (1, n_inputs)). s (N, n_inputs): inputs (m, rad); pressure_forces (N, 3, C): per cylinder the
     measured force (N, NaN = not measured), cap and rod gauge pressures (Pa, NaN = not measured).
     limit: largest constraint residual accepted (m); max_condition: the dead-centre condition
     number of the general path (the kinematics' and the statics'; the reduced path's verdict is
@@ -1396,14 +1395,13 @@ def live_series(programs, rows_fields, s, pressure_forces, q_start, jac_start, s
     last = -1
     for i in range(n_pose):
         if last < 0:
-            _live_pose_at(i, rows, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin,
-                          statics, outputs, reduced, machine)
+            _live_pose_at(i, rows, s, pressure_forces, q_start, s_start, limit, max_condition, kin, statics, outputs,
+                          reduced, machine)
         else:
-            _live_pose_at(i, rows, s, pressure_forces, rows.q[last:last + 1], rows.jac[1:2],
-                          s[last:last + 1], limit, max_condition, kin, statics, outputs, reduced, machine)
+            _live_pose_at(i, rows, s, pressure_forces, rows.q[last:last + 1], s[last:last + 1], limit,
+                          max_condition, kin, statics, outputs, reduced, machine)
         if rows.plain[i]:
             last = i
-            rows.jac[1] = rows.jac[0]
 
 
 @njit(cache=True)
@@ -1453,8 +1451,8 @@ def _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition,
 
 
 @njit(cache=True)
-def _live_pose_at(i, rows, s, pressure_forces, q_start, jac_start, s_start, limit, max_condition, kin, statics,
-                  outputs, reduced, machine):
+def _live_pose_at(i, rows, s, pressure_forces, q_start, s_start, limit, max_condition, kin, statics, outputs,
+                  reduced, machine):
     """Pose i of ``live_series``, written into its rows of ``rows`` (``LiveRows``). The rows of a
     pose that is not plain are left as they are (the general path writes them), except the
     implement cg and the capacities, NaN until written (no implement; a capacity not computed),
@@ -1467,8 +1465,8 @@ def _live_pose_at(i, rows, s, pressure_forces, q_start, jac_start, s_start, limi
     n_springs, n_cylinders = outputs.spring_stiffness.shape[0], outputs.per_cap_area.shape[0]
     n_members = n_springs + n_cylinders
     on_branch = np.empty(1, dtype=np.bool_)
-    _kinematic_pose(0, rows.q[i:i + 1], rows.phi[i:i + 1], rows.jac[0:1], rows.kinematic_condition[i:i + 1],
-                    on_branch, q_start, jac_start, s_start, s[i:i + 1], 25, not outputs.reduced, kin)
+    _kinematic_pose(0, rows.q[i:i + 1], rows.phi[i:i + 1], rows.kinematic_condition[i:i + 1], on_branch, q_start,
+                    s_start, s[i:i + 1], 25, not outputs.reduced, kin)
     if not (on_branch[0] and assembled(rows.phi[i], 2 * kin.hinge_att.shape[1], kin.lc, limit)
             and (outputs.reduced or rows.kinematic_condition[i] <= max_condition)):
         return

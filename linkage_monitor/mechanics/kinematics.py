@@ -28,13 +28,11 @@ from .results import Status
 @dataclass
 class KinematicState:
     """Solved poses for inputs s (N, n_inputs): q (N, n), constraint residual phi (N, m) m,
-    the Jacobian at the last pose jac (1, m, n) (where a solve continues from these), status (N,),
-    messages, condition (N,)."""
+    status (N,), messages, condition (N,). A solve continues from the last pose (q, s)."""
 
     s: np.ndarray
     q: np.ndarray
     phi: np.ndarray
-    jac: np.ndarray
     status: np.ndarray
     messages: list[str]
     condition: np.ndarray
@@ -101,7 +99,7 @@ class Kinematics:
                              np.cumsum([0] + [len(r) for r in rows]).astype(np.int64))
         self._ref_branch = self.branch(jac_ref)[0]   # the assembly branch (one sign per loop) every pose keeps
         ref_cond = np.array([kernels.condition(jac_ref[0], self.column_scale)])
-        self._reference = KinematicState(s=self._s_ref[None], q=self.q_ref[None], phi=phi_ref, jac=jac_ref,
+        self._reference = KinematicState(s=self._s_ref[None], q=self.q_ref[None], phi=phi_ref,
                                          status=np.zeros(1, dtype=int), messages=[""], condition=ref_cond)
 
     # ---- attachments: points fixed on bodies ------------------------------------------------
@@ -268,7 +266,7 @@ class Kinematics:
         s = self.wrap_angles(s)
         start = self._reference if previous is None else previous
         with_condition = dead_centre_cond is not None
-        q, phi, jac, cond, on_branch = self.continue_from(start, s, with_condition)
+        q, phi, cond, on_branch = self.continue_from(start, s, with_condition)
         limit = 1e-9 * self.lc if self.m == self.n else consistency_tol
         retry = np.flatnonzero(~on_branch | ~self.assembled(phi, limit))
         still = np.zeros(0, dtype=int)
@@ -280,8 +278,6 @@ class Kinematics:
             qr, phir, jacr = self.newton(qr, s[retry])
             qr[:, 2::3] = wrap_angle(qr[:, 2::3])   # whole turns: the rotation nearest the reference pose's (0)
             q[retry], phi[retry] = qr, phir
-            if retry[-1] == n_pose - 1:
-                jac = jacr[-1:]
             if with_condition:
                 cond[retry] = [kernels.condition(j, self.column_scale) for j in jacr]
             closed = self.assembled(phir, limit)
@@ -307,7 +303,7 @@ class Kinematics:
                 status[i] = Status.DEAD_CENTRE
                 messages[i] = (f"kinematic dead centre at {self.describe_inputs(s[i])}: constraint Jacobian "
                                f"condition number {cond[i]:.3g} > {dead_centre_cond:.3g}")
-        return KinematicState(s=s, q=q, phi=phi, jac=jac, status=status, messages=messages, condition=cond)
+        return KinematicState(s=s, q=q, phi=phi, status=status, messages=messages, condition=cond)
 
     def wrap_angles(self, s: np.ndarray) -> np.ndarray:
         """Inputs s (..., n_inputs) with each angle (rad) as the nearest equivalent (modulo 2π) of the
@@ -320,10 +316,10 @@ class Kinematics:
     def continue_from(self, start: KinematicState, s: np.ndarray, with_condition: bool = True
                       ) -> tuple[np.ndarray, ...]:
         """``kernels.solve_poses`` from the last pose of ``start`` for inputs s (N, n_inputs): q, Φ,
-        ∂Φ/∂q at the last pose (1, m, n), condition number (NaN without ``with_condition``) and
-        whether each pose is on the reference assembly branch."""
-        return kernels.solve_poses(start.q[-1:], start.jac[-1:], start.s[-1:], np.ascontiguousarray(s, dtype=float),
-                                   25, self.program, with_condition)
+        condition number (NaN without ``with_condition``) and whether each pose is on the reference
+        assembly branch."""
+        return kernels.solve_poses(start.q[-1:], start.s[-1:], np.ascontiguousarray(s, dtype=float), 25, self.program,
+                                   with_condition)
 
     @property
     def reference(self) -> KinematicState:

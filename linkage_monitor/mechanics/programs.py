@@ -174,8 +174,7 @@ path), smallest transmission angle rad (NaN on the general path) and the index o
 class LiveRows(NamedTuple):
     """What ``kernels.live_series`` writes for N poses, in ``Result``'s and ``MachineResult``'s
     layouts: whether pose i took the live path (``plain``; False: its rows are not meaningful,
-    the general path words it); q (N, n), Φ (N, m), the Jacobian (2, m, n) — [0] the last pose's,
-    [1] the last plain pose's —, the kinematic condition (N,); points (N, P, 2) m, hinge forces
+    the general path words it); q (N, n), Φ (N, m), the kinematic condition (N,); points (N, P, 2) m, hinge forces
     (N, H, 2) N, cylinder values (N, C, 5), contact values (N, K, 2), implement cg (N, 2) m,
     frame load points and forces (N, F, 2); the pose's scalars (N,) ``POSE_VALUES``; steerability
     rows (N, S) and capacity rows (N, P + 1)."""
@@ -183,7 +182,6 @@ class LiveRows(NamedTuple):
     plain: np.ndarray
     q: np.ndarray
     phi: np.ndarray
-    jac: np.ndarray
     kinematic_condition: np.ndarray
     point_xz: np.ndarray
     hinge_force: np.ndarray

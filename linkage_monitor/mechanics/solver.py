@@ -193,8 +193,8 @@ class Solver:
         rows = kernels.live_rows(n_pose, kin.n, kin.m, self.outputs_program(layout), machine)
         kernels.live_series(
             self.live_programs(layout, machine), fields(rows), s,
-            np.ascontiguousarray(np.stack([measured, cap, rod], axis=1)), start.q[-1:], start.jac[-1:],
-            start.s[-1:], self._assembly_limit, self.dead_centre_cond)
+            np.ascontiguousarray(np.stack([measured, cap, rod], axis=1)), start.q[-1:], start.s[-1:],
+            self._assembly_limit, self.dead_centre_cond)
         plain = rows.plain & ~bad
         batch = BatchResult.from_stacked(
             self.names, {h.name: h.bodies for h in mech.hinges}, rows.point_xz, rows.q.reshape(n_pose, -1, 3),
@@ -394,12 +394,12 @@ class Solver:
         s = np.array([values])
         rows = kernels.live_rows(1, kin.n, kin.m, programs.outputs, machine)
         kernels.live_series(self.live_programs(programs.layout, machine), fields(rows), s,
-                            np.array([[measured, cap, rod]]), start.q[-1:], start.jac[-1:], start.s[-1:],
+                            np.array([[measured, cap, rod]]), start.q[-1:], start.s[-1:],
                             self._assembly_limit, self.dead_centre_cond)
         if not rows.plain[0]:
             return None
         q = rows.q
-        state = KinematicState(s=s, q=q, phi=rows.phi, jac=rows.jac[0:1], status=_SOLVED, messages=[""],
+        state = KinematicState(s=s, q=q, phi=rows.phi, status=_SOLVED, messages=[""],
                                condition=rows.kinematic_condition)
         pose = dict(zip(POSE_NAMES, rows.pose[0].item()))   # Python floats by name, in one call
         return SolvedPose(Result(self.names, rows.point_xz[0], q[0].reshape(-1, 3), rows.hinge_force[0], rows.cylinder_values[0],
