@@ -17,7 +17,6 @@ from __future__ import annotations
 from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
-import yaml
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
@@ -28,7 +27,7 @@ from linkage_monitor.wire.markers import MARKER_ARRAY
 from linkage_monitor.wire.outputs import HINGE_REACTIONS, HITCH_STATE, STEERABILITY
 from linkage_monitor.wire.step_messages import StepMessages
 
-from .writer import BagWriter, MessageRows
+from .writer import BagWriter, MessageRows, yaml_text
 
 CONFIG_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -64,7 +63,7 @@ STEP_SENDS = (   # what a step sends, in the order it is recorded after its inpu
 
 def mechanism_yaml(description: Mechanism) -> str:
     """The mechanism description as the node publishes and records it (YAML text)."""
-    return yaml.safe_dump(dict(description.raw), sort_keys=False, allow_unicode=True)
+    return yaml_text(dict(description.raw), allow_unicode=True)
 
 
 class StepRecorder:

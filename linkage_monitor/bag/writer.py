@@ -69,7 +69,13 @@ _TAIL = (struct.pack("<BQI", 0x0F, 4, 0) + struct.pack("<BQQQI", 0x02, 20, 0, 0,
          + _MCAP_MAGIC)
 WRITE_PERIOD_S = 0.05   # s, the background thread writes the queued messages this often
 MAX_QUEUED = 10_000     # messages queued at most; beyond, write() writes the queue (in order) itself
-_YAML_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)   # libyaml: 4x faster, the same text (every flush)
+_YAML_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)   # libyaml: 4x faster, the same text
+
+
+def yaml_text(data: Any, **options: Any) -> str:
+    """``yaml.safe_dump(data, sort_keys=False, **options)``'s text, written by libyaml where PyYAML has it
+    (a bag's metadata at every flush and file, each channel's QoS, the mechanism it records)."""
+    return yaml.dump(data, Dumper=_YAML_DUMPER, sort_keys=False, **options)
 
 
 def message_type_name(msg: Any) -> str:
@@ -299,7 +305,7 @@ class _StorageFile:
                 self.schemas[topic.type_name] = schema_id
             channel_id = self.writer.register_channel(
                 topic=topic.name, message_encoding="cdr", schema_id=schema_id,
-                metadata={"offered_qos_profiles": yaml.safe_dump([topic.qos], sort_keys=False)})
+                metadata={"offered_qos_profiles": yaml_text([topic.qos])})
             self.channels[topic.name] = channel_id
         return channel_id
 
@@ -721,7 +727,7 @@ class BagWriter:
     def _finish_file(self) -> None:
         """The current file's ``rosbag2`` metadata record, summary and indexes (the file left open)."""
         self._current.writer.add_metadata("rosbag2", {
-            "serialized_metadata": yaml.safe_dump(self._bag_information(), sort_keys=False)})
+            "serialized_metadata": yaml_text(self._bag_information())})
         self._current.writer.finish()
 
     def record_mechanism(self, mechanism_yaml: str, stamp_ns: int) -> None:
@@ -835,8 +841,7 @@ class BagWriter:
         }
 
     def _write_metadata_yaml(self) -> None:
-        text = yaml.dump({"rosbag2_bagfile_information": self._bag_information()}, Dumper=_YAML_DUMPER,
-                         sort_keys=False)
+        text = yaml_text({"rosbag2_bagfile_information": self._bag_information()})
         tmp = self.directory / "metadata.yaml.tmp"
         tmp.write_text(text, encoding="utf-8")
         os.replace(tmp, self.directory / "metadata.yaml")
