@@ -320,31 +320,39 @@ def _angle_residual(q: np.ndarray, k: int, s: np.ndarray, nc: int, angle_body: n
 
 
 @njit(cache=True)
-def _input_residuals(q: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray, cyl_att: np.ndarray,
-                     angle_body: np.ndarray, angle_reference: np.ndarray, lc: float, out: np.ndarray) -> None:
-    """The input rows of Φ (``residual_jacobian``'s, m) at pose q into out (n_inputs,): cylinder k
-    |P(rod end) − P(base)| − s_k, then the angles (``_angle_residual``)."""
+def _input_residuals(q: np.ndarray, rotation: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray,
+                     cyl_att: np.ndarray, angle_body: np.ndarray, angle_reference: np.ndarray, lc: float,
+                     out: np.ndarray) -> None:
+    """The input rows of Φ (``residual_jacobian``'s, m) at pose q (its bodies' ``rotation``) into out
+    (n_inputs,): cylinder k |P(rod end) − P(base)| − s_k, then the angles (``_angle_residual``)."""
     nc = cyl_att.shape[1]
     for k in range(nc):
-        bx, bz = _point(q, cyl_att[0, k], att_body, att_ref)
-        rx, rz = _point(q, cyl_att[1, k], att_body, att_ref)
+        bx, bz = _point(q, rotation, cyl_att[0, k], att_body, att_ref)
+        rx, rz = _point(q, rotation, cyl_att[1, k], att_body, att_ref)
         out[k] = math.sqrt((rx - bx) * (rx - bx) + (rz - bz) * (rz - bz)) - s[k]
     for k in range(angle_body.shape[1]):
         out[nc + k] = _angle_residual(q, k, s, nc, angle_body, angle_reference, lc)
 
 
 @njit(cache=True)
-def _residuals(q: np.ndarray, s: np.ndarray, kin: KinematicsProgram, out: np.ndarray) -> None:
-    """Φ (m,) m of pose q for inputs s into out, as ``residual_jacobian`` computes it, without the
-    Jacobian: the hinge gaps, then the input rows (``_input_residuals``)."""
+def _residuals(q: np.ndarray, rotation: np.ndarray, s: np.ndarray, kin: KinematicsProgram, out: np.ndarray) -> None:
+    """Φ (m,) m of pose q (its bodies' ``rotation``) for inputs s into out, as ``residual_jacobian``
+    computes it, without the Jacobian: the hinge gaps, then the input rows (``_input_residuals``)."""
     hinge_att, att_body, att_ref = kin.hinge_att, kin.att_body, kin.att_ref
     nh = hinge_att.shape[1]
     for h in range(nh):
-        ax, az = _point(q, hinge_att[0, h], att_body, att_ref)
-        bx, bz = _point(q, hinge_att[1, h], att_body, att_ref)
+        ax, az = _point(q, rotation, hinge_att[0, h], att_body, att_ref)
+        bx, bz = _point(q, rotation, hinge_att[1, h], att_body, att_ref)
         out[2 * h], out[2 * h + 1] = ax - bx, az - bz
-    _input_residuals(q, s, att_body, att_ref, kin.cyl_att, kin.angle_body, kin.angle_reference, kin.lc,
+    _input_residuals(q, rotation, s, att_body, att_ref, kin.cyl_att, kin.angle_body, kin.angle_reference, kin.lc,
                      out[2 * nh:])
+
+
+@njit(cache=True)
+def _rotations(q: np.ndarray, rotation: np.ndarray) -> None:
+    """cos θ, sin θ of every body of pose q into rotation (2, bodies)."""
+    for b in range(rotation.shape[1]):
+        rotation[0, b], rotation[1, b] = math.cos(q[3 * b + 2]), math.sin(q[3 * b + 2])
 
 
 @njit(cache=True)
@@ -389,12 +397,14 @@ def residual_jacobian(q: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_re
 
 # ---- the pose in closed form: a chain of dyads (chain.py) -----------------------------------------
 @njit(cache=True)
-def _point(q: np.ndarray, a: int, att_body: np.ndarray, att_ref: np.ndarray) -> tuple[float, float]:
-    """Position (m) of attachment ``a`` in pose q (its body already placed)."""
+def _point(q: np.ndarray, rotation: np.ndarray, a: int, att_body: np.ndarray, att_ref: np.ndarray
+           ) -> tuple[float, float]:
+    """Position (m) of attachment ``a`` in pose q (its body already placed, its cos θ and sin θ in
+    ``rotation`` (2, bodies))."""
     b = att_body[a]
     if b < 0:
         return att_ref[a, 0], att_ref[a, 1]
-    c, s = math.cos(q[3 * b + 2]), math.sin(q[3 * b + 2])
+    c, s = rotation[0, b], rotation[1, b]
     return (q[3 * b] + c * att_ref[a, 0] - s * att_ref[a, 1],
             q[3 * b + 1] + s * att_ref[a, 0] + c * att_ref[a, 1])
 
@@ -417,9 +427,12 @@ def _circles(ax: float, az: float, ra: float, bx: float, bz: float, rb: float,
 
 
 @njit(cache=True)
-def _place(q: np.ndarray, body: int, theta: float, px: float, pz: float, a_body: int, att_ref: np.ndarray) -> None:
-    """Body ``body`` at rotation θ with its attachment ``a_body`` at (px, pz): its (x, z, θ) into q."""
+def _place(q: np.ndarray, rotation: np.ndarray, body: int, theta: float, px: float, pz: float, a_body: int,
+           att_ref: np.ndarray) -> None:
+    """Body ``body`` at rotation θ with its attachment ``a_body`` at (px, pz): its (x, z, θ) into q,
+    cos θ and sin θ into ``rotation``."""
     c, s = math.cos(theta), math.sin(theta)
+    rotation[0, body], rotation[1, body] = c, s
     q[3 * body] = px - (c * att_ref[a_body, 0] - s * att_ref[a_body, 1])
     q[3 * body + 1] = pz - (s * att_ref[a_body, 0] + c * att_ref[a_body, 1])
     q[3 * body + 2] = theta
@@ -432,38 +445,46 @@ def chain_pose(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray,
     angles rad), each circle intersection on its reference side; False when a step is out of reach
     or there is no chain (a mechanism that does not decompose: nothing placed)."""
     q = np.zeros(n)
-    if chain_int.shape[0] == 0:
-        return q, n == 0
-    return q, _place_chain(q, s, att_body, att_ref, chain_int, chain_float)
+    return q, _chain_pose_into(q, np.empty((2, n // 3)), s, att_body, att_ref, chain_int, chain_float)
 
 
 @njit(cache=True)
-def _place_chain(q: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray, chain_int: np.ndarray,
-                 chain_float: np.ndarray) -> bool:
-    """``chain_pose`` into q (every body the chain places is written); False when a step is out of reach."""
+def _chain_pose_into(q: np.ndarray, rotation: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray,
+                     chain_int: np.ndarray, chain_float: np.ndarray) -> bool:
+    """``chain_pose`` into q (zeros on entry) and its bodies' cos θ, sin θ into ``rotation``."""
+    if chain_int.shape[0] == 0:
+        return q.shape[0] == 0
+    return _place_chain(q, rotation, s, att_body, att_ref, chain_int, chain_float)
+
+
+@njit(cache=True)
+def _place_chain(q: np.ndarray, rotation: np.ndarray, s: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray,
+                 chain_int: np.ndarray, chain_float: np.ndarray) -> bool:
+    """``chain_pose`` into q and ``rotation`` (every body the chain places is written); False when a
+    step is out of reach."""
     for k in range(chain_int.shape[0]):
         row, f = chain_int[k], chain_float[k]
         if row[KIND] == ANGLE:         # θ_B = θ_P + sign·(s − reference), about the hinge point
             parent = att_body[row[A_PARENT]]
             theta_p = q[3 * parent + 2] if parent >= 0 else 0.0
-            px, pz = _point(q, row[A_PARENT], att_body, att_ref)
-            _place(q, row[BODY], theta_p + row[ANGLE_SIGN] * (s[row[ANGLE_INPUT]] - f[0]), px, pz, row[A_BODY],
-                   att_ref)
+            px, pz = _point(q, rotation, row[A_PARENT], att_body, att_ref)
+            _place(q, rotation, row[BODY], theta_p + row[ANGLE_SIGN] * (s[row[ANGLE_INPUT]] - f[0]), px, pz,
+                   row[A_BODY], att_ref)
         elif row[KIND] == CYLINDER:    # the end on B at ρ from the pivot and s from the other end
-            px, pz = _point(q, row[A_PARENT], att_body, att_ref)
-            ox, oz = _point(q, row[A_OTHER], att_body, att_ref)
+            px, pz = _point(q, rotation, row[A_PARENT], att_body, att_ref)
+            ox, oz = _point(q, rotation, row[A_OTHER], att_body, att_ref)
             ex, ez, ok = _circles(px, pz, f[2], ox, oz, s[row[CYLINDER_INPUT]], f[0])
             if not ok:
                 return False
-            _place(q, row[BODY], math.atan2(ez - pz, ex - px) - f[1], px, pz, row[A_BODY], att_ref)
+            _place(q, rotation, row[BODY], math.atan2(ez - pz, ex - px) - f[1], px, pz, row[A_BODY], att_ref)
         else:                          # RRR: the joint at ρ1 from B1's pivot and ρ2 from B2's
-            p1x, p1z = _point(q, row[A_PARENT], att_body, att_ref)
-            p2x, p2z = _point(q, row[A_PARENT2], att_body, att_ref)
+            p1x, p1z = _point(q, rotation, row[A_PARENT], att_body, att_ref)
+            p2x, p2z = _point(q, rotation, row[A_PARENT2], att_body, att_ref)
             hx, hz, ok = _circles(p1x, p1z, f[2], p2x, p2z, f[4], f[0])
             if not ok:
                 return False
-            _place(q, row[BODY], math.atan2(hz - p1z, hx - p1x) - f[1], p1x, p1z, row[A_BODY], att_ref)
-            _place(q, row[BODY2], math.atan2(hz - p2z, hx - p2x) - f[3], p2x, p2z, row[A_BODY2], att_ref)
+            _place(q, rotation, row[BODY], math.atan2(hz - p1z, hx - p1x) - f[1], p1x, p1z, row[A_BODY], att_ref)
+            _place(q, rotation, row[BODY2], math.atan2(hz - p2z, hx - p2x) - f[3], p2x, p2z, row[A_BODY2], att_ref)
     return True
 
 
@@ -493,16 +514,17 @@ def chain_fit(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray, 
         elif chain_int[k, KIND] == CYLINDER:
             drivers[d] = chain_int[k, CYLINDER_INPUT]
             d += 1
-    q = np.zeros(n)
-    if d == 0 or not _place_chain(q, s, att_body, att_ref, chain_int, chain_float):
+    q, rotation = np.zeros(n), np.empty((2, n // 3))
+    if d == 0 or not _place_chain(q, rotation, s, att_body, att_ref, chain_int, chain_float):
         return q, False, False
     tol = 1e-13 * lc
     r = np.empty(n_in)
-    _input_residuals(q, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc, r)
+    _input_residuals(q, rotation, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc, r)
     if _max_abs(r) <= tol:   # the readings agree (``newton``'s first test): the chain's pose
         return q, True, True
     sigma = s.copy()
     q_plus, q_minus = np.zeros(n), np.zeros(n)
+    rotation_plus, rotation_minus = np.empty((2, n // 3)), np.empty((2, n // 3))
     r_plus, r_minus = np.empty(n_in), np.empty(n_in)
     slope = np.empty((n_in, d))
     normal = np.empty((d, d + 1))   # [slopeᵀ·slope | −slopeᵀ·r]
@@ -512,14 +534,16 @@ def chain_fit(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray, 
             h = 1e-6 * lc if c < nc else 1e-6
             at = sigma[c]
             sigma[c] = at + h
-            ok_plus = _place_chain(q_plus, sigma, att_body, att_ref, chain_int, chain_float)
+            ok_plus = _place_chain(q_plus, rotation_plus, sigma, att_body, att_ref, chain_int, chain_float)
             sigma[c] = at - h
-            ok_minus = _place_chain(q_minus, sigma, att_body, att_ref, chain_int, chain_float)
+            ok_minus = _place_chain(q_minus, rotation_minus, sigma, att_body, att_ref, chain_int, chain_float)
             sigma[c] = at
             if not (ok_plus and ok_minus):
                 return q, True, False
-            _input_residuals(q_plus, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc, r_plus)
-            _input_residuals(q_minus, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc, r_minus)
+            _input_residuals(q_plus, rotation_plus, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc,
+                             r_plus)
+            _input_residuals(q_minus, rotation_minus, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc,
+                             r_minus)
             for i in range(n_in):
                 slope[i, j] = (r_plus[i] - r_minus[i]) / (2.0 * h)
         for j in range(d):   # Gauss-Newton: the normal equations
@@ -543,11 +567,11 @@ def chain_fit(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray, 
             return q, True, False
         for j in range(d):
             sigma[drivers[j]] += normal[j, d]
-        if not _place_chain(q, sigma, att_body, att_ref, chain_int, chain_float):
+        if not _place_chain(q, rotation, sigma, att_body, att_ref, chain_int, chain_float):
             return q, False, False
         if size <= tol:
             return q, True, True
-        _input_residuals(q, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc, r)
+        _input_residuals(q, rotation, s, att_body, att_ref, cyl_att, angle_body, angle_reference, lc, r)
     return q, True, False
 
 
@@ -676,14 +700,17 @@ def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, cond: np.nda
     nc = kin.cyl_att.shape[1]
     att_body, att_ref, hinge_att, cyl_att, lc = kin.att_body, kin.att_ref, kin.hinge_att, kin.cyl_att, kin.lc
     angle_body, angle_reference = kin.angle_body, kin.angle_reference
+    rotation = np.empty((2, n // 3))
     if m > n:   # redundant sensors: fitted along the chain's closed poses
         q0, closed, converged = chain_fit(s[i], n, att_body, att_ref, cyl_att, angle_body, angle_reference, lc,
                                           kin.chain_int, kin.chain_float, max_iter)
+        if converged:
+            _rotations(q0, rotation)
     else:
-        q0, closed = chain_pose(s[i], n, att_body, att_ref, kin.chain_int, kin.chain_float)
-        converged = closed
+        q0 = np.zeros(n)
+        closed = converged = _chain_pose_into(q0, rotation, s[i], att_body, att_ref, kin.chain_int, kin.chain_float)
     if converged:
-        _residuals(q0, s[i], kin, phi_out[i])
+        _residuals(q0, rotation, s[i], kin, phi_out[i])
         if m > n or _max_abs(phi_out[i]) <= 1e-13 * lc:   # (with redundant sensors Φ holds their misfit)
             _nearest_turn(q0, q_start[0])
             q_out[i] = q0
