@@ -28,6 +28,7 @@ from .programs import (POSE_VALUES, KinematicsProgram, LivePrograms, LiveRows, M
 
 TWO_PI = 2.0 * math.pi
 PARALLEL_MIN = 512  # poses: smaller batches stay on the calling thread (no thread-pool wake-up)
+PARALLEL_PARTS = 64  # a parallel loop's parts, each with its own work arrays (several per core: balanced)
 _threads = {"allowed": False}
 
 
@@ -1130,8 +1131,9 @@ _REDUCED_LAYOUT_END = _REDUCED_ARGS + len(StaticsProgram._fields)
 
 @njit(cache=True, error_model="numpy")
 def _reduced_pose(i, u_out, residual, sine, weakest, axes, lengths, p, member_force, accel, alpha, has_accel,
-                  layout: StaticsProgram, reduced: ReducedProgram):
-    """Pose i of ``solve_reduced_statics``, written into the output arrays.
+                  layout: StaticsProgram, reduced: ReducedProgram, work: np.ndarray):
+    """Pose i of ``solve_reduced_statics``, written into the output arrays; ``work``: room for its
+    loads and unknowns (``_reduced_work``), overwritten.
 
     The statics are linear in the loads: with a free load λ (``free_col`` ≥ 0: a contact's normal
     force, the implement's vertical load, a cylinder that drives no step), the chain is solved for
@@ -1150,8 +1152,10 @@ def _reduced_pose(i, u_out, residual, sine, weakest, axes, lengths, p, member_fo
     chain_int, free_col, closing_step = reduced.chain_int, reduced.free_col, reduced.closing_step
     _member_axes(i, axes, lengths, p, layout.member_att)
     n_steps = chain_int.shape[0]
-    n_cases = 2 if free_col >= 0 else 1    # the known loads; λ = 1 alone
-    loads = np.zeros((n_cases, layout.n_eq))
+    n_cases = work.shape[0]   # the known loads; λ = 1 alone (with a free load)
+    n_eq = layout.n_eq
+    work[:, :] = 0.0
+    loads, u = work[:, :n_eq], work[:, n_eq:]
     _known_loads(loads[0], i, p, axes, member_force, accel, alpha, has_accel, layout)
     size, radius = 0.0, 0.0   # |e| N per unit λ; |P − A| m
     if free_col >= 0:
@@ -1163,18 +1167,22 @@ def _reduced_pose(i, u_out, residual, sine, weakest, axes, lengths, p, member_fo
                 _add_generalized(loads[1], 3 * layout.t_body[t], px, pz, fx, fz, lc)
                 size = math.sqrt(fx * fx + fz * fz)
                 radius = max(radius, math.hypot(px - p[i, pivot, 0], pz - p[i, pivot, 1]))
-    u = np.zeros((n_cases, u_out.shape[1]))
-    closing = np.zeros(n_cases)
+    closing_known, closing_unit = 0.0, 0.0
     for c in range(n_cases):
-        closing[c] = _reverse_pass(loads[c], u[c], p[i], axes[i], lc, reduced.att_body, reduced.hinge_att, chain_int,
-                                   reduced.hinge_cols, reduced.step_col, reduced.step_member, reduced.step_sign)
+        closing = _reverse_pass(loads[c], u[c], p[i], axes[i], lc, reduced.att_body, reduced.hinge_att, chain_int,
+                                reduced.hinge_cols, reduced.step_col, reduced.step_member, reduced.step_sign)
+        if c == 0:
+            closing_known = closing
+        else:
+            closing_unit = closing
     weakest[i] = transmission_pose(p[i], chain_int, sine[i, :n_steps])
     if free_col >= 0:
-        free = -closing[0] / closing[1]
-        u_out[i] = u[0] + free * u[1]
+        free = -closing_known / closing_unit
+        for j in range(u_out.shape[1]):
+            u_out[i, j] = u[0, j] + free * u[1, j]
         u_out[i, free_col] = free
-        residual[i] = abs(closing[0] + free * closing[1])
-        sine[i, n_steps] = min(abs(closing[1]) / (size * radius), 1.0)
+        residual[i] = abs(closing_known + free * closing_unit)
+        sine[i, n_steps] = min(abs(closing_unit) / (size * radius), 1.0)
         if weakest[i] < 0 or not sine[i, n_steps] >= sine[i, weakest[i]]:
             weakest[i] = n_steps
     else:
@@ -1184,18 +1192,30 @@ def _reduced_pose(i, u_out, residual, sine, weakest, axes, lengths, p, member_fo
 
 
 @njit(cache=True)
+def _reduced_work(layout: StaticsProgram, reduced: ReducedProgram, n_unknowns: int) -> np.ndarray:
+    """Room for ``_reduced_pose``'s loads and unknowns: a row per load case (the known loads, and
+    λ = 1 alone with a free load), the n_eq loads then the unknowns."""
+    return np.empty((2 if reduced.free_col >= 0 else 1, layout.n_eq + n_unknowns))
+
+
+@njit(cache=True)
 def _reduced_serial(n_pose, *args):
     layout = StaticsProgram(*args[_REDUCED_ARGS:_REDUCED_LAYOUT_END])
     reduced = ReducedProgram(*args[_REDUCED_LAYOUT_END:])
+    work = _reduced_work(layout, reduced, args[0].shape[1])
     for i in range(n_pose):
-        _reduced_pose(i, *args[:_REDUCED_ARGS], layout, reduced)
+        _reduced_pose(i, *args[:_REDUCED_ARGS], layout, reduced, work)
 
 
 @njit(cache=True, parallel=True)
 def _reduced_parallel(n_pose, *args):   # records cannot enter a parallel loop: rebuilt in it from their fields
-    for i in prange(n_pose):
-        _reduced_pose(i, *args[:_REDUCED_ARGS], StaticsProgram(*args[_REDUCED_ARGS:_REDUCED_LAYOUT_END]),
-                      ReducedProgram(*args[_REDUCED_LAYOUT_END:]))
+    n_parts = min(n_pose, PARALLEL_PARTS)   # each part its own work room
+    for part in prange(n_parts):
+        layout = StaticsProgram(*args[_REDUCED_ARGS:_REDUCED_LAYOUT_END])
+        reduced = ReducedProgram(*args[_REDUCED_LAYOUT_END:])
+        work = _reduced_work(layout, reduced, args[0].shape[1])
+        for i in range(part * n_pose // n_parts, (part + 1) * n_pose // n_parts):
+            _reduced_pose(i, *args[:_REDUCED_ARGS], layout, reduced, work)
 
 
 # ---- lift capacity by virtual work ------------------------------------------------------------------
@@ -1342,8 +1362,11 @@ def steerability_pose(points: np.ndarray, forces: np.ndarray, implement_load: fl
     total = front + rear
     ratio_unit, ratio_tractor = front / total, front / tractor_weight
     ref_weight, ratio = (total, ratio_unit) if unit else (tractor_weight, ratio_tractor)
-    shortfall = r * ref_weight - front   # N of front axle load missing for k = r (<= 0: none missing)
-    ballast = 0.0 if shortfall <= 0.0 else (shortfall / ballast_slope if ballast_slope > 0.0 else math.inf)
+    shortfall = r * ref_weight - front   # N of front axle load missing for k = r
+    if ratio >= r:   # none missing: decided as the margin is (a shortfall of rounding is not a ballast)
+        ballast = 0.0
+    else:
+        ballast = max(shortfall / ballast_slope, 0.0) if ballast_slope > 0.0 else math.inf
     implement_slope = g * (r * c - implement_x / wheelbase)
     max_mass = (_not_negative(implement_load / g + (front - r * ref_weight) / implement_slope)
                 if implement_slope > 0.0 else math.inf)
@@ -1460,7 +1483,7 @@ def _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition,
     if outputs.reduced:
         sine, weakest = np.empty((1, outputs.measure_count)), np.empty(1, dtype=np.int64)
         _reduced_pose(0, u_out, residual, sine, weakest, axes, lengths, p, member_force, no_accel, no_alpha, False,
-                      statics, reduced)
+                      statics, reduced, _reduced_work(statics, reduced, u_out.shape[1]))
         smallest = smallest_sine(sine[0], weakest[0])
         if not smallest >= outputs.dead_centre_sine:
             return False
