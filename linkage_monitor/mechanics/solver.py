@@ -177,7 +177,7 @@ class Solver:
         kin, mech = self.kin, self.mech
         n_pose, arrays = self._arrays(cylinders, angles, pressures, {}, {})
         s = self._input_matrix(arrays, n_pose, "inputs")
-        bad = np.array([bool(p) for p in self._input_problems(s, arrays)], dtype=bool)
+        bad = self._input_problems(s, arrays).bad
         s = kin.wrap_angles(np.where(bad[:, None], kin.reference_inputs(), s))
         cap = np.full((n_pose, len(mech.cylinders)), np.nan)
         rod = cap.copy()
@@ -281,7 +281,7 @@ class Solver:
                 group[name] = np.broadcast_to(arr, (n_pose,))
         return n_pose, arrays
 
-    def _input_problems(self, s: np.ndarray, arrays: dict[str, dict[str, np.ndarray]]) -> list[str]:
+    def _input_problems(self, s: np.ndarray, arrays: dict[str, dict[str, np.ndarray]]) -> _InputProblems:
         """Per pose: '' or what is wrong with its inputs (NaN/inf, length <= 0, p_abs < 0)."""
         kin = self.kin
         nc = kin.cyl_att.shape[1]
@@ -290,7 +290,7 @@ class Solver:
         rates = list(arrays["rates"].values()) + list(arrays["accelerations"].values())
         if (np.isfinite(s).all() and (s[:, :nc] > 0.0).all() and all(np.isfinite(v).all() for v in rates)
                 and all((v >= -ATMOSPHERIC_PRESSURE).all() and np.isfinite(v).all() for v in pressures)):
-            return problems  # the usual case, checked whole-array; below: which pose, which input
+            return _InputProblems(problems, np.zeros(s.shape[0], dtype=bool))   # the usual case, whole-array
         checks = [(f"cylinder '{n}' length" if j < nc else f"angle '{n}'", s[:, j], "m", j < nc)
                   for j, n in enumerate(kin.input_names)]
         checks += [(f"pressure '{n}'", v, "Pa", False) for n, v in arrays["pressures"].items()]
@@ -306,7 +306,7 @@ class Solver:
             for i in np.flatnonzero(values < -ATMOSPHERIC_PRESSURE):
                 problems[i] = problems[i] or (f"pressure '{name}' is {values[i]:.0f} Pa gauge, i.e. a negative "
                                               f"absolute pressure: check the sensor and its zero offset")
-        return problems
+        return _InputProblems(problems, np.array([bool(p) for p in problems]))
 
     def outputs_program(self, layout: StaticsLayout) -> OutputsProgram:
         """What ``kernels.live_series`` needs, beyond the layout's own program, to write a Result's
@@ -352,8 +352,8 @@ class Solver:
     @staticmethod
     def _weakest_names(reduced: ReducedStatics, weakest: np.ndarray) -> list[str]:
         """The name of each pose's weakest transmission measure (``ReducedStatics.measure_names``; '' for −1)."""
-        names = [*reduced.measure_names, ""]   # index −1: ''
-        return [names[k] for k in weakest.tolist()]
+        names = np.array([*reduced.measure_names, ""], dtype=object)   # index −1: ''
+        return names[weakest].tolist()
 
     def _solve_plain(self, inputs: Inputs, start: KinematicState | None, machine: MachineProgram
                      ) -> SolvedPose | None:
@@ -415,8 +415,7 @@ class Solver:
         mech, kin = self.mech, self.kin
         n_pose, arrays = self._arrays(cylinders, angles, pressures, rates, accelerations)
         s = self._input_matrix(arrays, n_pose, "inputs")
-        problems = self._input_problems(s, arrays)
-        bad = np.array([bool(p) for p in problems])
+        problems, bad = self._input_problems(s, arrays)
         s_clean = np.where(bad[:, None], kin.reference_inputs(), s)
         sensors = self._sensors
         force_known = frozenset(sensors[n].cylinder for n in arrays["pressures"])
@@ -477,15 +476,16 @@ class Solver:
                 status[i] = Status.LIFT_OFF
                 messages[i] = f"contact '{contact.name}' lifts off: its normal force would be {normal[i]:.1f} N (pulling)"
         failed = status >= Status.INPUT
-        u = np.where(failed[:, None], np.nan, u)
-        q = np.where(failed[:, None], np.nan, ks.q)
-        p = np.where(failed[:, None, None], np.nan, p)
+        q = np.where(failed[:, None], np.nan, ks.q)   # the state's q stays whole (a solve continues from it)
+        if failed.any():   # no values of a failed pose (u and p are this solve's own arrays)
+            u[failed], p[failed] = np.nan, np.nan
+            names = np.where(failed, "", np.array(names, dtype=object)).tolist()
         batch = self._assemble(n_pose, q, p, u, sol, layout, measured_force, cap, rod, failed)
         batch.status, batch.messages = status, messages
         batch.consistency_residual = np.where(failed, np.nan, np.linalg.norm(ks.phi, axis=1))
         batch.condition = np.fmax(statics_condition, ks.condition)
         batch.transmission_angle = np.where(failed, np.nan, angle)
-        batch.weakest_transmission = ["" if bad else name for bad, name in zip(failed.tolist(), names)]
+        batch.weakest_transmission = names
         return batch, ks
 
     def _assemble(self, n_pose: int, q: np.ndarray, p: np.ndarray, u: np.ndarray,
@@ -544,6 +544,13 @@ class SolvedPose(NamedTuple):
     result: Result
     steerability: np.ndarray | None
     capacity: np.ndarray | None
+
+
+class _InputProblems(NamedTuple):
+    """Per pose of a solve: what is wrong with its inputs ('' when nothing) and whether anything is (N,)."""
+
+    problems: list[str]
+    bad: np.ndarray
 
 
 class _PlainPrograms(NamedTuple):
