@@ -811,17 +811,32 @@ def residual_jacobian_batch(q: np.ndarray, s: np.ndarray, att_body: np.ndarray, 
     return phi_out, jac_out
 
 
-@njit(cache=True)
 def positions_batch(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``positions`` for N poses: p, rel (N, K, 2)."""
-    n_pose = q.shape[0]
-    k_att = att_body.shape[0]
-    p = np.empty((n_pose, k_att, 2))
-    rel = np.empty((n_pose, k_att, 2))
-    rotation = np.empty((2, q.shape[1] // 3))
-    for i in range(n_pose):
-        _positions_into(q[i], att_body, att_ref, p[i], rel[i], rotation)
+    """``positions`` for N poses: p, rel (N, K, 2). Large batches run on every core (``allow_threads``)."""
+    n_pose, k_att = q.shape[0], att_body.shape[0]
+    p, rel = np.empty((n_pose, k_att, 2)), np.empty((n_pose, k_att, 2))
+    driver: Any = _positions_parallel if _parallel(n_pose) else _positions_serial
+    driver(q, att_body, att_ref, p, rel)
     return p, rel
+
+
+@njit(cache=True)
+def _positions_serial(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray, p: np.ndarray, rel: np.ndarray
+                      ) -> None:
+    rotation = np.empty((2, q.shape[1] // 3))
+    for i in range(q.shape[0]):
+        _positions_into(q[i], att_body, att_ref, p[i], rel[i], rotation)
+
+
+@njit(cache=True, parallel=True)
+def _positions_parallel(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray, p: np.ndarray, rel: np.ndarray
+                        ) -> None:
+    n_pose = q.shape[0]
+    n_parts = min(n_pose, PARALLEL_PARTS)
+    for part in prange(n_parts):
+        rotation = np.empty((2, q.shape[1] // 3))
+        for i in range(part * n_pose // n_parts, (part + 1) * n_pose // n_parts):
+            _positions_into(q[i], att_body, att_ref, p[i], rel[i], rotation)
 
 
 # ---- equilibrium -----------------------------------------------------------------------------------
