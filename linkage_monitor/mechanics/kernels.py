@@ -262,10 +262,8 @@ def positions(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray) -> tuple
 def _positions_into(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray, p: np.ndarray, rel: np.ndarray,
                     rotation: np.ndarray) -> None:
     """``positions`` into p, rel (K, 2); ``rotation`` (2, bodies): room for each body's cos θ, sin θ."""
+    _rotations(q, rotation)
     c, s = rotation[0], rotation[1]
-    for b in range(c.shape[0]):
-        c[b] = math.cos(q[3 * b + 2])
-        s[b] = math.sin(q[3 * b + 2])
     for a in range(att_body.shape[0]):
         b = att_body[a]
         rx, rz = att_ref[a, 0], att_ref[a, 1]
@@ -764,7 +762,7 @@ def solve_poses(q_start: np.ndarray, s_start: np.ndarray, s: np.ndarray, max_ite
     return out
 
 
-_KINEMATIC_ARGS = 9   # ``_kinematic_pose``'s arguments before its program (outputs, start, inputs, max_iter, with_condition)
+_KINEMATIC_ARGS = 9   # ``_kinematic_pose``'s arguments before its program (outputs, start, inputs, max_iter, ...)
 
 
 @njit(cache=True)
@@ -1182,14 +1180,11 @@ def _reduced_pose(i, u_out, residual, sine, weakest, axes, lengths, p, member_fo
                 _add_generalized(loads[1], 3 * layout.t_body[t], px, pz, fx, fz, lc)
                 size = math.sqrt(fx * fx + fz * fz)
                 radius = max(radius, math.hypot(px - p[i, pivot, 0], pz - p[i, pivot, 1]))
-    closing_known, closing_unit = 0.0, 0.0
-    for c in range(n_cases):
-        closing = _reverse_pass(loads[c], u[c], p[i], axes[i], lc, reduced.att_body, reduced.hinge_att, chain_int,
-                                reduced.hinge_cols, reduced.step_col, reduced.step_member, reduced.step_sign)
-        if c == 0:
-            closing_known = closing
-        else:
-            closing_unit = closing
+    closing_known = _reverse_pass(loads[0], u[0], p[i], axes[i], lc, reduced.att_body, reduced.hinge_att, chain_int,
+                                  reduced.hinge_cols, reduced.step_col, reduced.step_member, reduced.step_sign)
+    closing_unit = 0.0 if n_cases == 1 else _reverse_pass(
+        loads[1], u[1], p[i], axes[i], lc, reduced.att_body, reduced.hinge_att, chain_int, reduced.hinge_cols,
+        reduced.step_col, reduced.step_member, reduced.step_sign)
     weakest[i] = transmission_pose(p[i], chain_int, sine[i, :n_steps])
     if free_col >= 0:
         free = -closing_known / closing_unit
@@ -1435,10 +1430,10 @@ def live_programs(kin_fields, statics_fields, outputs_fields, reduced_fields, ma
 @njit(cache=True)
 def live_series(programs, rows_fields, s, pressure_forces, q_start, s_start, limit, max_condition):
     """Poses as the live node solves them, in one compiled call: the live node's one pose, a
-    recorded series (replay). Pose i from the last pose
-    before it that took this path, the first from (q_start (1, n), s_start (1, n_inputs)). s (N, n_inputs): inputs (m, rad); pressure_forces (N, 3, C): per cylinder the
-    measured force (N, NaN = not measured), cap and rod gauge pressures (Pa, NaN = not measured).
-    limit: largest constraint residual accepted (m); max_condition: the dead-centre condition
+    recorded series (replay). Pose i from the last pose before it that took this path, the first
+    from (q_start (1, n), s_start (1, n_inputs)). s (N, n_inputs): inputs (m, rad);
+    pressure_forces (N, 3, C): per cylinder the measured force (N, NaN = not measured), cap and rod
+    gauge pressures (Pa, NaN = not measured). limit: largest constraint residual accepted (m); max_condition: the dead-centre condition
     number of the general path (the kinematics' and the statics'; the reduced path's verdict is
     the transmission measure, and its kinematic condition number is NaN). ``programs``: the
     configuration's ``LivePrograms`` (``live_programs``). Writes ``rows_fields``: ``live_rows``
