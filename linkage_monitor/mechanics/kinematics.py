@@ -253,9 +253,10 @@ class Kinematics:
               consistency_tol: float, reach: bool = True) -> KinematicState:
         """Assemble N poses for inputs s (N, n_inputs), keeping the reference pose's assembly branch.
 
-        Newton starts from the tangent prediction off ``previous`` (one solved pose: a live node
-        passes its last one, 2 iterations for a slowly moving stroke) or off the reference pose;
-        poses that fail or land on another branch are redone by continuation from the reference pose.
+        Each pose is the chain of dyads' (``kernels._kinematic_pose``); without a chain, or with a
+        step out of reach, Newton starts from the tangent prediction off ``previous`` (one solved
+        pose: a live node passes its last one) or off the reference pose; poses that fail or land
+        on another branch are redone by continuation from the reference pose.
         ``reach``: the message of a pose out of reach says how far it is (``reachable_fraction``, a
         bisection of ~30 Newton solves); False: which constraint stays open at the closest pose.
         ``dead_centre_cond``: a pose whose constraint Jacobian's condition number is above it is a
