@@ -174,10 +174,10 @@ path), smallest transmission angle rad (NaN on the general path) and the index o
 class LiveRows(NamedTuple):
     """What ``kernels.live_series`` writes for N poses, in ``Result``'s and ``MachineResult``'s
     layouts: whether pose i took the live path (``plain``; False: its rows are not meaningful,
-    the general path words it); q (N, n), Φ (N, m), the kinematic condition (N,); points (N, P, 2) m, hinge forces
-    (N, H, 2) N, cylinder values (N, C, 5), contact values (N, K, 2), implement cg (N, 2) m,
-    frame load points and forces (N, F, 2); the pose's scalars (N,) ``POSE_VALUES``; steerability
-    rows (N, S) and capacity rows (N, P + 1)."""
+    the general path words it); q (N, n), Φ (N, m), the kinematic condition (N,); points
+    (N, P, 2) m, hinge forces (N, H, 2) N, cylinder values (N, C, 5), contact values (N, K, 2),
+    implement cg (N, 2) m, frame load points and forces (N, F, 2); the pose's scalars (N,)
+    ``POSE_VALUES``; steerability rows (N, S) and capacity rows (N, P + 1)."""
 
     plain: np.ndarray
     q: np.ndarray

@@ -476,7 +476,7 @@ class Solver:
                 status[i] = Status.LIFT_OFF
                 messages[i] = f"contact '{contact.name}' lifts off: its normal force would be {normal[i]:.1f} N (pulling)"
         failed = status >= Status.INPUT
-        q = np.where(failed[:, None], np.nan, ks.q)   # the state's q stays whole (a solve continues from it)
+        q = np.where(failed[:, None], np.nan, ks.q)   # a copy: the state's q is where a solve continues
         if failed.any():   # no values of a failed pose (u and p are this solve's own arrays)
             u[failed], p[failed] = np.nan, np.nan
             names = np.where(failed, "", np.array(names, dtype=object)).tolist()
