@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from linkage_monitor.mechanics import Inputs, Mechanism, Solver, load_mechanism, load_preset
 from linkage_monitor.mechanics.machine import MachineModel
 from linkage_monitor.mechanics.results import Status
+from linkage_monitor.mechanics.programs import ROW_SCALARS, ValueRow
 from linkage_monitor.mechanics import kernels
 from test_mechanics_oracles import FIXTURES, virtual_work
 
@@ -134,7 +135,10 @@ def test_one_pose_path_gives_what_the_batch_path_gives(name: str) -> None:
         batch = solver.solve_batch(cylinders=inputs.cylinders, angles=inputs.angles, pressures=inputs.pressures)
         plain = solver._solve_plain(inputs, previous.state if previous else None, model.program) is not None
         assert plain == (batch.status[0] == Status.OK), f"{name} pose {k}: {batch.messages[0]}"
-        one, machine = model.solve(inputs, previous=previous)
+        one, machine, values = model.solve(inputs, previous=previous)
+        assert (values is not None) == plain
+        if values is not None:
+            _same_value_row(values, one, machine)
         _same_result(one, batch.result(0), f"{name} pose {k}")
         expected = model.evaluate_batch(batch).result(0)
         assert (machine.steerability_keys, machine.capacity_keys) == (expected.steerability_keys,
@@ -144,6 +148,22 @@ def test_one_pose_path_gives_what_the_batch_path_gives(name: str) -> None:
         _same_result(solver.solve(inputs, previous=previous), one, f"{name} pose {k}, without the machine")
         previous, checked = one, checked + plain
     assert checked >= 10   # the usual pose is the one-call path's (lifting off takes the general one)
+
+
+def _same_value_row(values: np.ndarray, result, machine) -> None:
+    """A value row holds each part of the pose where ``ValueRow`` says it is."""
+    row = ValueRow.of(len(result.hinge_force), len(result.point_xz), len(result.cylinder_values),
+                      machine.capacity_row.size, machine.steerability_row.size)
+    assert values.shape == (row.width,)
+    expected = {"hinge_force": result.hinge_force.ravel(),
+                "hinge_magnitude": np.hypot(result.hinge_force[:, 0], result.hinge_force[:, 1]),
+                "point_xz": result.point_xz.ravel(), "cylinder_values": result.cylinder_values.ravel(),
+                "scalars": np.array([getattr(result, name) for name in ROW_SCALARS]),
+                "implement_cg": result.implement_cg, "capacity": machine.capacity_row,
+                "steerability": machine.steerability_row}
+    for part, value in expected.items():
+        start = getattr(row, part)
+        np.testing.assert_array_equal(values[start:start + value.size], value, err_msg=part)
 
 
 def _same_batch(a, b, where: str) -> None:

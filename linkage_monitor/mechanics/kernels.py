@@ -24,7 +24,7 @@ from numba import njit, prange
 from .chain import (A_BODY, A_BODY2, A_END, A_JOINT1, A_JOINT2, A_OTHER, A_PARENT, A_PARENT2, ANGLE, ANGLE_INPUT,
                     ANGLE_SIGN, BODY, BODY2, CYLINDER, CYLINDER_INPUT, KIND, RRR, STEP_HINGE, STEP_HINGE2, STEP_JOINT)
 from .programs import (POSE_VALUES, KinematicsProgram, LivePrograms, LiveRows, MachineProgram, OutputsProgram,
-                       ReducedProgram, StaticsProgram)
+                       ReducedProgram, StaticsProgram, ValueRow)
 
 TWO_PI = 2.0 * math.pi
 PARALLEL_MIN = 512  # poses: smaller batches stay on the calling thread (no thread-pool wake-up)
@@ -1395,6 +1395,78 @@ def steerability_rows(points: np.ndarray, forces: np.ndarray, implement_load: np
     return out
 
 
+@njit(cache=True)
+def largest_force(hinge_force: np.ndarray, cylinder_force: np.ndarray) -> float:
+    """The largest hinge reaction or cylinder force magnitude (N) of one pose: hinge_force (H, 2)
+    N, cylinder_force (C,) N; 0 with neither, NaN where any of them is NaN (a failed pose)."""
+    largest = 0.0
+    for h in range(hinge_force.shape[0]):
+        magnitude = math.hypot(hinge_force[h, 0], hinge_force[h, 1])
+        if math.isnan(magnitude):
+            return math.nan
+        largest = max(largest, magnitude)
+    for c in range(cylinder_force.shape[0]):
+        magnitude = abs(cylinder_force[c])
+        if math.isnan(magnitude):
+            return math.nan
+        largest = max(largest, magnitude)
+    return largest
+
+
+@njit(cache=True)
+def largest_forces(hinge_force: np.ndarray, cylinder_force: np.ndarray) -> np.ndarray:
+    """``largest_force`` of N poses: hinge_force (N, H, 2), cylinder_force (N, C) -> (N,) N."""
+    out = np.empty(hinge_force.shape[0])
+    for i in range(hinge_force.shape[0]):
+        out[i] = largest_force(hinge_force[i], cylinder_force[i])
+    return out
+
+
+@njit(cache=True)
+def pack_row(out: np.ndarray, hinge_force: np.ndarray, point_xz: np.ndarray, cylinder_values: np.ndarray,
+             scalars: np.ndarray, implement_cg: np.ndarray, capacity: np.ndarray, steerability: np.ndarray) -> None:
+    """A pose's value row (``programs.ValueRow``) into out: from its hinge forces (H, 2) N, points
+    (P, 2) m, cylinder values (C, 5), ``ROW_SCALARS`` (4,), implement cg (2,) m, capacity and
+    steerability rows."""
+    k = 0
+    for h in range(hinge_force.shape[0]):
+        out[k], out[k + 1] = hinge_force[h, 0], hinge_force[h, 1]
+        k += 2
+    for h in range(hinge_force.shape[0]):
+        out[k] = math.hypot(hinge_force[h, 0], hinge_force[h, 1])
+        k += 1
+    for a in range(point_xz.shape[0]):
+        out[k], out[k + 1] = point_xz[a, 0], point_xz[a, 1]
+        k += 2
+    for c in range(cylinder_values.shape[0]):
+        for j in range(5):
+            out[k + j] = cylinder_values[c, j]
+        k += 5
+    k = _copy_into(out, k, scalars)
+    k = _copy_into(out, k, implement_cg)
+    k = _copy_into(out, k, capacity)
+    _copy_into(out, k, steerability)
+
+
+@njit(cache=True)
+def _copy_into(out: np.ndarray, k: int, part: np.ndarray) -> int:
+    """part (1-d) into out from column k on; the column after it."""
+    for j in range(part.shape[0]):
+        out[k + j] = part[j]
+    return k + part.shape[0]
+
+
+@njit(cache=True)
+def pack_rows(hinge_force: np.ndarray, point_xz: np.ndarray, cylinder_values: np.ndarray, scalars: np.ndarray,
+              implement_cg: np.ndarray, capacity: np.ndarray, steerability: np.ndarray, width: int) -> np.ndarray:
+    """``pack_row`` of N poses (each argument with a first axis of poses) -> (N, width)."""
+    out = np.empty((hinge_force.shape[0], width))
+    for i in range(hinge_force.shape[0]):
+        pack_row(out[i], hinge_force[i], point_xz[i], cylinder_values[i], scalars[i], implement_cg[i], capacity[i],
+                 steerability[i])
+    return out
+
+
 # ---- one live pose, end to end; a series of them -----------------------------------------------
 def live_rows(n_pose: int, n: int, m: int, outputs: OutputsProgram, machine: MachineProgram) -> LiveRows:
     """Empty ``LiveRows`` for n_pose poses, for ``live_series`` to write, which also fills what a
@@ -1413,7 +1485,9 @@ def live_rows(n_pose: int, n: int, m: int, outputs: OutputsProgram, machine: Mac
         contact_values=np.empty((n_pose, outputs.contact_cols.shape[0], 2)), implement_cg=np.empty((n_pose, 2)),
         frame_load_points=np.empty((n_pose, n_frame, 2)), frame_load_forces=np.empty((n_pose, n_frame, 2)),
         pose=np.empty(n_pose, dtype=POSE_VALUES), steerability=np.empty((n_pose, n_steer)),
-        capacity=np.empty((n_pose, n_capacity)))
+        capacity=np.empty((n_pose, n_capacity)),
+        values=np.empty((n_pose, ValueRow.of(outputs.hinge_cols.shape[0], outputs.point_rows.shape[0],
+                                             outputs.per_cap_area.shape[0], n_capacity, n_steer).width)))
 
 
 @njit(cache=True)
@@ -1428,16 +1502,17 @@ def live_programs(kin_fields, statics_fields, outputs_fields, reduced_fields, ma
 
 
 @njit(cache=True)
-def live_series(programs, rows_fields, s, pressure_forces, q_start, s_start, limit, max_condition):
-    """Poses as the live node solves them, in one compiled call: the live node's one pose, a
-    recorded series (replay). Pose i from the last pose before it that took this path, the first
-    from (q_start (1, n), s_start (1, n_inputs)). s (N, n_inputs): inputs (m, rad);
-    pressure_forces (N, 3, C): per cylinder the measured force (N, NaN = not measured), cap and rod
-    gauge pressures (Pa, NaN = not measured). limit: largest constraint residual accepted (m); max_condition: the dead-centre condition
-    number of the general path (the kinematics' and the statics'; the reduced path's verdict is
-    the transmission measure, and its kinematic condition number is NaN). ``programs``: the
-    configuration's ``LivePrograms`` (``live_programs``). Writes ``rows_fields``: ``live_rows``
-    of N poses, as a plain tuple.
+def live_series(programs, rows_fields, s, pressure_forces, q_start, s_start, limit, max_condition, first, stop):
+    """Poses first..stop−1 of s as the live node solves them, in one compiled call: the live node's
+    one pose (a row of the rows it keeps), a recorded series (replay: all its rows). Pose i from the
+    last pose before it from ``first`` on that took this path, the first from (q_start (1, n),
+    s_start (1, n_inputs)). s (N, n_inputs): inputs (m, rad); pressure_forces (N, 3, C): per
+    cylinder the measured force (N, NaN = not measured), cap and rod gauge pressures (Pa, NaN = not
+    measured). limit: largest constraint residual accepted (m); max_condition: the dead-centre
+    condition number of the general path (the kinematics' and the statics'; the reduced path's
+    verdict is the transmission measure, and its kinematic condition number is NaN). ``programs``:
+    the configuration's ``LivePrograms`` (``live_programs``). Writes rows first..stop−1 of
+    ``rows_fields``: ``live_rows`` of N poses, as a plain tuple.
 
     Each pose, from the per-pose kernels above: loop closure (``_kinematic_pose``), equilibrium with
     the measured cylinder forces — along the chain of dyads with the transmission verdict
@@ -1450,10 +1525,9 @@ def live_series(programs, rows_fields, s, pressure_forces, q_start, s_start, lim
     """
     kin, statics, outputs, reduced, machine = (programs.kin, programs.statics, programs.outputs, programs.reduced,
                                                programs.machine)
-    n_pose = s.shape[0]
     rows = LiveRows(*rows_fields)
     last = -1
-    for i in range(n_pose):
+    for i in range(first, stop):
         if last < 0:
             _live_pose_at(i, rows, s, pressure_forces, q_start, s_start, limit, max_condition, kin, statics, outputs,
                           reduced, machine)
@@ -1594,6 +1668,10 @@ def _live_pose_at(i, rows, s, pressure_forces, q_start, s_start, limit, max_cond
                        machine.weight_mass, member_att[:, :n_springs].copy(), member_force[:, :n_springs].copy(),
                        machine.point_att, kin.column_scale, max_condition, np.ones(1, dtype=np.bool_), square,
                        np.full(1, load), machine.cg_point)
+    pose = rows.pose[i]
+    scalars = np.array((pose.residual, pose.consistency_residual, load, pose.transmission_angle))   # ROW_SCALARS
+    pack_row(rows.values[i], rows.hinge_force[i], rows.point_xz[i], rows.cylinder_values[i], scalars,
+             rows.implement_cg[i], rows.capacity[i], rows.steerability[i])
     rows.plain[i] = True
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
@@ -20,7 +21,7 @@ from . import kernels
 from .capacity import capacity_force, capacity_points, lift_cylinder, reference_length
 from .kinematics import KinematicState
 from .model import Mechanism, Tractor
-from .programs import MachineProgram
+from .programs import ROW_SCALARS, MachineProgram, ValueRow
 from .results import BatchResult, Status, Result
 from .solver import ArrayMap, Inputs, Solver
 
@@ -86,10 +87,18 @@ class MachineResult:
 
     def value(self, key: str) -> float:
         """One value of either row by its key (e.g. ``margin``, ``reserve``); NaN when it is not computed."""
-        for keys, row in ((self.steerability_keys, self.steerability_row), (self.capacity_keys, self.capacity_row)):
-            if key in keys:
-                return float(row[keys.index(key)])
-        return math.nan
+        value = self.steerability.get(key)
+        return value if value is not None else self.lift_capacity.get(key, math.nan)
+
+
+class MachinePose(NamedTuple):
+    """``MachineModel.solve``'s answer: the pose, its machine-level results and, when the compiled
+    call solved it, its value row (``programs.ValueRow``, with this model's capacity and
+    steerability rows; None otherwise)."""
+
+    result: Result
+    machine: MachineResult
+    values: np.ndarray | None
 
 
 def _summary(capacity: dict, steer: dict) -> dict:
@@ -191,19 +200,35 @@ class MachineModel:
         """True when lift capacity is computed (implement and a cylinder with relief_pressure)."""
         return bool(self.capacity_points)
 
+    def value_rows(self, results: Sequence[Result], machines: Sequence[MachineResult]) -> np.ndarray:
+        """The value rows (N, width) of N solved poses of ``self.solver`` with their machine-level
+        results (``programs.ValueRow``, as the compiled call writes them; NaN for a part a pose lacks)."""
+        solver = self.solver
+        row = ValueRow.of(len(solver.names.hinges), len(solver.names.points), len(solver.names.cylinders),
+                          len(self.capacity_keys), len(self.steerability_keys))
+        no_capacity, no_steerability = np.full(len(self.capacity_keys), math.nan), np.full(len(self.steerability_keys),
+                                                                                          math.nan)
+        return kernels.pack_rows(
+            _stacked([r.hinge_force for r in results]), _stacked([r.point_xz for r in results]),
+            _stacked([r.cylinder_values for r in results]),
+            np.array([[getattr(r, name) for name in ROW_SCALARS] for r in results]).reshape(len(results), -1),
+            _stacked([r.implement_cg for r in results]),
+            _stacked([m.capacity_row if m.capacity_row.size else no_capacity for m in machines]),
+            _stacked([m.steerability_row if m.steerability_row.size else no_steerability for m in machines]), row.width)
+
     # ---- batched (replay, capacity curve) and one pose (the node) ------------------------------
     def evaluate_batch(self, batch: BatchResult) -> MachineBatch:
         """Axle loads, steerability and lift capacity for every pose of ``batch`` (from ``self.solver``)."""
         return self._batch_of(*self._batch_rows(batch, slice(None)), len(batch))
 
-    def solve(self, inputs: Inputs, previous: Result | None = None) -> tuple[Result, MachineResult]:
+    def solve(self, inputs: Inputs, previous: Result | None = None) -> MachinePose:
         """One pose (``Solver.solve``, warm-started from ``previous``) with its machine-level results,
         the usual live pose in one compiled call (``Solver.solve_with_machine``); raises as ``solve``."""
         solved = self.solver.solve_with_machine(inputs, previous, self.program)
         if solved.steerability is None or solved.capacity is None:
-            return solved.result, self.evaluate(solved.result)
-        return solved.result, MachineResult(solved.steerability, solved.capacity, self.steerability_keys,
-                                            self.capacity_keys)
+            return MachinePose(solved.result, self.evaluate(solved.result), None)
+        return MachinePose(solved.result, MachineResult(solved.steerability, solved.capacity, self.steerability_keys,
+                                                        self.capacity_keys), solved.values)
 
     def solve_series(self, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap
                      ) -> tuple[BatchResult, MachineBatch]:
@@ -295,3 +320,8 @@ def machine_summary(solver: Solver, result: Result, model: MachineModel | None =
     model = model or MachineModel(solver.mech, solver)
     res = model.evaluate(result)
     return _summary(res.lift_capacity, res.steerability)
+
+
+def _stacked(arrays: list[np.ndarray]) -> np.ndarray:
+    """The arrays stacked along a new first axis (one pose: a view)."""
+    return arrays[0][None] if len(arrays) == 1 else np.stack(arrays)

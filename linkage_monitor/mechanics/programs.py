@@ -171,13 +171,45 @@ path), smallest transmission angle rad (NaN on the general path) and the index o
 (−1: none)."""
 
 
+ROW_SCALARS = ("residual", "consistency_residual", "implement_load", "transmission_angle")
+"""The scalars of a pose's value row, in order (``ValueRow.scalars``): as ``Result``'s fields."""
+
+
+class ValueRow(NamedTuple):
+    """Where a pose's published numbers sit in its one float64 value row (``LiveRows.values``,
+    written by ``kernels.pack_row``; the output messages take their float fields from it): the
+    first column of each part, in this order: fx, fz per hinge (N); |F| per hinge (N); x, z per
+    point (m); ``CylinderResult``'s fields per cylinder; ``ROW_SCALARS``; the implement cg's x, z
+    (m); the lift capacity row (``MachineResult.capacity_row``); the steerability row
+    (``MachineResult.steerability_row``); ``width`` the row's length."""
+
+    hinge_force: int
+    hinge_magnitude: int
+    point_xz: int
+    cylinder_values: int
+    scalars: int
+    implement_cg: int
+    capacity: int
+    steerability: int
+    width: int
+
+    @staticmethod
+    def of(n_hinges: int, n_points: int, n_cylinders: int, n_capacity: int, n_steerability: int) -> "ValueRow":
+        """The row of a pose with these counts of hinges, points, cylinders, capacity and
+        steerability values."""
+        sizes = (2 * n_hinges, n_hinges, 2 * n_points, 5 * n_cylinders, len(ROW_SCALARS), 2, n_capacity, n_steerability)
+        starts = np.cumsum((0, *sizes)).tolist()
+        return ValueRow(*starts)
+
+
 class LiveRows(NamedTuple):
     """What ``kernels.live_series`` writes for N poses, in ``Result``'s and ``MachineResult``'s
     layouts: whether pose i took the live path (``plain``; False: its rows are not meaningful,
     the general path words it); q (N, n), Φ (N, m), the kinematic condition (N,); points
     (N, P, 2) m, hinge forces (N, H, 2) N, cylinder values (N, C, 5), contact values (N, K, 2),
     implement cg (N, 2) m, frame load points and forces (N, F, 2); the pose's scalars (N,)
-    ``POSE_VALUES``; steerability rows (N, S) and capacity rows (N, P + 1)."""
+    ``POSE_VALUES``; steerability rows (N, S) and capacity rows (N, P + 1); the value rows
+    (N, ``ValueRow.width``)."""
 
     plain: np.ndarray
     q: np.ndarray
@@ -193,6 +225,7 @@ class LiveRows(NamedTuple):
     pose: np.ndarray
     steerability: np.ndarray
     capacity: np.ndarray
+    values: np.ndarray
 
 
 def fields(program: NamedTuple) -> tuple:

@@ -13,6 +13,8 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from . import kernels
+
 if TYPE_CHECKING:
     from .model import Mechanism
 
@@ -144,6 +146,11 @@ class Result:
         return np.hypot(self.hinge_force[:, 0], self.hinge_force[:, 1])
 
     @cached_property
+    def largest_force(self) -> float:
+        """The largest hinge reaction or cylinder force magnitude (N; 0 with neither)."""
+        return kernels.largest_force(self.hinge_force, self.cylinder_values[:, 1])
+
+    @cached_property
     def points(self) -> dict[str, np.ndarray]:
         """Point name -> [x, z] m."""
         return dict(zip(self.names.points, self.point_xz))
@@ -206,6 +213,14 @@ class BatchResult:
 
     def __len__(self) -> int:
         return len(self.status)
+
+    @property
+    def largest_force(self) -> np.ndarray:
+        """``Result.largest_force`` of every pose (N,) N; NaN for a failed pose."""
+        n = len(self)
+        hinges = (np.stack(list(self.hinge_force.values()), axis=1) if self.hinge_force else np.zeros((n, 0, 2)))
+        cylinders = (np.stack(list(self.cylinder_force.values()), axis=1) if self.cylinder_force else np.zeros((n, 0)))
+        return kernels.largest_forces(hinges, cylinders)
 
     def assign(self, index: np.ndarray, other: "BatchResult") -> None:
         """Poses ``index`` (len(other),) replaced by the poses of ``other`` (the same solver's)."""

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Mapping, NamedTuple
+from typing import Callable, Mapping, NamedTuple
 
 import numpy as np
 
@@ -16,7 +16,7 @@ from .constants import ATMOSPHERIC_PRESSURE   # a gauge pressure below −1 atm 
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
 from .kinematics import Kinematics, KinematicState
 from .model import Cylinder, Mechanism
-from .programs import POSE_VALUES, LivePrograms, MachineProgram, OutputsProgram, fields
+from .programs import POSE_VALUES, LivePrograms, LiveRows, MachineProgram, OutputsProgram, fields
 from .reduced import DEAD_CENTRE_TRANSMISSION_DEG, ReducedSolution, ReducedStatics, smallest_sine
 from .results import BatchResult, Result, ResultNames, Status
 from .statics import StaticsLayout, StaticsSolution
@@ -25,6 +25,7 @@ ArrayMap = Mapping[str, "float | np.ndarray"]
 _SOLVED = np.zeros(1, dtype=int)   # KinematicState.status of one solved pose (shared, read-only)
 _SOLVED.flags.writeable = False
 POSE_NAMES: tuple[str, ...] = POSE_VALUES.names or ()   # LiveRows.pose's fields
+_OK = Status.OK.label
 
 
 @dataclass(frozen=True)
@@ -105,7 +106,7 @@ class Solver:
         self._angle_reference = kin.angle_reference.tolist()   # rad, the angle inputs' readings in the reference pose
         self._cylinder_index = {c.name: k for k, c in enumerate(mech.cylinders)}
         self._outputs_programs: dict[frozenset[str], OutputsProgram] = {}
-        self._programs_by_sensors: dict[tuple[str, ...], _PlainPrograms] = {}   # pressure sensors given -> _solve_plain's
+        self._plain: dict[tuple[tuple[str, ...], int], _PlainLive] = {}   # (pressure sensors, id(machine)) -> _solve_plain's
         self._live_programs: dict[tuple[frozenset[str], int], tuple[MachineProgram, LivePrograms]] = {}
         # largest constraint residual (m) of an assembled pose (kin.solve's): 1e-9·lc when closed exactly
         self._assembly_limit = 1e-9 * kin.lc if kin.m == kin.n else consistency_tol
@@ -138,7 +139,7 @@ class Solver:
         res = batch.result(0)
         code = int(batch.status[0])
         if code in (Status.OK, Status.LIFT_OFF):
-            return SolvedPose(replace(res, state=ks), None, None)
+            return SolvedPose(replace(res, state=ks), None, None, None)
         raise {Status.INPUT: InputError, Status.ASSEMBLY: AssemblyError, Status.DEAD_CENTRE: DeadCentreError}[Status(code)](
             res.message)
 
@@ -194,7 +195,7 @@ class Solver:
         kernels.live_series(
             self.live_programs(layout, machine), fields(rows), s,
             np.ascontiguousarray(np.stack([measured, cap, rod], axis=1)), start.q[-1:], start.s[-1:],
-            self._assembly_limit, self.dead_centre_cond)
+            self._assembly_limit, self.dead_centre_cond, 0, n_pose)
         plain = rows.plain & ~bad
         batch = BatchResult.from_stacked(
             self.names, {h.name: h.bodies for h in mech.hinges}, rows.point_xz, rows.q.reshape(n_pose, -1, 3),
@@ -382,33 +383,45 @@ class Solver:
         cap, rod = [math.nan] * len(cylinders), [math.nan] * len(cylinders)
         for ps, value in pressures:
             (cap if ps.chamber == "cap" else rod)[self._cylinder_index[ps.cylinder]] = value
-        programs = self._programs_by_sensors.get(tuple(inputs.pressures))
-        if programs is None:   # the layout of these measured cylinder forces, once per set of pressure sensors
-            layout = self.statics_layout(frozenset(ps.cylinder for ps, _ in pressures))
-            programs = self._programs_by_sensors[tuple(inputs.pressures)] = _PlainPrograms(
-                layout=layout, force_measured=layout.force_measured.tolist(), outputs=self.outputs_program(layout),
-                measure_names=[*self._reduced[layout.force_known].measure_names, ""])
+        live = self._plain_live(tuple(inputs.pressures), machine)
         measured = [_measured_force(c, cap[k], rod[k]) if known else math.nan
-                    for k, (c, known) in enumerate(zip(cylinders, programs.force_measured))]
+                    for k, (c, known) in enumerate(zip(cylinders, live.force_measured))]
+        i = live.rows.take()
+        rows, s = live.rows.rows, live.rows.s
+        s[i] = values
+        live.rows.pressure_forces[i] = measured, cap, rod
         start = start if start is not None else kin.reference
-        s = np.array([values])
-        rows = kernels.live_rows(1, kin.n, kin.m, programs.outputs, machine)
-        kernels.live_series(self.live_programs(programs.layout, machine), fields(rows), s,
-                            np.array([[measured, cap, rod]]), start.q[-1:], start.s[-1:],
-                            self._assembly_limit, self.dead_centre_cond)
-        if not rows.plain[0]:
+        kernels.live_series(live.programs, live.rows.fields, s, live.rows.pressure_forces, start.q[-1:],
+                            start.s[-1:], self._assembly_limit, self.dead_centre_cond, i, i + 1)
+        if not rows.plain[i]:
             return None
-        q = rows.q
-        state = KinematicState(s=s, q=q, phi=rows.phi, status=_SOLVED, messages=[""],
-                               condition=rows.kinematic_condition)
-        pose = dict(zip(POSE_NAMES, rows.pose[0].item()))   # Python floats by name, in one call
-        return SolvedPose(Result(self.names, rows.point_xz[0], q[0].reshape(-1, 3), rows.hinge_force[0], rows.cylinder_values[0],
-                       rows.contact_values[0], pose["implement_load"], rows.implement_cg[0],
-                       rows.frame_load_points[0], rows.frame_load_forces[0], pose["residual"],
-                       pose["consistency_residual"], pose["condition"], Status.OK.label, state=state,
-                       transmission_angle=pose["transmission_angle"],
-                       weakest_transmission=programs.measure_names[pose["weakest"]]),
-                rows.steerability[0], rows.capacity[0])
+        q = rows.q[i:i + 1]
+        state = KinematicState(s=s[i:i + 1], q=q, phi=rows.phi[i:i + 1], status=_SOLVED, messages=[""],
+                               condition=rows.kinematic_condition[i:i + 1])
+        pose = dict(zip(POSE_NAMES, rows.pose[i].item()))   # Python floats by name, in one call
+        return SolvedPose(Result(self.names, rows.point_xz[i], q[0].reshape(-1, 3), rows.hinge_force[i],
+                                 rows.cylinder_values[i], rows.contact_values[i], pose["implement_load"],
+                                 rows.implement_cg[i], rows.frame_load_points[i], rows.frame_load_forces[i],
+                                 pose["residual"], pose["consistency_residual"], pose["condition"], _OK, state=state,
+                                 transmission_angle=pose["transmission_angle"],
+                                 weakest_transmission=live.measure_names[pose["weakest"]]),
+                          rows.steerability[i], rows.capacity[i], rows.values[i])
+
+    def _plain_live(self, sensors: tuple[str, ...], machine: MachineProgram) -> _PlainLive:
+        """``_solve_plain``'s programs and rows for the pressure sensors ``sensors`` (in the order the
+        inputs give them) and ``machine``, built once for each."""
+        key = (sensors, id(machine))
+        live = self._plain.get(key)
+        if live is None or live.machine is not machine:   # the machine kept with it: its id is not reused
+            layout = self.statics_layout(frozenset(self._sensors[n].cylinder for n in sensors))
+            outputs, kin = self.outputs_program(layout), self.kin
+            live = self._plain[key] = _PlainLive(
+                machine=machine, programs=self.live_programs(layout, machine),
+                force_measured=layout.force_measured.tolist(),
+                measure_names=[*self._reduced[layout.force_known].measure_names, ""],
+                rows=_RowPool(lambda n_pose: kernels.live_rows(n_pose, kin.n, kin.m, outputs, machine),
+                              kin.n_inputs, len(self.mech.cylinders)))
+        return live
 
     def _solve(self, previous: KinematicState | None, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap,
                rates: ArrayMap, accelerations: ArrayMap, *, reach: bool = True) -> tuple[BatchResult, KinematicState]:
@@ -537,13 +550,14 @@ class Solver:
 
 
 class SolvedPose(NamedTuple):
-    """``Solver.solve_with_machine``'s answer: the pose, and its machine-level rows in
-    ``MachineModel``'s key order when the compiled call computed them (None: the general path
-    solved the pose; ``MachineModel.evaluate`` gives them)."""
+    """``Solver.solve_with_machine``'s answer: the pose, and when the compiled call solved it its
+    machine-level rows in ``MachineModel``'s key order and its value row (``programs.ValueRow``)
+    (None: the general path solved the pose; ``MachineModel.evaluate`` gives the machine-level rows)."""
 
     result: Result
     steerability: np.ndarray | None
     capacity: np.ndarray | None
+    values: np.ndarray | None
 
 
 class _InputProblems(NamedTuple):
@@ -553,15 +567,46 @@ class _InputProblems(NamedTuple):
     bad: np.ndarray
 
 
-class _PlainPrograms(NamedTuple):
-    """What ``Solver._solve_plain`` takes for one set of pressure sensors: the statics layout of the
-    cylinder forces they measure, which those are, the outputs' program (``kernels.live_rows``
-    sizes the rows from it), the transmission measures' names (then '' for none, index −1)."""
+class _RowPool:
+    """Rows for the live poses of one configuration, handed out one pose at a time (``take``):
+    ``rows`` a ``LiveRows`` of SIZE poses (``fields``: as ``kernels.live_series`` takes it), with
+    the inputs it solves them from, s (SIZE, n_inputs) and pressure_forces (SIZE, 3, C). A Result
+    holds views of its pose's rows, so rows are never handed out twice: when all are, new ones are
+    allocated (the old ones live on with the Results that hold them). Allocating the rows per pose
+    took as long as solving the pose."""
 
-    layout: StaticsLayout
+    SIZE = 64
+
+    def __init__(self, allocate: "Callable[[int], LiveRows]", n_inputs: int, n_cylinders: int) -> None:
+        self._allocate, self._n_inputs, self._n_cylinders = allocate, n_inputs, n_cylinders
+        self._renew()
+
+    def take(self) -> int:
+        """The index of the next free row (new rows allocated when none is left)."""
+        if self._next == self.SIZE:
+            self._renew()
+        self._next += 1
+        return self._next - 1
+
+    def _renew(self) -> None:
+        self.rows = self._allocate(self.SIZE)
+        self.fields = fields(self.rows)
+        self.s = np.empty((self.SIZE, self._n_inputs))
+        self.pressure_forces = np.empty((self.SIZE, 3, self._n_cylinders))
+        self._next = 0
+
+
+class _PlainLive(NamedTuple):
+    """What ``Solver._solve_plain`` takes for one set of pressure sensors and one machine program:
+    the machine program (kept: the cache's key holds its id), the ``LivePrograms``, which cylinders'
+    forces the sensors measure, the transmission measures' names (then '' for none, index −1),
+    the rows it solves into."""
+
+    machine: MachineProgram
+    programs: LivePrograms
     force_measured: list[bool]
-    outputs: OutputsProgram
     measure_names: list[str]
+    rows: _RowPool
 
 
 def _measured_force(c: Cylinder, cap: "float | np.ndarray", rod: "float | np.ndarray") -> "float | np.ndarray":

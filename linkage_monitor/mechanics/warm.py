@@ -40,7 +40,9 @@ def warm_up() -> float:
         model = MachineModel(mech, solver)
         ref = {k: dict(v) for k, v in mech.reference_inputs.items()}
         result = solver.solve(Inputs(**ref))
-        model.evaluate(model.solve(Inputs(**ref), previous=result)[0])
+        solved = model.solve(Inputs(**ref), previous=result)
+        model.value_rows([solved.result, result], [solved.machine, model.evaluate(result)])
+        assert result.largest_force >= 0.0
         for n_pose in (2, kernels.PARALLEL_MIN):
             arrays: dict[str, Any] = {k: {n: np.full(n_pose, v) for n, v in group.items()} for k, group in ref.items()}
             names = list(arrays.get("cylinders", {})) + list(arrays.get("angles", {}))
@@ -48,6 +50,7 @@ def warm_up() -> float:
             batch = solver.solve_batch(**arrays, rates=rates, accelerations=rates)
             assert (batch.status < Status.INPUT).all(), f"{name}: the reference pose should solve"
             model.evaluate_batch(batch)
+            assert not (batch.largest_force < 0.0).any()
             model.solve_series(arrays.get("cylinders", {}), arrays.get("angles", {}), arrays.get("pressures", {}))
         # poses out of reach: the continuation from the reference pose and the reach bisection
         far = {"cylinders": {n: 1.6 * v for n, v in ref.get("cylinders", {}).items()},

@@ -45,7 +45,7 @@ class CheckedValues(NamedTuple):
     """What the checks look at, for one pose (floats) or N poses (arrays (N,)).
 
     lift_off: the solver's LIFT_OFF verdict; consistency_residual m, residual N: the solver's
-    kinematic and equilibrium residuals; largest_force N (``largest_force``); front/rear_axle_load
+    kinematic and equilibrium residuals; largest_force N (``Result.largest_force``); front/rear_axle_load
     N, margin (steerability margin, -), reserve (lift reserve, -): the machine-level results.
     """
 
@@ -74,8 +74,3 @@ def pose_checks(values: CheckedValues) -> int | np.ndarray:
             + (v.margin < 0.0) * _STEER
             + (v.reserve < 1.0) * _RESERVE)
 
-
-def largest_force(hinge_magnitude: np.ndarray, cylinder_force: np.ndarray) -> np.ndarray:
-    """The largest hinge reaction or cylinder force magnitude (N; 0 with neither): of one pose from
-    the hinges' |F| (H,) and cylinder_force (C,) (a 0-d array), of N poses from (N, H) and (N, C) ((N,))."""
-    return np.maximum(hinge_magnitude.max(axis=-1, initial=0.0), np.abs(cylinder_force).max(axis=-1, initial=0.0))

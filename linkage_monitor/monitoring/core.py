@@ -23,7 +23,7 @@ from linkage_monitor.mechanics import (AssemblyError, BatchResult, DeadCentreErr
                                        Mechanism, Result, Solver, Status, apply_overrides)
 from linkage_monitor.mechanics.machine import MachineBatch, MachineModel, MachineResult
 
-from .checks import CONSISTENCY_WARN_M, RESIDUAL_WARN_SHARE, Check, CheckedValues, largest_force, pose_checks
+from .checks import CONSISTENCY_WARN_M, RESIDUAL_WARN_SHARE, Check, CheckedValues, pose_checks
 from .config import MonitorConfig
 from .events import ConfigEvent, Event, InputEvent, JointStateEvent, PressureEvent, UnreadableEvent
 from .findings import Code, Finding, Level, fmt
@@ -47,6 +47,7 @@ class Pose:
 
     result: Result
     machine: MachineResult
+    values: np.ndarray | None = None   # its value row (mechanics.programs.ValueRow) when the compiled call wrote one
 
 
 @dataclass(frozen=True)
@@ -198,12 +199,12 @@ class Monitor:
             if isinstance(due, Step):
                 return due
             try:
-                result, machine = self.machine.solve(due.inputs, previous=self.warm)
+                result, machine, values = self.machine.solve(due.inputs, previous=self.warm)
             except LinkageError as exc:
                 self.warm = None
                 return self._failed(due, EXCEPTION_STATUS.get(type(exc), Status.INPUT), str(exc))
             self.warm = result
-            return self._finish(due, result, machine)
+            return self._finish(due, result, machine, values)
         except Exception as exc:  # noqa: BLE001 - the adapter boundary: report, forget the warm start, go on
             return self._internal_error(event, exc)
 
@@ -250,7 +251,7 @@ class Monitor:
         results, machine_results = batch.results(), machine.results()
         checks = _segment_checks(batch, machine).tolist()
         for k, ((i, due), status, check) in enumerate(zip(segment, batch.status.tolist(), checks)):
-            steps[i] = (self._pose_step(due, results[k], machine_results[k], check) if status < Status.INPUT
+            steps[i] = (self._pose_step(due, Pose(results[k], machine_results[k]), check) if status < Status.INPUT
                         else self._failed(due, Status(status), batch.messages[k]))
         segments.append(Segment(np.array([i for i, _ in segment]), np.array([d.stamp_ns for d in dues], dtype=np.int64),
                                 batch, machine, self.mechanism, self.config))
@@ -288,19 +289,19 @@ class Monitor:
                 f"{type(exc).__name__}: {exc}; the input was recorded, the monitor goes on")
         return Step(event.stamp_ns, event.topic, (Finding(Code.INTERNAL_ERROR, text),))
 
-    def _finish(self, due: _Due, result: Result, machine: MachineResult) -> Step:
-        """The Step of one solved pose with its machine-level results (``checks.pose_checks``)."""
-        largest = float(largest_force(result.hinge_magnitude, result.cylinder_values[:, 1]))   # Python floats: fast
+    def _finish(self, due: _Due, result: Result, machine: MachineResult, values: np.ndarray | None) -> Step:
+        """The Step of one solved pose with its machine-level results and value row, if any
+        (``checks.pose_checks``)."""
         checks = pose_checks(CheckedValues(
-            result.status == _LIFT_OFF, result.consistency_residual, result.residual, largest,
+            result.status == _LIFT_OFF, result.consistency_residual, result.residual, result.largest_force,
             machine.value("front_axle_load"), machine.value("rear_axle_load"), machine.value("margin"),
             machine.value("reserve")))
-        return self._pose_step(due, result, machine, int(checks))
+        return self._pose_step(due, Pose(result, machine, values), int(checks))
 
-    def _pose_step(self, due: _Due, result: Result, machine: MachineResult, checks: int) -> Step:
+    def _pose_step(self, due: _Due, pose: Pose, checks: int) -> Step:
         """The Step of a solved pose whose failed checks are ``checks`` (``Check`` bits)."""
-        findings = self._findings(Check(checks), result, machine) if checks else ()
-        return Step(due.stamp_ns, due.trigger, findings, Pose(result, machine), due.inputs)
+        findings = self._findings(Check(checks), pose.result, pose.machine) if checks else ()
+        return Step(due.stamp_ns, due.trigger, findings, pose, due.inputs)
 
     def _findings(self, checks: Check, result: Result, machine: MachineResult) -> tuple[Finding, ...]:
         """The findings of the failed ``checks`` of a solved pose, worded with its numbers."""
@@ -312,9 +313,8 @@ class Monitor:
                                     f"{fmt(result.consistency_residual * 1e3)} mm > {fmt(CONSISTENCY_WARN_M * 1e3)} mm "
                                     "(check sensor calibration)"))
         if Check.PRESSURES_DISAGREE in checks:
-            largest = float(largest_force(result.hinge_magnitude, result.cylinder_values[:, 1]))
             findings.append(Finding(Code.PRESSURES_DISAGREE, f"equilibrium residual {fmt(result.residual)} N > "
-                                    f"{RESIDUAL_WARN_SHARE:.0%} of the largest force ({fmt(largest)} N): the measured "
+                                    f"{RESIDUAL_WARN_SHARE:.0%} of the largest force ({fmt(result.largest_force)} N): the measured "
                                     "pressures disagree"))
         for axle, check in (("front", Check.FRONT_AXLE_LIFT_OFF), ("rear", Check.REAR_AXLE_LIFT_OFF)):
             if check in checks:
@@ -339,12 +339,8 @@ class Monitor:
 def _segment_checks(batch: BatchResult, machine: MachineBatch) -> np.ndarray:
     """``pose_checks`` of every pose of a solved segment at once ((N,) ints; a failed pose's NaN
     values pass every check, and its verdict is worded from its status)."""
-    n = len(batch)
-    hinges = np.stack([np.hypot(f[:, 0], f[:, 1]) for f in batch.hinge_force.values()], axis=1) if batch.hinge_force \
-        else np.zeros((n, 0))
-    cylinders = np.stack(list(batch.cylinder_force.values()), axis=1) if batch.cylinder_force else np.zeros((n, 0))
-    steer, capacity, missing = machine.steerability, machine.lift_capacity, np.full(n, math.nan)
+    steer, capacity, missing = machine.steerability, machine.lift_capacity, np.full(len(batch), math.nan)
     return np.asarray(pose_checks(CheckedValues(
-        batch.status == Status.LIFT_OFF, batch.consistency_residual, batch.residual, largest_force(hinges, cylinders),
+        batch.status == Status.LIFT_OFF, batch.consistency_residual, batch.residual, batch.largest_force,
         steer.get("front_axle_load", missing), steer.get("rear_axle_load", missing), steer.get("margin", missing),
         capacity.get("reserve", missing))))

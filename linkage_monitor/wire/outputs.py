@@ -22,6 +22,7 @@ import numpy as np
 
 from linkage_monitor.mechanics import Mechanism, Result
 from linkage_monitor.mechanics.machine import STEERABILITY_KEYS, MachineResult
+from linkage_monitor.mechanics.programs import ROW_SCALARS, ValueRow
 from linkage_monitor.mechanics.results import CylinderResult
 from linkage_monitor.monitoring.core import Monitor, Step
 from linkage_monitor.monitoring.findings import Code, Level
@@ -93,12 +94,12 @@ class OutputEncoder:
         if monitor.mechanism is not self._mechanism:
             self._lay_out(monitor)
         result, machine, stamp = step.pose.result, step.pose.machine, step.stamp_ns
-        source = self._values([result], [machine])[0]
+        source = step.pose.values if step.pose.values is not None else monitor.machine.value_rows([result], [machine])[0]
         hinges = self._hinge_template(hinge_status(step, result, self._overdetermined))
         hitch = self._hitch_template(step.message)
-        return Outputs(bytes(hinges.fill(stamp, source.take(hinges.columns))),
-                       bytes(hitch.fill(stamp, source.take(hitch.columns), (hitch_status(step),))),
-                       bytes(self._steerability.fill(stamp, source.take(self._steerability.columns))))
+        return Outputs(hinges.fill(stamp, source.take(hinges.columns)),
+                       hitch.fill(stamp, source.take(hitch.columns), (hitch_status(step),)),
+                       self._steerability.fill(stamp, source.take(self._steerability.columns)))
 
     def outputs_of(self, monitor: Monitor, steps: Sequence[Step]) -> list[Outputs | None]:
         """``outputs`` of each of ``steps`` (steps of ``monitor`` in its present configuration)."""
@@ -110,7 +111,7 @@ class OutputEncoder:
             self._lay_out(monitor)
         poses = [steps[k] for k in solved]
         results = [step.pose.result for step in poses]   # type: ignore[union-attr]  # solved: a pose each
-        source = self._values(results, [step.pose.machine for step in poses])  # type: ignore[union-attr]
+        source = monitor.machine.value_rows(results, [step.pose.machine for step in poses])  # type: ignore[union-attr]
         stamps = np.array([step.stamp_ns for step in poses], dtype=np.int64)
         hinge_keys = [hinge_status(step, result, self._overdetermined) for step, result in zip(poses, results)]
         flags = np.array([[hitch_status(step)] for step in poses], dtype=np.uint8)
@@ -123,52 +124,50 @@ class OutputEncoder:
 
     # ---- layouts: the messages' fields by name, their values as columns of the ``_values`` rows ----
     def _lay_out(self, monitor: Monitor) -> None:
-        """The templates of the three messages for ``monitor``'s mechanism. The source rows
-        (``_values``) are [fx, fz per hinge | |F| per hinge | x, z per point | CylinderResult fields
-        per cylinder | residual, consistency residual, implement load, NaN, transmission angle |
-        implement cg x, z | capacity row | steerability row]; every float64 field is a ``Column`` of
-        them."""
+        """The templates of the three messages for ``monitor``'s mechanism: every float64 field is
+        a ``Column`` of the poses' value rows (``mechanics.programs.ValueRow``), or NaN
+        where the mechanism has no such value."""
         mech, machine = monitor.mechanism, monitor.machine
         self._mechanism, self._overdetermined = mech, monitor.overdetermined
-        n_h, n_p, n_c = len(mech.hinges), len(mech.points), len(mech.cylinders)
-        magnitude, point, cylinder = 2 * n_h, 3 * n_h, 3 * n_h + 2 * n_p
-        residual, consistency, load, nan, transmission = (cylinder + 5 * n_c + k for k in range(5))
-        cg, capacity = transmission + 1, transmission + 3
-        steer = capacity + len(machine.capacity_keys)
+        n_h, n_c = len(mech.hinges), len(mech.cylinders)
+        row = ValueRow.of(n_h, len(mech.points), n_c, len(machine.capacity_keys),
+                          len(machine.steerability_keys))
+        residual, consistency, load, transmission = (Column(row.scalars + ROW_SCALARS.index(name)) for name in (
+            "residual", "consistency_residual", "implement_load", "transmission_angle"))
         points = list(mech.points)
         header = {"stamp": STAMP, "frame_id": FRAME_ID}
 
         def xz(name: str) -> tuple[Column, Column]:
-            at = point + 2 * points.index(name)
+            at = row.point_xz + 2 * points.index(name)
             return Column(at), Column(at + 1)
 
         hinges = [{"name": h.name, "on_body": h.bodies[1], "from_body": h.bodies[0],   # on: the second body
-                   "fx": Column(2 * k), "fz": Column(2 * k + 1), "magnitude": Column(magnitude + k),
-                   "x": xz(h.point)[0], "z": xz(h.point)[1]} for k, h in enumerate(mech.hinges)]
+                   "fx": Column(row.hinge_force + 2 * k), "fz": Column(row.hinge_force + 2 * k + 1),
+                   "magnitude": Column(row.hinge_magnitude + k), "x": xz(h.point)[0], "z": xz(h.point)[1]}
+                  for k, h in enumerate(mech.hinges)]
         self._hinges = Template.of(Composer(strict=True).message(
             HINGE_REACTIONS, {"header": header, "mechanism": mech.name, "hinges": hinges}, stop=HINGE_TAIL))
-        self._hinge_tail = {"equilibrium_residual": Column(residual), "kinematic_residual": Column(consistency)}
+        self._hinge_tail = {"equilibrium_residual": residual, "kinematic_residual": consistency}
         self._hinge_texts: dict[tuple[int, str], Template] = {}
 
-        cylinders = [{"name": c.name, **{f: Column(cylinder + 5 * k + j) for j, f in enumerate(CylinderResult._fields)}}
+        cylinders = [{"name": c.name, **{f: Column(row.cylinder_values + 5 * k + j)
+                                         for j, f in enumerate(CylinderResult._fields)}}
                      for k, c in enumerate(mech.cylinders)]
         hitch_point = mech.implement.hitch_point if mech.implement else None
-        capacities = {f: Column(capacity + machine.capacity_keys.index(key) if key in machine.capacity_keys else nan)
-                      for f, key in CAPACITY_FIELDS.items()}
+        capacities = {f: Column(row.capacity + machine.capacity_keys.index(key)) if key in machine.capacity_keys
+                      else math.nan for f, key in CAPACITY_FIELDS.items()}
         self._hitch = Template.of(Composer(strict=True).message(HITCH_STATE, {
-            "header": header, "cylinders": cylinders, "implement_load": Column(load),
-            "implement_load_estimated": int(monitor.estimates_load), "implement_cg_x": Column(cg),
-            "implement_cg_z": Column(cg + 1),
-            "hitch_axis_height": xz(hitch_point)[1] if hitch_point is not None else Column(nan),
-            **capacities, "min_transmission_angle": Column(transmission), "status": Flag(0)}, stop=HITCH_TAIL))
+            "header": header, "cylinders": cylinders, "implement_load": load,
+            "implement_load_estimated": int(monitor.estimates_load), "implement_cg_x": Column(row.implement_cg),
+            "implement_cg_z": Column(row.implement_cg + 1),
+            "hitch_axis_height": xz(hitch_point)[1] if hitch_point is not None else math.nan,
+            **capacities, "min_transmission_angle": transmission, "status": Flag(0)}, stop=HITCH_TAIL))
         self._hitch_texts: dict[str, Template] = {}
 
-        ratios = {f: Column(steer + machine.steerability_keys.index(f) if f in machine.steerability_keys else nan)
-                  for f in STEERABILITY_KEYS}
+        ratios = {f: Column(row.steerability + machine.steerability_keys.index(f)) if f in machine.steerability_keys
+                  else math.nan for f in STEERABILITY_KEYS}
         self._steerability = Template.of(Composer(strict=True).message(
             STEERABILITY, {"header": header, "reference": steerability_reference(mech), **ratios}))
-        self._no_capacity = np.full(len(machine.capacity_keys), math.nan)
-        self._no_steerability = np.full(len(machine.steerability_keys), math.nan)
 
     def _hinge_template(self, key: tuple[int, str]) -> Template:
         """HingeReactions with status, status_text = ``key`` and the residual slots."""
@@ -181,27 +180,6 @@ class OutputEncoder:
         def tail(c: Composer) -> None:
             c.message(HITCH_STATE, {"status_text": text}, start=HITCH_TAIL)
         return _cached(self._hitch_texts, text, self._hitch, tail, self.MAX_TEMPLATES)
-
-    # ---- the numbers -------------------------------------------------------------------------
-    def _values(self, results: Sequence[Result], machines: Sequence[MachineResult]) -> np.ndarray:
-        """The source rows of N poses (``_lay_out``: the columns), NaN for what a pose lacks."""
-        n = len(results)
-        force = _stacked([r.hinge_force for r in results]).reshape(n, -1)
-        return np.concatenate([
-            force, np.hypot(force[:, 0::2], force[:, 1::2]),   # as Result.hinge_magnitude
-            _stacked([r.point_xz for r in results]).reshape(n, -1),
-            _stacked([r.cylinder_values for r in results]).reshape(n, -1),
-            np.array([(r.residual, r.consistency_residual, r.implement_load, math.nan, r.transmission_angle)
-                      for r in results]),
-            _stacked([r.implement_cg for r in results]),
-            _stacked([m.capacity_row if m.capacity_row.size else self._no_capacity for m in machines]),
-            _stacked([m.steerability_row if m.steerability_row.size else self._no_steerability for m in machines])],
-            axis=1)
-
-
-def _stacked(arrays: list[np.ndarray]) -> np.ndarray:
-    """The arrays stacked along a new first axis (one pose: a view)."""
-    return arrays[0][None] if len(arrays) == 1 else np.stack(arrays)
 
 
 def _cached(cache: dict, key: Hashable, base: Template, tail: Callable[[Composer], None], limit: int) -> Template:

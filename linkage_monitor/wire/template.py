@@ -11,7 +11,7 @@ serializing it. What may vary in length (a status text) is written after the fix
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -36,6 +36,15 @@ class Template:
     slots: np.ndarray
     columns: np.ndarray
     flags: tuple[int, ...] = ()
+    # what ``fill`` writes each message in: a copy of ``data`` and its float64 words
+    _buffer: bytearray = field(init=False, repr=False, compare=False)
+    _words: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        buffer = bytearray(self.data)
+        object.__setattr__(self, "_buffer", buffer)
+        object.__setattr__(self, "_words", np.frombuffer(buffer, dtype="<f8", offset=len(ENCAPSULATION),
+                                                         count=(len(buffer) - len(ENCAPSULATION)) // 8))
 
     @staticmethod
     def of(composer: Composer) -> "Template":
@@ -80,15 +89,14 @@ class Template:
                 rows[:, offset] = flags[:, k]
         return rows
 
-    def fill(self, stamp_ns: int, values: "np.ndarray | list[float]", flags: tuple[int, ...] = ()) -> bytearray:
-        """A copy with the header stamp (ns since the epoch; struct.error beyond int32 seconds),
-        the float64 ``values`` in slot order and the uint8 ``flags`` written in."""
-        data = bytearray(self.data)
-        _STAMP.pack_into(data, len(ENCAPSULATION), *stamp_fields(stamp_ns))
-        words = np.frombuffer(data, dtype="<f8", offset=len(ENCAPSULATION),
-                              count=(len(data) - len(ENCAPSULATION)) // 8)
-        words[self.slots] = values
-        del words   # release the buffer: the caller may append a tail
-        for offset, value in zip(self.flags, flags):
-            data[offset] = value
-        return data
+    def fill(self, stamp_ns: int, values: "np.ndarray | list[float]", flags: tuple[int, ...] = ()) -> bytes:
+        """The message with the header stamp (ns since the epoch; struct.error beyond int32 seconds),
+        the float64 ``values`` in slot order and the uint8 ``flags`` written in (the template's own
+        for those not given). Written in the template's one buffer, then copied out: one thread
+        fills a template at a time (the node's executor, the replay)."""
+        buffer = self._buffer
+        _STAMP.pack_into(buffer, len(ENCAPSULATION), *stamp_fields(stamp_ns))
+        self._words[self.slots] = values
+        for k, offset in enumerate(self.flags):
+            buffer[offset] = flags[k] if k < len(flags) else self.data[offset]
+        return bytes(buffer)
