@@ -18,6 +18,7 @@ Units SI; frame x forward, z up, origin at the rear wheels' ground contact.
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass
 from typing import Mapping
@@ -40,6 +41,8 @@ DEFAULT_MAX_PRESSURE = 100e6  # Pa absolute, without a relief pressure in the fi
 SWEEP_POINTS = 141
 MAX_ABS_ANGLE = 4.0 * math.pi   # rad: sensors report in [−π, π) or [0, 2π), ±2π off at most
 UNDRIVEN_FACTOR = 4.0    # × reference length: the bound of a cylinder that does not drive the linkage alone
+SPANS_KEPT = 16   # mechanism descriptions whose swept spans are kept (``_swept_spans_of``)
+_SPANS: dict[str, dict[str, tuple[float, float]]] = {}   # a description (canonical JSON) -> its swept spans
 
 
 @dataclass(frozen=True)
@@ -72,7 +75,7 @@ class Limit:
 def input_limits(mech: Mechanism) -> dict[str, Limit]:
     """The limit of every measured input of ``mech``, keyed by measurement name."""
     out: dict[str, Limit] = {}
-    spans = _swept_spans(mech)
+    spans = _swept_spans_of(mech)
     reference = mech.reference_inputs.get("cylinders", {})
     for name in mech.measurements.cylinders:
         if name in spans:
@@ -105,6 +108,20 @@ def _driven_by(mech: Mechanism, kind: str, entry: object) -> Solver | None:
         return Solver(mechanism_from_dict(raw, file=mech.file))
     except LinkageError:
         return None
+
+
+def _swept_spans_of(mech: Mechanism) -> dict[str, tuple[float, float]]:
+    """``_swept_spans`` of ``mech``, kept for the last SPANS_KEPT descriptions: a replay, a fleet
+    worker's every bag and a reconfigured node build a monitor of the same mechanism again, and the
+    sweeps took most of the time a monitor takes to build (~30 ms of ~40 for belarus_1221)."""
+    key = json.dumps(mech.raw, sort_keys=True, default=repr)
+    spans = _SPANS.pop(key, None)
+    if spans is None:
+        spans = _swept_spans(mech)
+    _SPANS[key] = spans   # the last one used is the newest
+    while len(_SPANS) > SPANS_KEPT:
+        del _SPANS[next(iter(_SPANS))]
+    return dict(spans)
 
 
 def _swept_spans(mech: Mechanism) -> dict[str, tuple[float, float]]:

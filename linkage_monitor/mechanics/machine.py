@@ -91,6 +91,15 @@ class MachineResult:
         return value if value is not None else self.lift_capacity.get(key, math.nan)
 
 
+class MachineSeries(NamedTuple):
+    """``MachineModel.solve_series``' answer: the poses, their machine-level results and their
+    value rows (N, ``programs.ValueRow.width``)."""
+
+    batch: BatchResult
+    machine: MachineBatch
+    values: np.ndarray
+
+
 class MachinePose(NamedTuple):
     """``MachineModel.solve``'s answer: the pose, its machine-level results and, when the compiled
     call solved it, its value row (``programs.ValueRow``, with this model's capacity and
@@ -230,11 +239,11 @@ class MachineModel:
         return MachinePose(solved.result, MachineResult(solved.steerability, solved.capacity, self.steerability_keys,
                                                         self.capacity_keys), solved.values)
 
-    def solve_series(self, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap
-                     ) -> tuple[BatchResult, MachineBatch]:
+    def solve_series(self, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap) -> MachineSeries:
         """A recorded series of poses as the live node solves them, with their machine-level results
-        (``Solver.solve_series``; replay): as ``solve_batch`` + ``evaluate_batch`` would give them."""
-        batch, steer, capacity, plain = self.solver.solve_series(cylinders, angles, pressures, self.program)
+        (``Solver.solve_series``; replay): as ``solve_batch`` + ``evaluate_batch`` would give them,
+        and their value rows (``value_rows``)."""
+        batch, steer, capacity, values, plain = self.solver.solve_series(cylinders, angles, pressures, self.program)
         general = np.flatnonzero(~plain)
         if general.size:
             steer_rows, capacity_rows = self._batch_rows(batch, general)
@@ -242,8 +251,12 @@ class MachineModel:
                 steer[general] = steer_rows
             if capacity_rows is not None:
                 capacity[general] = capacity_rows
-        return batch, self._batch_of(steer if self.steerability_keys else None,
-                                     capacity if self.capacity_keys else None, len(batch))
+        machine = self._batch_of(steer if self.steerability_keys else None,
+                                 capacity if self.capacity_keys else None, len(batch))
+        if general.size:
+            values[general] = self.value_rows([batch.result(i) for i in general.tolist()],
+                                              [machine.results(i, i + 1)[0] for i in general.tolist()])
+        return MachineSeries(batch, machine, values)
 
     def evaluate(self, result: Result) -> MachineResult:
         """Machine-level results of one solved pose (a ``Result`` of ``self.solver``)."""

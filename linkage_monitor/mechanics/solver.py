@@ -167,14 +167,15 @@ class Solver:
         return batch
 
     def solve_series(self, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap, machine: MachineProgram
-                     ) -> tuple[BatchResult, np.ndarray, np.ndarray, np.ndarray]:
+                     ) -> tuple[BatchResult, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """A recorded series of N poses (arrays (N,)) solved as the live node solves them, each from the
         one before (``kernels.live_series``, one compiled call); the poses it does not take (a bad
         input, off the branch, a dead centre, a contact lifting off) are solved by the general path
         (``solve_batch``'s, which words them). Same BatchResult as ``solve_batch``
         (test_mechanics_fast_paths.py); with the machine-level rows of ``machine``
-        (``MachineModel.program``): steerability (N, S) and capacity (N, P + 1), and which poses
-        have them (N,) (the others: ``MachineModel.evaluate_batch``'s)."""
+        (``MachineModel.program``): steerability (N, S), capacity (N, P + 1), the value rows
+        (N, ``ValueRow.width``), and which poses have them (N,) (the others: ``MachineModel.evaluate_batch``'s
+        and ``MachineModel.value_rows``)."""
         kin, mech = self.kin, self.mech
         n_pose, arrays = self._arrays(cylinders, angles, pressures, {}, {})
         s = self._input_matrix(arrays, n_pose, "inputs")
@@ -210,7 +211,7 @@ class Solver:
             other, _ = self._solve(None, taken(arrays["cylinders"]), taken(arrays["angles"]),
                                    taken(arrays["pressures"]), {}, {})
             batch.assign(general, other)
-        return batch, rows.steerability, rows.capacity, plain
+        return batch, rows.steerability, rows.capacity, rows.values, plain
 
     # ---- internals --------------------------------------------------------------------------
     def _check_kinematics_observable(self) -> None:

@@ -24,7 +24,7 @@ from linkage_monitor.mechanics import Mechanism, Result
 from linkage_monitor.mechanics.machine import STEERABILITY_KEYS, MachineResult
 from linkage_monitor.mechanics.programs import ROW_SCALARS, ValueRow
 from linkage_monitor.mechanics.results import CylinderResult
-from linkage_monitor.monitoring.core import Monitor, Step
+from linkage_monitor.monitoring.core import Monitor, Pose, Step
 from linkage_monitor.monitoring.findings import Code, Level
 
 from .compose import STAMP, Column, Composer, Flag
@@ -111,7 +111,7 @@ class OutputEncoder:
             self._lay_out(monitor)
         poses = [steps[k] for k in solved]
         results = [step.pose.result for step in poses]   # type: ignore[union-attr]  # solved: a pose each
-        source = monitor.machine.value_rows(results, [step.pose.machine for step in poses])  # type: ignore[union-attr]
+        source = _value_rows(monitor, [step.pose for step in poses])  # type: ignore[misc]  # solved: a pose each
         stamps = np.array([step.stamp_ns for step in poses], dtype=np.int64)
         hinge_keys = [hinge_status(step, result, self._overdetermined) for step, result in zip(poses, results)]
         flags = np.array([[hitch_status(step)] for step in poses], dtype=np.uint8)
@@ -180,6 +180,14 @@ class OutputEncoder:
         def tail(c: Composer) -> None:
             c.message(HITCH_STATE, {"status_text": text}, start=HITCH_TAIL)
         return _cached(self._hitch_texts, text, self._hitch, tail, self.MAX_TEMPLATES)
+
+
+def _value_rows(monitor: Monitor, poses: list[Pose]) -> np.ndarray:
+    """The value rows of ``poses`` (N, width): their own, ``MachineModel.value_rows`` for those without one."""
+    without = [pose for pose in poses if pose.values is None]
+    made = iter(monitor.machine.value_rows([p.result for p in without], [p.machine for p in without]) if without
+                else ())
+    return np.stack([pose.values if pose.values is not None else next(made) for pose in poses])
 
 
 def _cached(cache: dict, key: Hashable, base: Template, tail: Callable[[Composer], None], limit: int) -> Template:
