@@ -575,6 +575,15 @@ def chain_fit(s: np.ndarray, n: int, att_body: np.ndarray, att_ref: np.ndarray, 
 
 
 @njit(cache=True)
+def _same_inputs(s: np.ndarray, s_start: np.ndarray) -> bool:
+    """Whether the inputs s are exactly the start pose's (then the start pose is theirs)."""
+    for j in range(s.shape[0]):
+        if s[j] != s_start[j]:
+            return False
+    return True
+
+
+@njit(cache=True)
 def _solve_normal(a: np.ndarray) -> bool:
     """Gauss-Jordan in place on a (d, d + 1) = [A | b], A symmetric positive definite (normal
     equations: no pivoting needed): the solution into the last column; False when A is singular."""
@@ -693,13 +702,26 @@ def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, cond: np.nda
     and a Jacobian only for the condition number. Otherwise (no chain, a step out of reach, a fit
     that does not converge, a closed form that does not close) Newton, from the tangent prediction
     off the start pose (its Jacobian evaluated here) or from the chain's pose, and the loop signs
-    of the Jacobian decide the branch."""
+    of the Jacobian decide the branch. Inputs exactly the start pose's: the start pose (solved for
+    them, on the branch)."""
     m, n = phi_out.shape[1], q_out.shape[1]
     n_in = s.shape[1]
     nc = kin.cyl_att.shape[1]
     att_body, att_ref, hinge_att, cyl_att, lc = kin.att_body, kin.att_ref, kin.hinge_att, kin.cyl_att, kin.lc
     angle_body, angle_reference = kin.angle_body, kin.angle_reference
     rotation = np.empty((2, n // 3))
+    if _same_inputs(s[i], s_start[0]) and math.isfinite(_max_abs(q_start[0])):   # the start pose's inputs again
+        # (a pressure reading between two joint states): the start pose, solved for them, is theirs
+        q_out[i] = q_start[0]
+        _rotations(q_out[i], rotation)
+        _residuals(q_out[i], rotation, s[i], kin, phi_out[i])
+        cond[i] = math.nan
+        if with_condition:
+            _, jac = residual_jacobian(q_out[i], s[i], att_body, att_ref, hinge_att, cyl_att, angle_body,
+                                       angle_reference, lc)
+            cond[i] = condition(jac, kin.column_scale)
+        on_branch[i] = True
+        return
     if m > n:   # redundant sensors: fitted along the chain's closed poses
         q0, closed, converged = chain_fit(s[i], n, att_body, att_ref, cyl_att, angle_body, angle_reference, lc,
                                           kin.chain_int, kin.chain_float, max_iter)
