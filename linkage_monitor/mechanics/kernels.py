@@ -23,8 +23,8 @@ from numba import njit, prange
 
 from .chain import (A_BODY, A_BODY2, A_END, A_JOINT1, A_JOINT2, A_OTHER, A_PARENT, A_PARENT2, ANGLE, ANGLE_INPUT,
                     ANGLE_SIGN, BODY, BODY2, CYLINDER, CYLINDER_INPUT, KIND, RRR, STEP_HINGE, STEP_HINGE2, STEP_JOINT)
-from .programs import (POSE_VALUES, KinematicsProgram, LivePrograms, LiveRows, MachineProgram, OutputsProgram,
-                       ReducedProgram, StaticsProgram, ValueRow)
+from .programs import (POSE_VALUES, KinematicsProgram, LiveBuffer, LivePrograms, LiveRows, MachineProgram,
+                       OutputsProgram, ReducedProgram, StaticsProgram, ValueRow)
 
 TWO_PI = 2.0 * math.pi
 PARALLEL_MIN = 512  # poses: smaller batches stay on the calling thread (no thread-pool wake-up)
@@ -1524,17 +1524,24 @@ def live_programs(kin_fields, statics_fields, outputs_fields, reduced_fields, ma
 
 
 @njit(cache=True)
-def live_series(programs, rows_fields, s, pressure_forces, q_start, s_start, limit, max_condition, first, stop):
-    """Poses first..stop−1 of s as the live node solves them, in one compiled call: the live node's
-    one pose (a row of the rows it keeps), a recorded series (replay: all its rows). Pose i from the
-    last pose before it from ``first`` on that took this path, the first from (q_start (1, n),
-    s_start (1, n_inputs)). s (N, n_inputs): inputs (m, rad); pressure_forces (N, 3, C): per
-    cylinder the measured force (N, NaN = not measured), cap and rod gauge pressures (Pa, NaN = not
-    measured). limit: largest constraint residual accepted (m); max_condition: the dead-centre
-    condition number of the general path (the kinematics' and the statics'; the reduced path's
-    verdict is the transmission measure, and its kinematic condition number is NaN). ``programs``:
-    the configuration's ``LivePrograms`` (``live_programs``). Writes rows first..stop−1 of
-    ``rows_fields``: ``live_rows`` of N poses, as a plain tuple.
+def live_buffer(rows_fields, s, pressure_forces):
+    """The ``LiveBuffer`` of rows (``live_rows``' of N poses, as a plain tuple) and the inputs of the
+    poses: s (N, n_inputs), pressure_forces (N, 3, C) (``live_series``)."""
+    return LiveBuffer(LiveRows(*rows_fields), s, pressure_forces)
+
+
+@njit(cache=True)
+def live_series(programs, buffer, q_start, s_start, limit, max_condition, first, stop):
+    """Poses first..stop−1 of ``buffer`` (``live_buffer``) as the live node solves them, in one
+    compiled call: the live node's one pose (a row of the rows it keeps), a recorded series (replay:
+    all its rows). Pose i from the last pose before it from ``first`` on that took this path, the
+    first from (q_start (1, n), s_start (1, n_inputs)). The buffer's s (N, n_inputs): inputs (m,
+    rad); its pressure_forces (N, 3, C): per cylinder the measured force (N, NaN = not measured),
+    cap and rod gauge pressures (Pa, NaN = not measured). limit: largest constraint residual
+    accepted (m); max_condition: the dead-centre condition number of the general path (the
+    kinematics' and the statics'; the reduced path's verdict is the transmission measure, and its
+    kinematic condition number is NaN). ``programs``: the configuration's ``LivePrograms``
+    (``live_programs``). Writes rows first..stop−1 of the buffer's rows.
 
     Each pose, from the per-pose kernels above: loop closure (``_kinematic_pose``), equilibrium with
     the measured cylinder forces — along the chain of dyads with the transmission verdict
@@ -1547,7 +1554,7 @@ def live_series(programs, rows_fields, s, pressure_forces, q_start, s_start, lim
     """
     kin, statics, outputs, reduced, machine = (programs.kin, programs.statics, programs.outputs, programs.reduced,
                                                programs.machine)
-    rows = LiveRows(*rows_fields)
+    rows, s, pressure_forces = buffer.rows, buffer.s, buffer.pressure_forces
     last = -1
     for i in range(first, stop):
         if last < 0:

@@ -7,7 +7,8 @@ programs of a configuration as one ``LivePrograms`` object, built once (``kernel
 from plain tuples of their fields, ``fields``): numba types a NamedTuple argument in Python, and
 unboxes every array of a tuple argument at every call (about 0.2 µs an array: some 20 µs for
 the ~80 arrays of the five programs), while an object holding them passes as one pointer.
-``LiveRows`` is what the live solve writes, per pose. Indices are attachments (points fixed on
+``LiveRows`` is what the live solve writes, per pose; a ``LiveBuffer`` holds them with the
+poses' inputs, again as one object. Indices are attachments (points fixed on
 bodies, ``Kinematics.attach``), hinges, members (springs then cylinders) or columns of the
 statics' unknowns. SI units: m, rad, N, kg; frame x forward, z up.
 """
@@ -250,3 +251,21 @@ class LivePrograms(structref.StructRefProxy):
 
 
 structref.define_proxy(LivePrograms, LiveProgramsType, ["kin", "statics", "outputs", "reduced", "machine"])
+
+
+@structref.register
+class LiveBufferType(types.StructRef):
+    """numba's type of ``LiveBuffer``: its fields typed as the arrays and the record they hold."""
+
+    def preprocess_fields(self, fields: tuple) -> tuple:
+        return tuple((name, types.unliteral(typ)) for name, typ in fields)
+
+
+class LiveBuffer(structref.StructRefProxy):
+    """What ``kernels.live_series`` solves and where it writes, in one object (``kernels.live_buffer``;
+    one pointer to pass, where the arrays took ~0.1 µs each at every call): ``rows`` a ``LiveRows``
+    of N poses, their inputs ``s`` (N, n_inputs) and ``pressure_forces`` (N, 3, C). It holds
+    references to the arrays, not copies."""
+
+
+structref.define_proxy(LiveBuffer, LiveBufferType, ["rows", "s", "pressure_forces"])

@@ -193,10 +193,9 @@ class Solver:
                 measured[:, k] = _measured_force(c, cap[:, k], rod[:, k])
         start = kin.reference
         rows = kernels.live_rows(n_pose, kin.n, kin.m, self.outputs_program(layout), machine)
-        kernels.live_series(
-            self.live_programs(layout, machine), fields(rows), s,
-            np.ascontiguousarray(np.stack([measured, cap, rod], axis=1)), start.q[-1:], start.s[-1:],
-            self._assembly_limit, self.dead_centre_cond, 0, n_pose)
+        buffer = kernels.live_buffer(fields(rows), s, np.ascontiguousarray(np.stack([measured, cap, rod], axis=1)))
+        kernels.live_series(self.live_programs(layout, machine), buffer, start.q[-1:], start.s[-1:],
+                            self._assembly_limit, self.dead_centre_cond, 0, n_pose)
         plain = rows.plain & ~bad
         batch = BatchResult.from_stacked(
             self.names, {h.name: h.bodies for h in mech.hinges}, rows.point_xz, rows.q.reshape(n_pose, -1, 3),
@@ -392,8 +391,8 @@ class Solver:
         s[i] = values
         live.rows.pressure_forces[i] = measured, cap, rod
         start = start if start is not None else kin.reference
-        kernels.live_series(live.programs, live.rows.fields, s, live.rows.pressure_forces, start.q[-1:],
-                            start.s[-1:], self._assembly_limit, self.dead_centre_cond, i, i + 1)
+        kernels.live_series(live.programs, live.rows.buffer, start.q[-1:], start.s[-1:], self._assembly_limit,
+                            self.dead_centre_cond, i, i + 1)
         if not rows.plain[i]:
             return None
         q = rows.q[i:i + 1]
@@ -570,8 +569,8 @@ class _InputProblems(NamedTuple):
 
 class _RowPool:
     """Rows for the live poses of one configuration, handed out one pose at a time (``take``):
-    ``rows`` a ``LiveRows`` of SIZE poses (``fields``: as ``kernels.live_series`` takes it), with
-    the inputs it solves them from, s (SIZE, n_inputs) and pressure_forces (SIZE, 3, C). A Result
+    ``rows`` a ``LiveRows`` of SIZE poses, with the inputs it solves them from, s (SIZE, n_inputs)
+    and pressure_forces (SIZE, 3, C), all in ``buffer`` (as ``kernels.live_series`` takes them). A Result
     holds views of its pose's rows, so rows are never handed out twice: when all are, new ones are
     allocated (the old ones live on with the Results that hold them). Allocating the rows per pose
     took as long as solving the pose."""
@@ -591,9 +590,9 @@ class _RowPool:
 
     def _renew(self) -> None:
         self.rows = self._allocate(self.SIZE)
-        self.fields = fields(self.rows)
         self.s = np.empty((self.SIZE, self._n_inputs))
         self.pressure_forces = np.empty((self.SIZE, 3, self._n_cylinders))
+        self.buffer = kernels.live_buffer(fields(self.rows), self.s, self.pressure_forces)
         self._next = 0
 
 
