@@ -1524,10 +1524,28 @@ def live_programs(kin_fields, statics_fields, outputs_fields, reduced_fields, ma
 
 
 @njit(cache=True)
-def live_buffer(rows_fields, s, pressure_forces):
+def measured_force(cap: float, rod: float, cap_area: float, rod_area: float) -> float:
+    """Axial force (N, + pushing) of a cylinder group from its gauge pressures (Pa; NaN = that
+    chamber not measured, taken as 0) and its chambers' areas × count (m²): F = count·(p_cap·A_cap
+    − p_rod·A_rod) (schema, cylinders[])."""
+    return (0.0 if math.isnan(cap) else cap) * cap_area - (0.0 if math.isnan(rod) else rod) * rod_area
+
+
+@njit(cache=True)
+def measured_forces(cap: np.ndarray, rod: np.ndarray, force_areas: np.ndarray) -> np.ndarray:
+    """``measured_force`` of N poses: cap, rod (N, C) Pa gauge, force_areas (2, C) m² -> (N, C) N."""
+    out = np.empty(cap.shape)
+    for i in range(cap.shape[0]):
+        for k in range(cap.shape[1]):
+            out[i, k] = measured_force(cap[i, k], rod[i, k], force_areas[0, k], force_areas[1, k])
+    return out
+
+
+@njit(cache=True)
+def live_buffer(rows_fields, s, pressures):
     """The ``LiveBuffer`` of rows (``live_rows``' of N poses, as a plain tuple) and the inputs of the
-    poses: s (N, n_inputs), pressure_forces (N, 3, C) (``live_series``)."""
-    return LiveBuffer(LiveRows(*rows_fields), s, pressure_forces)
+    poses: s (N, n_inputs), pressures (N, 2, C) (``live_series``)."""
+    return LiveBuffer(LiveRows(*rows_fields), s, pressures)
 
 
 @njit(cache=True)
@@ -1536,8 +1554,8 @@ def live_series(programs, buffer, q_start, s_start, limit, max_condition, first,
     compiled call: the live node's one pose (a row of the rows it keeps), a recorded series (replay:
     all its rows). Pose i from the last pose before it from ``first`` on that took this path, the
     first from (q_start (1, n), s_start (1, n_inputs)). The buffer's s (N, n_inputs): inputs (m,
-    rad); its pressure_forces (N, 3, C): per cylinder the measured force (N, NaN = not measured),
-    cap and rod gauge pressures (Pa, NaN = not measured). limit: largest constraint residual
+    rad); its pressures (N, 2, C): per cylinder the cap and rod gauge pressures (Pa, NaN = not
+    measured; ``measured_force`` of those whose force the layout takes as measured). limit: largest constraint residual
     accepted (m); max_condition: the dead-centre condition number of the general path (the
     kinematics' and the statics'; the reduced path's verdict is the transmission measure, and its
     kinematic condition number is NaN). ``programs``: the configuration's ``LivePrograms``
@@ -1554,14 +1572,14 @@ def live_series(programs, buffer, q_start, s_start, limit, max_condition, first,
     """
     kin, statics, outputs, reduced, machine = (programs.kin, programs.statics, programs.outputs, programs.reduced,
                                                programs.machine)
-    rows, s, pressure_forces = buffer.rows, buffer.s, buffer.pressure_forces
+    rows, s, pressures = buffer.rows, buffer.s, buffer.pressures
     last = -1
     for i in range(first, stop):
         if last < 0:
-            _live_pose_at(i, rows, s, pressure_forces, q_start, s_start, limit, max_condition, kin, statics, outputs,
+            _live_pose_at(i, rows, s, pressures, q_start, s_start, limit, max_condition, kin, statics, outputs,
                           reduced, machine)
         else:
-            _live_pose_at(i, rows, s, pressure_forces, rows.q[last:last + 1], s[last:last + 1], limit,
+            _live_pose_at(i, rows, s, pressures, rows.q[last:last + 1], s[last:last + 1], limit,
                           max_condition, kin, statics, outputs, reduced, machine)
         if rows.plain[i]:
             last = i
@@ -1614,7 +1632,7 @@ def _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition,
 
 
 @njit(cache=True)
-def _live_pose_at(i, rows, s, pressure_forces, q_start, s_start, limit, max_condition, kin, statics, outputs,
+def _live_pose_at(i, rows, s, pressures, q_start, s_start, limit, max_condition, kin, statics, outputs,
                   reduced, machine):
     """Pose i of ``live_series``, written into its rows of ``rows`` (``LiveRows``). The rows of a
     pose that is not plain are left as they are (the general path writes them), except the
@@ -1641,8 +1659,11 @@ def _live_pose_at(i, rows, s, pressure_forces, q_start, s_start, limit, max_cond
         dx, dz = p1[b, 0] - p1[a, 0], p1[b, 1] - p1[a, 1]
         member_force[0, k] = outputs.spring_stiffness[k] * (outputs.spring_free_length[k] - math.sqrt(dx * dx + dz * dz)) \
             + outputs.spring_preload[k]
-    for k in range(n_cylinders):   # an unmeasured cylinder's force is an unknown
-        member_force[0, n_springs + k] = pressure_forces[i, 0, k] if outputs.force_measured[k] else 0.0
+    measured = np.empty(n_cylinders)   # N: an unmeasured cylinder's force is an unknown
+    for k in range(n_cylinders):
+        measured[k] = measured_force(pressures[i, 0, k], pressures[i, 1, k], outputs.force_areas[0, k],
+                                     outputs.force_areas[1, k]) if outputs.force_measured[k] else 0.0
+        member_force[0, n_springs + k] = measured[k]
     u_out = np.empty((1, outputs.n_unknowns))
     axes, lengths = np.empty((1, n_members, 2)), np.empty((1, n_members))
     if not _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition, statics, outputs, reduced):
@@ -1662,12 +1683,12 @@ def _live_pose_at(i, rows, s, pressure_forces, q_start, s_start, limit, max_cond
     for h in range(hinge_cols.shape[0]):   # N on bodies[1] from bodies[0]
         rows.hinge_force[i, h, 0], rows.hinge_force[i, h, 1] = u[hinge_cols[h, 0]], u[hinge_cols[h, 1]]
     for k in range(n_cylinders):
-        force = pressure_forces[i, 0, k] if outputs.force_measured[k] else u[outputs.cylinder_cols[k]]
+        force = measured[k] if outputs.force_measured[k] else u[outputs.cylinder_cols[k]]
         member_force[0, n_springs + k] = force
         cylinder = rows.cylinder_values[i, k]   # CylinderResult's fields
         cylinder[0], cylinder[1] = lengths[0, n_springs + k], force
         cylinder[2] = force * outputs.per_cap_area[k]
-        cylinder[3], cylinder[4] = pressure_forces[i, 1, k], pressure_forces[i, 2, k]
+        cylinder[3], cylinder[4] = pressures[i, 0, k], pressures[i, 1, k]
     n_frame_hinges = outputs.frame_hinge_index.shape[0]
     frame_points, frame_forces = rows.frame_load_points[i], rows.frame_load_forces[i]
     for j in range(outputs.frame_att.shape[0]):   # the forces ON the ground body: hinges, then member ends

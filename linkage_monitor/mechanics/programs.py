@@ -113,7 +113,8 @@ class OutputsProgram(NamedTuple):
     length (m) and preload (N); the hinges' columns (H, 2); which cylinders' forces are measured
     and the columns of the others; the contacts' columns and friction coefficients; the
     implement load's column (−1: its weight, ``implement_weight`` N, is known); 1 / (count·cap
-    area) per cylinder (1/m²); the result points' attachments; the implement cg's (−1: none);
+    area) per cylinder (1/m²); count·cap area and count·rod area (2, C) (m², ``kernels.measured_force``);
+    the result points' attachments; the implement cg's (−1: none);
     the frame loads' attachments, hinges and members with their signs (+1: the force on the
     ground). ``reduced``: whether the reduced coordinates serve the layout (then its
     ``ReducedProgram`` solves it and ``dead_centre_sine`` = sin of the dead-centre transmission
@@ -130,6 +131,7 @@ class OutputsProgram(NamedTuple):
     implement_col: int
     implement_weight: float
     per_cap_area: np.ndarray
+    force_areas: np.ndarray
     friction: np.ndarray
     point_rows: np.ndarray
     cg_att: int
@@ -264,8 +266,8 @@ class LiveBufferType(types.StructRef):
 class LiveBuffer(structref.StructRefProxy):
     """What ``kernels.live_series`` solves and where it writes, in one object (``kernels.live_buffer``;
     one pointer to pass, where the arrays took ~0.1 µs each at every call): ``rows`` a ``LiveRows``
-    of N poses, their inputs ``s`` (N, n_inputs) and ``pressure_forces`` (N, 3, C). It holds
+    of N poses, their inputs ``s`` (N, n_inputs) and ``pressures`` (N, 2, C). It holds
     references to the arrays, not copies."""
 
 
-structref.define_proxy(LiveBuffer, LiveBufferType, ["rows", "s", "pressure_forces"])
+structref.define_proxy(LiveBuffer, LiveBufferType, ["rows", "s", "pressures"])

@@ -15,7 +15,7 @@ from . import kernels
 from .constants import ATMOSPHERIC_PRESSURE   # a gauge pressure below −1 atm is a negative absolute pressure
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
 from .kinematics import Kinematics, KinematicState
-from .model import Cylinder, Mechanism
+from .model import Mechanism
 from .programs import POSE_VALUES, LivePrograms, LiveRows, MachineProgram, OutputsProgram, fields
 from .reduced import DEAD_CENTRE_TRANSMISSION_DEG, ReducedSolution, ReducedStatics, smallest_sine
 from .results import BatchResult, Result, ResultNames, Status
@@ -102,6 +102,9 @@ class Solver:
                                  tuple((h.name, h.bodies[1], h.bodies[0]) for h in mech.hinges),
                                  tuple(c.name for c in mech.cylinders), tuple(c.name for c in mech.contacts))
         self._per_cap_area = np.array([1.0 / (c.count * c.cap_area) for c in mech.cylinders])
+        # count·cap area and count·rod area (2, C) m²: the measured force of the chambers' pressures
+        self._force_areas = np.array([[c.count * c.cap_area for c in mech.cylinders],
+                                      [c.count * c.rod_area for c in mech.cylinders]]).reshape(2, -1)
         self._friction = np.array([c.friction for c in mech.contacts])
         self._angle_reference = kin.angle_reference.tolist()   # rad, the angle inputs' readings in the reference pose
         self._cylinder_index = {c.name: k for k, c in enumerate(mech.cylinders)}
@@ -181,19 +184,11 @@ class Solver:
         s = self._input_matrix(arrays, n_pose, "inputs")
         bad = self._input_problems(s, arrays).bad
         s = kin.wrap_angles(np.where(bad[:, None], kin.reference_inputs(), s))
-        cap = np.full((n_pose, len(mech.cylinders)), np.nan)
-        rod = cap.copy()
-        for name, values in arrays["pressures"].items():
-            ps = self._sensors[name]
-            (cap if ps.chamber == "cap" else rod)[:, self._cylinder_index[ps.cylinder]] = values
+        cap, rod = self._chamber_pressures(arrays["pressures"], n_pose)
         layout = self.statics_layout(frozenset(self._sensors[n].cylinder for n in arrays["pressures"]))
-        measured = np.full_like(cap, np.nan)
-        for k, c in enumerate(mech.cylinders):
-            if layout.force_measured[k]:
-                measured[:, k] = _measured_force(c, cap[:, k], rod[:, k])
         start = kin.reference
         rows = kernels.live_rows(n_pose, kin.n, kin.m, self.outputs_program(layout), machine)
-        buffer = kernels.live_buffer(fields(rows), s, np.ascontiguousarray(np.stack([measured, cap, rod], axis=1)))
+        buffer = kernels.live_buffer(fields(rows), s, np.ascontiguousarray(np.stack([cap, rod], axis=1)))
         kernels.live_series(self.live_programs(layout, machine), buffer, start.q[-1:], start.s[-1:],
                             self._assembly_limit, self.dead_centre_cond, 0, n_pose)
         plain = rows.plain & ~bad
@@ -309,6 +304,16 @@ class Solver:
                                               f"absolute pressure: check the sensor and its zero offset")
         return _InputProblems(problems, np.array([bool(p) for p in problems]))
 
+    def _chamber_pressures(self, pressures: Mapping[str, np.ndarray], n_pose: int) -> tuple[np.ndarray, np.ndarray]:
+        """The cap and rod gauge pressures (N, C) Pa of every cylinder from the pressure sensors'
+        readings (N,) by name; NaN where a chamber is not measured."""
+        cap = np.full((n_pose, len(self.mech.cylinders)), np.nan)
+        rod = cap.copy()
+        for name, values in pressures.items():
+            ps = self._sensors[name]
+            (cap if ps.chamber == "cap" else rod)[:, self._cylinder_index[ps.cylinder]] = values
+        return cap, rod
+
     def outputs_program(self, layout: StaticsLayout) -> OutputsProgram:
         """What ``kernels.live_series`` needs, beyond the layout's own program, to write a Result's
         arrays for poses solved with ``layout`` (its ``outputs``; built once per layout)."""
@@ -326,7 +331,7 @@ class Solver:
                 contact_cols=layout.contact_cols.astype(np.int64),
                 implement_col=layout.implement_col if layout.implement_col is not None else -1,
                 implement_weight=float(imp.mass * mech.gravity if imp is not None else math.nan),
-                per_cap_area=self._per_cap_area, friction=self._friction.astype(float),
+                per_cap_area=self._per_cap_area, force_areas=self._force_areas, friction=self._friction.astype(float),
                 point_rows=self._point_rows.astype(np.int64), cg_att=self._cg_att if self._cg_att is not None else -1,
                 frame_att=self._frame_att.astype(np.int64), frame_hinge_index=self._frame_hinge_index.astype(np.int64),
                 frame_hinge_sign=self._frame_hinge_sign.ravel().astype(float),
@@ -384,12 +389,10 @@ class Solver:
         for ps, value in pressures:
             (cap if ps.chamber == "cap" else rod)[self._cylinder_index[ps.cylinder]] = value
         live = self._plain_live(tuple(inputs.pressures), machine)
-        measured = [_measured_force(c, cap[k], rod[k]) if known else math.nan
-                    for k, (c, known) in enumerate(zip(cylinders, live.force_measured))]
         i = live.rows.take()
         rows, s = live.rows.rows, live.rows.s
         s[i] = values
-        live.rows.pressure_forces[i] = measured, cap, rod
+        live.rows.pressures[i] = cap, rod
         start = start if start is not None else kin.reference
         kernels.live_series(live.programs, live.rows.buffer, start.q[-1:], start.s[-1:], self._assembly_limit,
                             self.dead_centre_cond, i, i + 1)
@@ -417,7 +420,6 @@ class Solver:
             outputs, kin = self.outputs_program(layout), self.kin
             live = self._plain[key] = _PlainLive(
                 machine=machine, programs=self.live_programs(layout, machine),
-                force_measured=layout.force_measured.tolist(),
                 measure_names=[*self._reduced[layout.force_known].measure_names, ""],
                 rows=_RowPool(lambda n_pose: kernels.live_rows(n_pose, kin.n, kin.m, outputs, machine),
                               kin.n_inputs, len(self.mech.cylinders)))
@@ -449,17 +451,11 @@ class Solver:
             linear, _ = kin.point_rates(q_ddot, rel)
             _, centripetal = kin.point_rates(q_dot, rel)
             accel = (linear + centripetal, q_ddot[:, 2::3])
-        # measured cylinder forces (_measured_force)
-        nan = np.full(n_pose, np.nan)
-        cap = {c.name: nan for c in mech.cylinders}
-        rod = {c.name: nan for c in mech.cylinders}
-        for name, values in arrays["pressures"].items():
-            ps = sensors[name]
-            (cap if ps.chamber == "cap" else rod)[ps.cylinder] = values
-        measured_force = np.full((n_pose, len(mech.cylinders)), np.nan)
-        for k, c in enumerate(mech.cylinders):
-            if c.name in force_known:
-                measured_force[:, k] = _measured_force(c, cap[c.name], rod[c.name])
+        cap_pressures, rod_pressures = self._chamber_pressures(arrays["pressures"], n_pose)
+        measured_force = kernels.measured_forces(cap_pressures, rod_pressures, self._force_areas)
+        measured_force[:, [k for k, c in enumerate(mech.cylinders) if c.name not in force_known]] = np.nan
+        cap = {c.name: cap_pressures[:, k] for k, c in enumerate(mech.cylinders)}
+        rod = {c.name: rod_pressures[:, k] for k, c in enumerate(mech.cylinders)}
         layout = self.statics_layout(force_known)
         sol: StaticsSolution | ReducedSolution
         if reduced.served:   # along the chain of dyads; a dead centre where the transmission is lost
@@ -570,7 +566,7 @@ class _InputProblems(NamedTuple):
 class _RowPool:
     """Rows for the live poses of one configuration, handed out one pose at a time (``take``):
     ``rows`` a ``LiveRows`` of SIZE poses, with the inputs it solves them from, s (SIZE, n_inputs)
-    and pressure_forces (SIZE, 3, C), all in ``buffer`` (as ``kernels.live_series`` takes them). A Result
+    and pressures (SIZE, 2, C), all in ``buffer`` (as ``kernels.live_series`` takes them). A Result
     holds views of its pose's rows, so rows are never handed out twice: when all are, new ones are
     allocated (the old ones live on with the Results that hold them). Allocating the rows per pose
     took as long as solving the pose."""
@@ -591,32 +587,17 @@ class _RowPool:
     def _renew(self) -> None:
         self.rows = self._allocate(self.SIZE)
         self.s = np.empty((self.SIZE, self._n_inputs))
-        self.pressure_forces = np.empty((self.SIZE, 3, self._n_cylinders))
-        self.buffer = kernels.live_buffer(fields(self.rows), self.s, self.pressure_forces)
+        self.pressures = np.empty((self.SIZE, 2, self._n_cylinders))
+        self.buffer = kernels.live_buffer(fields(self.rows), self.s, self.pressures)
         self._next = 0
 
 
 class _PlainLive(NamedTuple):
     """What ``Solver._solve_plain`` takes for one set of pressure sensors and one machine program:
-    the machine program (kept: the cache's key holds its id), the ``LivePrograms``, which cylinders'
-    forces the sensors measure, the transmission measures' names (then '' for none, index −1),
-    the rows it solves into."""
+    the machine program (kept: the cache's key holds its id), the ``LivePrograms``, the
+    transmission measures' names (then '' for none, index −1), the rows it solves into."""
 
     machine: MachineProgram
     programs: LivePrograms
-    force_measured: list[bool]
     measure_names: list[str]
     rows: _RowPool
-
-
-def _measured_force(c: Cylinder, cap: "float | np.ndarray", rod: "float | np.ndarray") -> "float | np.ndarray":
-    """Axial force (N, + pushing) of cylinder group ``c`` from its gauge pressures (Pa; NaN = that
-    chamber not measured, taken as 0): F = count·(p_cap·A_cap − p_rod·A_rod) (schema, cylinders[])."""
-    return c.count * (_unmeasured_zero(cap) * c.cap_area - _unmeasured_zero(rod) * c.rod_area)
-
-
-def _unmeasured_zero(pressure: "float | np.ndarray") -> "float | np.ndarray":
-    """A gauge pressure (Pa) with NaN (not measured) as 0; floats stay floats (one pose: no numpy call)."""
-    if isinstance(pressure, np.ndarray):
-        return np.where(np.isnan(pressure), 0.0, pressure)
-    return 0.0 if math.isnan(pressure) else pressure
