@@ -4,6 +4,9 @@ virtual work)."""
 
 from __future__ import annotations
 
+import sys
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -98,6 +101,39 @@ def test_the_same_inputs_again_give_the_pose_before() -> None:
     _same_result(one, solver.solve_batch(cylinders=again.cylinders, angles=again.angles,
                                          pressures=again.pressures).result(0), "the same inputs again")
     assert one.cylinders["lift_cylinder"].force > 1.4 * before.cylinders["lift_cylinder"].force
+
+
+def test_one_solver_in_several_threads_gives_each_pose_its_own_rows() -> None:
+    """The live path writes each pose into a row of rows it keeps (``Solver``'s row pool) and the
+    Result holds views of it: four threads solving with one Solver, switching threads every
+    microsecond, keep the poses a solver of their own gives, read after all have finished."""
+    mech = load_preset("belarus_1221")
+    shared, own = Solver(mech), Solver(mech)
+    reference = {k: dict(v) for k, v in mech.reference_inputs.items()}
+    series = [[Inputs(cylinders={n: v * (1.0 + 1e-4 * (k - 2) + 2e-6 * j) for n, v in reference["cylinders"].items()},
+                      angles=reference["angles"], pressures={"lift_cap_pressure": 5e6 + 1e4 * j})
+               for j in range(150)] for k in range(4)]
+
+    def solve_all(inputs: list[Inputs]) -> list:
+        previous, results = None, []
+        for x in inputs:
+            previous = shared.solve(x, previous=previous)
+            results.append(previous)
+        return results
+
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)
+    try:
+        with ThreadPoolExecutor(4) as pool:
+            solved = list(pool.map(solve_all, series))
+    finally:
+        sys.setswitchinterval(interval)
+    for inputs, results in zip(series, solved):
+        previous = None
+        for x, got in zip(inputs, results):
+            previous = own.solve(x, previous=previous)
+            np.testing.assert_array_equal(got.body_q, previous.body_q)
+            np.testing.assert_array_equal(got.hinge_force, previous.hinge_force)
 
 
 def _same_result(a, b, where: str) -> None:

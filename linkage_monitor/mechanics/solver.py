@@ -6,6 +6,7 @@ SI units (m, rad, N, Pa); frame x forward, z up, origin at the rear wheels' grou
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass, field, replace
 from typing import Callable, Mapping, NamedTuple
 
@@ -16,7 +17,7 @@ from .constants import ATMOSPHERIC_PRESSURE   # a gauge pressure below −1 atm 
 from .errors import AssemblyError, DeadCentreError, InputError, UnobservableError
 from .kinematics import Kinematics, KinematicState
 from .model import Mechanism
-from .programs import POSE_VALUES, LivePrograms, LiveRows, MachineProgram, OutputsProgram, fields
+from .programs import POSE_VALUES, LiveBuffer, LivePrograms, LiveRows, MachineProgram, OutputsProgram, fields
 from .reduced import DEAD_CENTRE_TRANSMISSION_DEG, ReducedSolution, ReducedStatics, smallest_sine
 from .results import BatchResult, Result, ResultNames, Status
 from .statics import StaticsLayout, StaticsSolution
@@ -389,12 +390,12 @@ class Solver:
         for ps, value in pressures:
             (cap if ps.chamber == "cap" else rod)[self._cylinder_index[ps.cylinder]] = value
         live = self._plain_live(tuple(inputs.pressures), machine)
-        i = live.rows.take()
-        rows, s = live.rows.rows, live.rows.s
+        block, i = live.rows.take()
+        rows, s = block.rows, block.s
         s[i] = values
-        live.rows.pressures[i] = cap, rod
+        block.pressures[i] = cap, rod
         start = start if start is not None else kin.reference
-        kernels.live_series(live.programs, live.rows.buffer, start.q[-1:], start.s[-1:], self._assembly_limit,
+        kernels.live_series(live.programs, block.buffer, start.q[-1:], start.s[-1:], self._assembly_limit,
                             self.dead_centre_cond, i, i + 1)
         if not rows.plain[i]:
             return None
@@ -563,33 +564,42 @@ class _InputProblems(NamedTuple):
     bad: np.ndarray
 
 
+class _RowBlock(NamedTuple):
+    """Rows of SIZE live poses (``_RowPool``): ``rows`` a ``LiveRows``, the inputs it solves them
+    from, s (SIZE, n_inputs) and pressures (SIZE, 2, C), all in ``buffer`` (as
+    ``kernels.live_series`` takes them)."""
+
+    rows: LiveRows
+    s: np.ndarray
+    pressures: np.ndarray
+    buffer: LiveBuffer
+
+
 class _RowPool:
-    """Rows for the live poses of one configuration, handed out one pose at a time (``take``):
-    ``rows`` a ``LiveRows`` of SIZE poses, with the inputs it solves them from, s (SIZE, n_inputs)
-    and pressures (SIZE, 2, C), all in ``buffer`` (as ``kernels.live_series`` takes them). A Result
-    holds views of its pose's rows, so rows are never handed out twice: when all are, new ones are
-    allocated (the old ones live on with the Results that hold them). Allocating the rows per pose
-    took as long as solving the pose."""
+    """Rows for the live poses of one configuration, handed out one pose at a time (``take``). A
+    Result holds views of its pose's rows, so a row is never handed out twice: when a block's rows
+    are all taken, a new block is allocated (the old one lives on with the Results that hold it).
+    Allocating the rows per pose took as long as solving the pose."""
 
     SIZE = 64
 
-    def __init__(self, allocate: "Callable[[int], LiveRows]", n_inputs: int, n_cylinders: int) -> None:
+    def __init__(self, allocate: Callable[[int], LiveRows], n_inputs: int, n_cylinders: int) -> None:
         self._allocate, self._n_inputs, self._n_cylinders = allocate, n_inputs, n_cylinders
-        self._renew()
+        self._lock = threading.Lock()   # one row per caller, from several threads too
+        self._block, self._next = self._new_block(), 0
 
-    def take(self) -> int:
-        """The index of the next free row (new rows allocated when none is left)."""
-        if self._next == self.SIZE:
-            self._renew()
-        self._next += 1
-        return self._next - 1
+    def take(self) -> tuple[_RowBlock, int]:
+        """The block and index of the next free row."""
+        with self._lock:
+            if self._next == self.SIZE:
+                self._block, self._next = self._new_block(), 0
+            self._next += 1
+            return self._block, self._next - 1
 
-    def _renew(self) -> None:
-        self.rows = self._allocate(self.SIZE)
-        self.s = np.empty((self.SIZE, self._n_inputs))
-        self.pressures = np.empty((self.SIZE, 2, self._n_cylinders))
-        self.buffer = kernels.live_buffer(fields(self.rows), self.s, self.pressures)
-        self._next = 0
+    def _new_block(self) -> _RowBlock:
+        rows = self._allocate(self.SIZE)
+        s, pressures = np.empty((self.SIZE, self._n_inputs)), np.empty((self.SIZE, 2, self._n_cylinders))
+        return _RowBlock(rows, s, pressures, kernels.live_buffer(fields(rows), s, pressures))
 
 
 class _PlainLive(NamedTuple):
