@@ -18,7 +18,6 @@ Units SI; frame x forward, z up, origin at the rear wheels' ground contact.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from typing import Mapping
@@ -114,7 +113,7 @@ def _swept_spans_of(mech: Mechanism) -> dict[str, tuple[float, float]]:
     """``_swept_spans`` of ``mech``, kept for the last SPANS_KEPT descriptions: a replay, a fleet
     worker's every bag and a reconfigured node build a monitor of the same mechanism again, and the
     sweeps took most of the time a monitor takes to build (~30 ms of ~40 for belarus_1221)."""
-    key = json.dumps(mech.raw, sort_keys=True, default=repr)
+    key = mech.description_key
     spans = _SPANS.pop(key, None)
     if spans is None:
         spans = _swept_spans(mech)

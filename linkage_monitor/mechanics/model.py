@@ -6,8 +6,10 @@ contact. All coordinates are those of the mechanism's reference pose.
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any, Mapping
 
 import numpy as np
@@ -192,6 +194,13 @@ class Mechanism:
     reference_inputs: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     tractor: Tractor | None = None
     raw: Mapping[str, Any] = field(default_factory=dict, repr=False)
+
+    @cached_property
+    def description_key(self) -> str:
+        """The description as canonical JSON (keys sorted): the same for every mechanism built from
+        the same description, the key of what is kept per mechanism (its input limits' sweeps, its
+        markers' layouts)."""
+        return json.dumps(self.raw, sort_keys=True, default=repr)
 
     @property
     def ground(self) -> Body:

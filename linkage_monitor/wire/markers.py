@@ -40,6 +40,10 @@ TEXT_HEIGHT = 0.05     # m
 LIFETIME_S = 2         # a marker not refreshed for this long disappears (the node stopped solving)
 
 
+DESCRIPTIONS_KEPT = 16   # mechanism descriptions whose layouts are kept (a replay, a fleet worker's next bag)
+_LAYOUTS: dict[str, dict[tuple[int, ...], "_Layout"]] = {}   # description_key -> label residues -> layout
+
+
 class DisplayGate:
     """Lets a solved pose through at most ``rate_hz`` times per second of header stamps (0: never)."""
 
@@ -63,11 +67,12 @@ class LinkageMarkers:
     The message's layout is fixed for a mechanism up to the lengths of the label texts, whose
     residues modulo 8 set the alignment padding after each. So each pattern of those residues is
     laid out once (``_lay_out``: the bytes without the texts, the byte offsets of the stamps and of
-    the numbers that change with the pose), and a pose is that copy with its numbers scattered in
-    and its label texts spliced in: no field-by-field writing per pose.
+    the numbers that change with the pose; kept per mechanism description, for the process), and a
+    pose is that copy with its numbers scattered in and its label texts spliced in: no
+    field-by-field writing per pose.
     """
 
-    MAX_LAYOUTS = 64   # label-length patterns kept (a lift passes through a few)
+    MAX_LAYOUTS = 64   # label-length patterns kept per mechanism description (a lift passes through a few)
 
     def __init__(self, mechanism: Mechanism) -> None:
         self.mechanism = mechanism
@@ -81,7 +86,10 @@ class LinkageMarkers:
         self._hinge_rows = np.array([self._row[h.point] for h in mechanism.hinges], dtype=np.intp)
         self._base_rows, self._rod_rows = (np.array([self._row[getattr(c, end).point] for c in mechanism.cylinders],
                                                     dtype=np.intp) for end in ("base", "rod_end"))
-        self._layouts: dict[tuple[int, ...], _Layout] = {}
+        self._layouts = _LAYOUTS.pop(mechanism.description_key, {})   # those of this description laid out before
+        _LAYOUTS[mechanism.description_key] = self._layouts
+        while len(_LAYOUTS) > DESCRIPTIONS_KEPT:
+            del _LAYOUTS[next(iter(_LAYOUTS))]
 
     def markers(self, stamp_ns: int, result: Result) -> bytes:
         """The drawing of one solved pose, stamped ``stamp_ns`` (the input's header stamp), as the
