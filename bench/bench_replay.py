@@ -7,7 +7,9 @@ Prints messages per second of
 - replay: `linkage_monitor.offline.replay.replay` over the same bag (read, solve batched, machine-level
   results, output messages), without and with writing the output bag, after a first replay of the
   process (its own row) has paid what a process pays once: the compiled kernels loaded from
-  numba's cache, the output messages' layouts parsed from their .msg definitions,
+  numba's cache, the output messages' layouts parsed from their .msg definitions, and once per
+  mechanism description the input limits' sweeps and the MarkerArray layouts (the next bag of the
+  same mechanism, as a fleet worker replays them, skips them),
 and the ratios to the raw decode (goal >= 0.5): of every message of the bag (the bundled bag is a
 node recording: its outputs are 3/4 of it, and a reader decompresses their chunks too), and of
 the input messages the replay reads (topic filter: the same messages).
