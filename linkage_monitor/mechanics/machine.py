@@ -92,12 +92,14 @@ class MachineResult:
 
 
 class MachineSeries(NamedTuple):
-    """``MachineModel.solve_series``' answer: the poses, their machine-level results and their
-    value rows (N, ``programs.ValueRow.width``)."""
+    """``MachineModel.solve_series``' answer: the poses, their machine-level results, their value
+    rows (N, ``programs.ValueRow.width``) and which of those the compiled series wrote (N,) (the
+    others are not meaningful: ``value_rows`` gives them)."""
 
     batch: BatchResult
     machine: MachineBatch
     values: np.ndarray
+    plain: np.ndarray
 
 
 class MachinePose(NamedTuple):
@@ -242,7 +244,7 @@ class MachineModel:
     def solve_series(self, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap) -> MachineSeries:
         """A recorded series of poses as the live node solves them, with their machine-level results
         (``Solver.solve_series``; replay): as ``solve_batch`` + ``evaluate_batch`` would give them,
-        and their value rows (``value_rows``)."""
+        and the value rows of the poses the compiled series solved."""
         batch, steer, capacity, values, plain = self.solver.solve_series(cylinders, angles, pressures, self.program)
         general = np.flatnonzero(~plain)
         if general.size:
@@ -251,12 +253,8 @@ class MachineModel:
                 steer[general] = steer_rows
             if capacity_rows is not None:
                 capacity[general] = capacity_rows
-        machine = self._batch_of(steer if self.steerability_keys else None,
-                                 capacity if self.capacity_keys else None, len(batch))
-        if general.size:
-            values[general] = self.value_rows([batch.result(i) for i in general.tolist()],
-                                              [machine.results(i, i + 1)[0] for i in general.tolist()])
-        return MachineSeries(batch, machine, values)
+        return MachineSeries(batch, self._batch_of(steer if self.steerability_keys else None,
+                                                   capacity if self.capacity_keys else None, len(batch)), values, plain)
 
     def evaluate(self, result: Result) -> MachineResult:
         """Machine-level results of one solved pose (a ``Result`` of ``self.solver``)."""

@@ -246,14 +246,15 @@ class Monitor:
             batch = self.solver.solve_batch(cylinders=column("cylinders"), angles=column("angles"),
                                             pressures=column("pressures"), rates=rates, accelerations=accelerations)
             machine = self.machine.evaluate_batch(batch)
-            values = None
+            values: list[np.ndarray | None] = [None] * len(batch)
         else:   # each pose from the one before, as the live path solves them
-            batch, machine, values = self.machine.solve_series(column("cylinders"), column("angles"),
-                                                               column("pressures"))
+            series = self.machine.solve_series(column("cylinders"), column("angles"), column("pressures"))
+            batch, machine = series.batch, series.machine
+            values = [row if plain else None for row, plain in zip(series.values, series.plain.tolist())]
         results, machine_results = batch.results(), machine.results()
         checks = _segment_checks(batch, machine).tolist()
         for k, ((i, due), status, check) in enumerate(zip(segment, batch.status.tolist(), checks)):
-            pose = Pose(results[k], machine_results[k], values[k] if values is not None else None)
+            pose = Pose(results[k], machine_results[k], values[k])
             steps[i] = (self._pose_step(due, pose, check) if status < Status.INPUT
                         else self._failed(due, Status(status), batch.messages[k]))
         segments.append(Segment(np.array([i for i, _ in segment]), np.array([d.stamp_ns for d in dues], dtype=np.int64),
