@@ -21,7 +21,7 @@ from typing import Any, Callable, Hashable, Sequence
 import numpy as np
 
 from linkage_monitor.mechanics import Mechanism, Result
-from linkage_monitor.mechanics.machine import STEERABILITY_KEYS, MachineResult
+from linkage_monitor.mechanics.machine import STEERABILITY_KEYS
 from linkage_monitor.mechanics.programs import ROW_SCALARS, ValueRow
 from linkage_monitor.mechanics.results import CylinderResult
 from linkage_monitor.monitoring.core import Monitor, Pose, Step
@@ -93,8 +93,9 @@ class OutputEncoder:
             return None
         if monitor.mechanism is not self._mechanism:
             self._lay_out(monitor)
-        result, machine, stamp = step.pose.result, step.pose.machine, step.stamp_ns
-        source = step.pose.values if step.pose.values is not None else monitor.machine.value_rows([result], [machine])[0]
+        pose, stamp = step.pose, step.stamp_ns
+        result = pose.result
+        source = pose.values if pose.values is not None else monitor.machine.value_rows([result], [pose.machine])[0]
         hinges = self._hinge_template(hinge_status(step, result, self._overdetermined))
         hitch = self._hitch_template(step.message)
         return Outputs(hinges.fill(stamp, source.take(hinges.columns)),
@@ -122,7 +123,7 @@ class OutputEncoder:
             found[k] = Outputs(a, b, c)
         return found
 
-    # ---- layouts: the messages' fields by name, their values as columns of the ``_values`` rows ----
+    # ---- layouts: the messages' fields by name, their values as columns of the poses' value rows ----
     def _lay_out(self, monitor: Monitor) -> None:
         """The templates of the three messages for ``monitor``'s mechanism: every float64 field is
         a ``Column`` of the poses' value rows (``mechanics.programs.ValueRow``), or NaN
