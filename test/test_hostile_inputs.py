@@ -33,6 +33,7 @@ HOSTILE_FILES = {   # name: (bytes of the file, words the error must contain)
     "utf16": (PRESET.encode("utf-16"), "not UTF-8"),
     "latin1": (b"# caf\xe9\n" + PRESET.encode(), "not UTF-8"),
     "deep_nesting": (b"a: " + b"[" * 20000 + b"]" * 20000 + b"\n", "nesting deeper"),
+    "nesting_40": (b"a: " + b"[" * 40 + b"]" * 40 + b"\n", "nesting deeper than 32"),   # libyaml takes 40
     "5001_digit_integer": (PRESET.replace("gravity: 9.80665", "gravity: " + "9" * 5001).encode(), "5001 digits"),
     "gravity_1e308": (PRESET.replace("gravity: 9.80665", "gravity: 1e308").encode(), "gravity"),
     "alias_bomb": (b'a: &a ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]\n'

@@ -64,7 +64,8 @@ class MachineBatch:
         return [MachineResult(steer[j], capacity[j], steer_keys, capacity_keys) for j in range(n)]
 
 
-@dataclass(frozen=True, eq=False)
+# built per input event: a plain dataclass, not a frozen one (docs/architecture.md, One pipeline)
+@dataclass(eq=False)
 class MachineResult:
     """Machine-level results of one pose: rows in the order of their keys (the dicts of
     :class:`MachineBatch` for one pose, built when first asked for; empty without a ``tractor``

@@ -98,7 +98,8 @@ class ResultNames:
     contacts: tuple[str, ...]
 
 
-@dataclass(frozen=True, eq=False)
+# built per input event: a plain dataclass, not a frozen one (docs/architecture.md, One pipeline)
+@dataclass(eq=False)
 class Result:
     """Everything solved for one pose, as arrays whose rows follow ``names``; the per-name views
     (``points``, ``body_poses``, ``hinges``, ``cylinders``, ``contacts``) are built when first

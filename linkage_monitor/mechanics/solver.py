@@ -29,7 +29,8 @@ POSE_NAMES: tuple[str, ...] = POSE_VALUES.names or ()   # LiveRows.pose's fields
 _OK = Status.OK.label
 
 
-@dataclass(frozen=True)
+# built per input event: a plain dataclass, not a frozen one (docs/architecture.md, One pipeline)
+@dataclass
 class Inputs:
     """One pose's measurements, keyed by the names in the file's ``measurements``.
 

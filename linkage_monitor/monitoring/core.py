@@ -40,7 +40,8 @@ FAILURE_TEXT = {Code.MALFORMED_INPUT: "malformed input", Code.CANNOT_ASSEMBLE: "
 EXCEPTION_STATUS = {InputError: Status.INPUT, AssemblyError: Status.ASSEMBLY, DeadCentreError: Status.DEAD_CENTRE}
 
 
-@dataclass(frozen=True)
+# built per input event: a plain dataclass, not a frozen one (docs/architecture.md, One pipeline)
+@dataclass(eq=False)
 class Pose:
     """A solved pose: the solver's result and the machine-level results (axle loads,
     steerability, lift capacity), both domain types in SI units."""
@@ -50,7 +51,8 @@ class Pose:
     values: np.ndarray | None = None   # its value row (mechanics.programs.ValueRow) when the compiled call wrote one
 
 
-@dataclass(frozen=True)
+# built per input event: a plain dataclass, not a frozen one (docs/architecture.md, One pipeline)
+@dataclass(eq=False)
 class Step:
     """The outcome of one input event (stamp = its header stamp, ns)."""
 
@@ -128,7 +130,8 @@ class Run:
     segments: list[Segment]
 
 
-@dataclass(frozen=True)
+# built per input event: a plain dataclass, not a frozen one (docs/architecture.md, One pipeline)
+@dataclass(eq=False)
 class _Due:
     """An accepted input event whose solve is due."""
 

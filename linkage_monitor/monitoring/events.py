@@ -14,7 +14,8 @@ from typing import Sequence, Union
 from .config import MonitorConfig
 
 
-@dataclass(frozen=True)
+# built per input event: a plain dataclass, not a frozen one (docs/architecture.md, One pipeline)
+@dataclass
 class JointStateEvent:
     """A sensor_msgs/JointState: joint names, positions (rad for revolute joints, m for cylinder
     lengths), velocities (rad/s, m/s; may be empty), header stamp and receive time (ns)."""
@@ -27,7 +28,8 @@ class JointStateEvent:
     receive_ns: int
 
 
-@dataclass(frozen=True)
+# built per input event: a plain dataclass, not a frozen one (docs/architecture.md, One pipeline)
+@dataclass
 class PressureEvent:
     """A sensor_msgs/FluidPressure: fluid_pressure (Pa), header stamp and receive time (ns)."""
 
