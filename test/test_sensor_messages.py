@@ -166,6 +166,26 @@ def test_joint_names_read_after_the_same_names_read_as_rclpy_reads_them(names, f
     assert _ours_joint_state(bad) == _rclpy_joint_state(bad)
 
 
+@settings(max_examples=300, deadline=None)
+@given(texts, st.lists(texts, min_size=1, max_size=4), st.data())
+def test_messages_of_one_shape_read_one_after_another_as_rclpy_reads_them(frame, names, data):
+    """JointStates and FluidPressures of one frame_id, joint names and sequence lengths, whose numbers
+    differ (the later ones read by the shape the first left, ``wire.read.Shape``), and copies with
+    one byte overwritten or a word replaced (the same size, another shape where the byte is not a
+    number): each read as rclpy reads it."""
+    n, m = len(names), data.draw(st.integers(0, 3))
+    for _ in range(4):
+        joints = _joint_state(frame, data.draw(stamps), names, data.draw(st.lists(floats, min_size=n, max_size=n)),
+                              data.draw(st.lists(floats, min_size=n, max_size=n)), [1.0] * m)
+        pressure = _fluid_pressure(frame, data.draw(stamps), data.draw(floats), data.draw(floats))
+        for message, ours, theirs in ((joints, _ours_joint_state, _rclpy_joint_state),
+                                      (pressure, _ours_fluid_pressure, _rclpy_fluid_pressure)):
+            assert ours(message) == theirs(message) is not None
+            kind, at, value = data.draw(st.integers(1, 2)), data.draw(st.integers(0, 400)), data.draw(st.integers(0, 255))
+            bad = _damaged(message, kind, at, value, b"")
+            assert ours(bad) == theirs(bad)
+
+
 def test_a_refusal_is_the_same_after_the_names_were_read_whole():
     """A JointState cut in its names is refused as when it is the first read, after the whole of it was read."""
     whole = _joint_state("base", (1, 2), ["lift_cylinder", "top_link"], [0.6, 0.1], [], [])

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import functools
 import struct
-from typing import Any, NamedTuple
+from typing import Any
 
 ENCAPSULATION = b"\x00\x01\x00\x00"   # CDR little endian, no options
 _U32, _F64, _STAMP = struct.Struct("<I"), struct.Struct("<d"), struct.Struct("<iI")
@@ -69,26 +69,6 @@ def option_padding_honoured() -> bool:
     return False
 
 
-class _Run(NamedTuple):
-    """Bytes of a payload between two runs of alignment padding: ``at`` bytes after a value's start."""
-
-    at: int
-    data: bytes
-
-
-class _Strings(NamedTuple):
-    """A sequence<string> as read: byte order ("<" or ">"), its bytes but the padding (``runs``, from its
-    count on), its size with the padding (B) and its strings."""
-
-    order: str
-    runs: tuple[_Run, ...]
-    size: int
-    strings: tuple[str, ...]
-
-
-_LAST_STRINGS: dict[str, _Strings] = {}   # field path -> the last sequence<string> read at it (Reader.strings)
-
-
 class Reader:
     """Reads XCDR1 primitives from ``data`` in order, as rmw_fastrtps (Fast CDR) deserializes them:
     encapsulation 0x0000-0x0003 (plain or parameter-list CDR, big endian when even), the last option
@@ -131,33 +111,11 @@ class Reader:
         return self.data[start:start + size].tobytes().split(b"\x00", 1)[0].decode("utf-8", "replace")
 
     def strings(self, what: str) -> list[str]:
-        """A sequence<string>. The last one read at ``what`` (a field path) is kept as its bytes but the
-        alignment padding (whatever the writer left there) and its strings: the same bytes again (a
-        topic's messages name the same joints every time) are not read string by string. They read the
-        same wherever they start, as their count is 4-aligned (every later alignment counts from it), and
-        only whole: a cut or changed copy is read afresh."""
+        """A sequence<string>."""
         count = self.uint32(f"count of {what}")
-        start = self.offset - 4   # of the count
-        last = _LAST_STRINGS.get(what)
-        if last is not None and last.order == self.order and len(last.strings) == count and all(
-                self.data[start + run.at:start + run.at + len(run.data)].tobytes() == run.data for run in last.runs):
-            self.offset = start + last.size
-            return list(last.strings)
         if 4 * count > len(self.data) - self.offset:   # a string takes at least its length
             raise CdrError(f"{what}: {count} strings cannot fit in the {len(self.data)}-byte message")
-        strings: list[str] = []
-        runs: list[_Run] = []
-        run_start = start
-        for k in range(count):
-            end = self.offset
-            length_at = self._take(0, f"length of {what}[{k}]", 4)   # past the padding, as ``string`` reads
-            if length_at > end:
-                runs.append(_Run(run_start - start, self.data[run_start:end].tobytes()))
-                run_start = length_at
-            strings.append(self.string(f"{what}[{k}]"))
-        runs.append(_Run(run_start - start, self.data[run_start:self.offset].tobytes()))
-        _LAST_STRINGS[what] = _Strings(self.order, tuple(runs), self.offset - start, tuple(strings))
-        return strings
+        return [self.string(f"{what}[{k}]") for k in range(count)]
 
     def float64(self, what: str) -> float:
         """A float64."""

@@ -3,8 +3,8 @@ events (live node and replay).
 
 sensor_msgs/JointState (positions: rad for revolute joints, m for cylinder strokes; velocities
 rad/s, m/s) becomes a ``JointStateEvent``, sensor_msgs/FluidPressure (Pa) a ``PressureEvent``
-(``monitoring.events``). They are read field by field by their layouts (``wire.read``) instead
-of rclpy's ``deserialize_message``: the same values (test_sensor_messages.py compares both on
+(``monitoring.events``). They are read by their layouts (``wire.read``: field by field, or at once
+by the shape of a message of the sensor before) instead of rclpy's ``deserialize_message``: the same values (test_sensor_messages.py compares both on
 generated and on damaged messages), without building an rclpy message object, which costs
 12 µs in a loop and 170–240 µs after the few milliseconds of idle between two sensor messages
 (docs/performance.md). A message that is not the CDR of its type raises ``CdrError`` naming the
