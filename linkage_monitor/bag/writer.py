@@ -35,6 +35,7 @@ one would give them; the crash-safe tail, the splitting and the cut-back on a fu
 
 from __future__ import annotations
 
+import functools
 import os
 import struct
 import threading
@@ -69,6 +70,9 @@ _TAIL = (struct.pack("<BQI", 0x0F, 4, 0) + struct.pack("<BQQQI", 0x02, 20, 0, 0,
          + _MCAP_MAGIC)
 WRITE_PERIOD_S = 0.05   # s, the background thread writes the queued messages this often
 MAX_QUEUED = 10_000     # messages queued at most; beyond, write() writes the queue (in order) itself
+# zstd level of the chunks ``write_rows`` builds (mcap's own chunks: its level 3): the bundled bag's
+# chunks compressed in 37 % less time at level 1 than at level 3, to 0.1 % more bytes
+ROW_CHUNK_ZSTD_LEVEL = 1
 _YAML_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)   # libyaml: 4x faster, the same text
 
 
@@ -187,13 +191,18 @@ class _McapWriter(Writer):
         return {CompressionType.ZSTD: "zstd", CompressionType.LZ4: "lz4"}.get(self._private("compression"), "")
 
     def compress(self, data: bytes) -> bytes:
-        """``data`` compressed as this writer compresses its chunks."""
+        """``data`` compressed by this writer's chunk compression; zstd at ROW_CHUNK_ZSTD_LEVEL."""
         kind = self._private("compression")
         if kind == CompressionType.ZSTD:
-            return bytes(mcap_writer.zstandard.compress(data))
+            return bytes(self._zstd.compress(data))
         if kind == CompressionType.LZ4:
             return bytes(mcap_writer.lz4.frame.compress(data))
         return data
+
+    @functools.cached_property
+    def _zstd(self) -> Any:
+        """This writer's zstd compressor for ``compress`` (one per writer: a compressor is not thread-safe)."""
+        return mcap_writer.zstandard.ZstdCompressor(level=ROW_CHUNK_ZSTD_LEVEL)
 
     def chunk_crc(self, data: bytes) -> int:
         """The uncompressed CRC this writer gives a chunk of ``data`` (0: CRCs off)."""
