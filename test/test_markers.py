@@ -116,6 +116,28 @@ def test_marker_bytes_are_what_rclpy_builds(name):
         assert len(data) == len(exact_cdr(MARKER_ARRAY, wire))
 
 
+@pytest.mark.parametrize("name", preset_names())
+def test_the_markers_of_many_poses_at_once_are_those_of_each_pose(name):
+    """``markers_of`` (the replay: all drawn poses of a block at once, grouped by their labels' lengths)
+    gives each pose the bytes ``markers`` gives it alone, in order (the force scale fixed by the first):
+    poses of a lift on every preset, their hinge forces scaled so that the labels take several lengths."""
+    mech = load_preset(name)
+    solver = Solver(mech)
+    ref = solver.kin.reference_inputs()
+    nc = len(mech.measurements.cylinders)
+    results = []
+    for k, factor in enumerate((1.0, 1.0005, 0.9995, 1.001)):
+        s = ref * np.where(np.arange(ref.size) < nc, factor, 1.0)
+        result = solver.solve(Inputs(cylinders=dict(zip(solver.kin.input_names[:nc], s[:nc])),
+                                     angles=dict(zip(solver.kin.input_names[nc:], s[nc:])),
+                                     pressures=dict(mech.reference_inputs.get("pressures", {}))))
+        results.append(dataclasses.replace(result, hinge_force=result.hinge_force * 100.0 ** k))
+    stamps = [1_700_000_000_123_456_789 + k * 100_000_000 for k in range(len(results))]
+    one_by_one = LinkageMarkers(mech)
+    assert LinkageMarkers(mech).markers_of(stamps, results) == [one_by_one.markers(t, r) for t, r in zip(stamps, results)]
+    assert len(set(map(len, one_by_one.markers_of(stamps, results)))) > 1   # the labels took several lengths
+
+
 @pytest.mark.slow
 @settings(max_examples=60, deadline=None)
 @given(exponents=st.lists(st.floats(-4.0, 7.0), min_size=1, max_size=12), sign=st.sampled_from([1.0, -1.0]))

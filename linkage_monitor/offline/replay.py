@@ -245,8 +245,7 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
                   mininterval=0.5) as bar:
             for start in range(0, len(raw), ENCODE_BLOCK):
                 inputs, steps = raw[start:start + ENCODE_BLOCK], run.steps[start:start + ENCODE_BLOCK]
-                sent = [messenger.messages(step, out, recorded.receive_ns)
-                        for recorded, step, out in zip(inputs, steps, encoder.outputs_of(monitor, steps))]
+                sent = messenger.messages_of(steps, encoder.outputs_of(monitor, steps), [r.receive_ns for r in inputs])
                 if not rate:
                     recorder.steps(inputs, sent)
                     bar.update(len(inputs))

@@ -13,7 +13,7 @@ the rear wheels' ground contact; REP 103 axes), units m. Per solved pose, namesp
 
 Published at a display rate (DisplayGate), not at every message; the bag records what is published.
 The MarkerArray is written straight to its CDR bytes (by its layout, ``wire.compose``: laid out once
-per pattern of label lengths, then filled per pose), not built from rclpy's message classes and serialized
+per pattern of label lengths, then filled for each pose, or for many poses at once), not built from rclpy's message classes and serialized
 (oracle of that: test/oracles/markers.py).
 """
 
@@ -94,37 +94,56 @@ class LinkageMarkers:
     def markers(self, stamp_ns: int, result: Result) -> bytes:
         """The drawing of one solved pose, stamped ``stamp_ns`` (the input's header stamp), as the
         CDR bytes of a visualization_msgs/MarkerArray (published and recorded as they are)."""
-        xz = result.point_xz
-        if result.names.points != self._point_names:
-            xz = xz[[result.names.points.index(p) for p in self._point_names]]
-        hinge_f, cyl_f = result.hinge_force, result.cylinder_values[:, 1]   # rows in the mechanism's order
+        return self.markers_of([stamp_ns], [result])[0]
+
+    def markers_of(self, stamps_ns: Sequence[int], results: Sequence[Result]) -> list[bytes]:
+        """``markers`` of each of ``results`` (solved poses) stamped with ``stamps_ns``: the numbers of all
+        of them computed at once, then each pattern of label lengths filled for all its poses at once."""
+        if not results:
+            return []
+        xz = np.stack([r.point_xz if r.names.points == self._point_names
+                       else r.point_xz[[r.names.points.index(p) for p in self._point_names]] for r in results])
+        hinge_f = np.stack([r.hinge_force for r in results])             # (K, H, 2), rows in the mechanism's order
+        cyl_f = np.stack([r.cylinder_values[:, 1] for r in results])     # (K, C)
         if self.force_scale is None:
-            self.force_scale = force_scale(hinge_f, cyl_f)
-        scale = self.force_scale
-        at, base, rod = xz[self._hinge_rows], xz[self._base_rows], xz[self._rod_rows]
-        length = np.maximum(np.hypot(rod[:, 0] - base[:, 0], rod[:, 1] - base[:, 1]), 1e-12)
-        along = (rod - base) / length[:, None]   # + pushing: away from the base
-        source = np.concatenate([xz.ravel(), (at + hinge_f * scale).ravel(), at[:, 1] + 1.5 * TEXT_HEIGHT,
-                                 (rod + along * cyl_f[:, None] * scale).ravel()])
-        texts = [string_bytes(f"{name} {force / 1e3:.1f} kN")
-                 for name, force in zip(self._hinge_names, result.hinge_magnitude.tolist())]
-        key = tuple(len(text) % 8 for text in texts)   # the padding after each text depends on these
-        layout = self._layouts.get(key)
+            self.force_scale = force_scale(hinge_f[0], cyl_f[0])
+        scale, n = self.force_scale, len(results)
+        at, base, rod = xz[:, self._hinge_rows], xz[:, self._base_rows], xz[:, self._rod_rows]
+        length = np.maximum(np.hypot(rod[..., 0] - base[..., 0], rod[..., 1] - base[..., 1]), 1e-12)
+        along = (rod - base) / length[..., None]   # + pushing: away from the base
+        source = np.concatenate([xz.reshape(n, -1), (at + hinge_f * scale).reshape(n, -1), at[..., 1] + 1.5 * TEXT_HEIGHT,
+                                 (rod + along * cyl_f[..., None] * scale).reshape(n, -1)], axis=1)
+        stamps = np.frombuffer(b"".join(map(time_bytes, stamps_ns)), np.uint8).reshape(n, 8)
+        numbers = np.concatenate([stamps, source.astype("<f8").view(np.uint8)], axis=1)   # per pose: stamp, floats
+        texts = [[string_bytes(f"{name} {force / 1e3:.1f} kN") for name, force in zip(self._hinge_names, forces)]
+                 for forces in np.hypot(hinge_f[..., 0], hinge_f[..., 1]).tolist()]
+        by_pattern: dict[tuple[int, ...], list[int]] = {}
+        for k, labels in enumerate(texts):   # the padding after each text depends on its length modulo 8
+            by_pattern.setdefault(tuple(len(text) % 8 for text in labels), []).append(k)
+        found: list[bytes] = [b""] * n
+        for key, poses in by_pattern.items():
+            layout = self._layout(key)
+            data = np.tile(layout.data, (len(poses), 1))
+            data[:, layout.slots] = numbers[poses][:, layout.sources]
+            for row, k in zip(data, poses):
+                raw = row.data   # sliced without copies: the join below is the one copy
+                pieces: list[bytes | memoryview] = []
+                last = 0
+                for cut, text in zip(layout.cuts, texts[k]):
+                    pieces += (raw[last:cut], text)
+                    last = cut
+                pieces.append(raw[last:])
+                found[k] = b"".join(pieces)
+        return found
+
+    def _layout(self, residues: tuple[int, ...]) -> "_Layout":
+        """The layout of the label residues ``residues``, laid out at its first use (``_lay_out``)."""
+        layout = self._layouts.get(residues)
         if layout is None:
             if len(self._layouts) >= self.MAX_LAYOUTS:
                 self._layouts.clear()
-            layout = self._layouts[key] = self._lay_out(key)
-        data = layout.data.copy()
-        data[layout.slots] = np.concatenate([np.frombuffer(time_bytes(stamp_ns), dtype=np.uint8),
-                                             source.astype("<f8").view(np.uint8)])[layout.sources]
-        raw = data.data   # sliced without copies: the join below is the one copy
-        pieces: list[bytes | memoryview] = []
-        last = 0
-        for cut, text in zip(layout.cuts, texts):
-            pieces += (raw[last:cut], text)
-            last = cut
-        pieces.append(raw[last:])
-        return b"".join(pieces)
+            layout = self._layouts[residues] = self._lay_out(residues)
+        return layout
 
     def _lay_out(self, residues: tuple[int, ...]) -> "_Layout":
         """The message for label texts whose serialized sizes are ``residues`` modulo 8 (placeholders

@@ -5,7 +5,7 @@ and the replay (recorded), so both send the same messages for the same steps.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import NamedTuple, Sequence
 
 from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.monitoring.core import Step
@@ -41,11 +41,17 @@ class StepMessenger:
     def messages(self, step: Step, outputs: Outputs | None, now_ns: int) -> StepMessages:
         """What ``step`` sends, its ``outputs`` written by ``wire.outputs.OutputEncoder``; ``now_ns``: the
         monitor's clock (ns), the diagnostic's stamp when the step's cannot be a ROS time."""
-        stamp, pose = step.stamp_ns, step.pose
-        markers = (self.markers.markers(stamp, pose.result)
-                   if pose is not None and self._marker_gate.due(stamp) else None)
-        diagnostic = self.diagnostic(step, now_ns) if self._diagnostic_gate.due(step) else None
-        return StepMessages(stamp, outputs, markers, diagnostic)
+        return self.messages_of([step], [outputs], [now_ns])[0]
+
+    def messages_of(self, steps: Sequence[Step], outputs: Sequence[Outputs | None],
+                    now_ns: Sequence[int]) -> list[StepMessages]:
+        """``messages`` of each of ``steps`` in turn (the markers of those drawn made at once)."""
+        drawn = [k for k, step in enumerate(steps) if step.pose is not None and self._marker_gate.due(step.stamp_ns)]
+        markers = dict(zip(drawn, self.markers.markers_of([steps[k].stamp_ns for k in drawn],
+                                                          [steps[k].pose.result for k in drawn])))  # type: ignore[union-attr]
+        return [StepMessages(step.stamp_ns, out, markers.get(k),
+                             self.diagnostic(step, now) if self._diagnostic_gate.due(step) else None)
+                for k, (step, out, now) in enumerate(zip(steps, outputs, now_ns))]
 
     def diagnostic(self, step: Step, now_ns: int) -> bytes:
         """The DiagnosticArray of ``step`` (also the heartbeat's repetition of the last one)."""
