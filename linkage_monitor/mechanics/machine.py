@@ -87,9 +87,12 @@ class MachineResult:
         return dict(zip(self.capacity_keys, self.capacity_row.tolist()))
 
     def value(self, key: str) -> float:
-        """One value of either row by its key (e.g. ``margin``, ``reserve``); NaN when it is not computed."""
-        value = self.steerability.get(key)
-        return value if value is not None else self.lift_capacity.get(key, math.nan)
+        """One value of either row by its key (e.g. ``margin``, ``reserve``); NaN when it is not computed
+        (read from the row: the dicts are not built for it)."""
+        for keys, row in ((self.steerability_keys, self.steerability_row), (self.capacity_keys, self.capacity_row)):
+            if key in keys:
+                return float(row[keys.index(key)])
+        return math.nan
 
 
 class MachineSeries(NamedTuple):

@@ -264,11 +264,13 @@ class BatchResult:
                                                                   self.frame_load_forces))
         scalars = zip(*(a[span].tolist() for a in (self.implement_load, self.residual, self.consistency_residual,
                                                     self.condition, self.status, self.transmission_angle)))
-        return [Result(names, points[j], poses[j], hinges[j], cylinders[j], contacts[j], load, cgs[j], load_points[j],
-                       load_forces[j], residual, consistency, condition, STATUS_LABELS[int(status)], message,
-                       transmission_angle=angle, weakest_transmission=weakest)
-                for j, ((load, residual, consistency, condition, status, angle), message, weakest)
-                in enumerate(zip(scalars, self.messages[span], self.weakest_transmission[span]))]
+        rows = zip(points, poses, hinges, cylinders, contacts, cgs, load_points, load_forces)   # views, one per pose
+        return [Result(names, point, pose, hinge, cylinder, contact, load, cg, load_point, load_force, residual,
+                       consistency, condition, STATUS_LABELS[int(status)], message, transmission_angle=angle,
+                       weakest_transmission=weakest)
+                for (point, pose, hinge, cylinder, contact, cg, load_point, load_force),
+                (load, residual, consistency, condition, status, angle), message, weakest
+                in zip(rows, scalars, self.messages[span], self.weakest_transmission[span])]
 
     @classmethod
     def from_stacked(cls, names: ResultNames, hinge_bodies: dict[str, tuple[str, str]], point_xz: np.ndarray,

@@ -99,8 +99,8 @@ class InputTracker:
                                   f"monitor's clock (stamp_tolerance {fmt(tolerance)} s): {cause}"))
 
     def accept_joint_state(self, names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
-                           stamp_ns: int, now_ns: int) -> list[str]:
-        """Accept a JointState whole or raise Refused; returns the inputs it updated."""
+                           stamp_ns: int, now_ns: int) -> None:
+        """Accept a JointState whole or raise Refused."""
         what = "JointState"
         if len(names) != len(positions):
             raise Refused(Finding(Code.MALFORMED_INPUT, f"{what} has {len(names)} names but {len(positions)} "
@@ -139,9 +139,8 @@ class InputTracker:
             raise Refused(Finding(Code.UNKNOWN_INPUT, f"{what} joint name(s) {shown or '(none)'} are unknown: "
                                   f"expected {expected} (map others with the joint_map parameter)"))
         self.readings.update(updates)
-        return sorted(updates)
 
-    def accept_pressure(self, topic: str, fluid_pressure: float, stamp_ns: int, now_ns: int) -> str:
+    def accept_pressure(self, topic: str, fluid_pressure: float, stamp_ns: int, now_ns: int) -> None:
         """Accept a FluidPressure (Pa, absolute or gauge per config) or raise Refused; stores gauge Pa."""
         sensor = self.config.pressure_topics.get(topic)
         if sensor is None:
@@ -162,7 +161,6 @@ class InputTracker:
         self._check_limit(sensor, absolute, "topic", topic)
         self._check_order(self.readings.get(sensor), stamp_ns, what)
         self.readings[sensor] = Reading(absolute - cfg.atmospheric_pressure, math.nan, math.nan, stamp_ns)
-        return sensor
 
     def _unit(self, target: str) -> str:
         """The unit of input ``target``'s value: rad for an angle sensor, m for a cylinder length."""
