@@ -481,7 +481,7 @@ def _chunk_records(file: Path, stream: Any, chunk_index: ChunkIndex, summary: An
     channels = summary.channels
     try:
         chunk = Chunk.read(ReadDataStream(stream))
-        records = _chunk_messages(chunk, channel_ids)
+        records = _chunk_messages(chunk, channel_ids, _indexed_offsets(stream, chunk_index, channel_ids))
     except Exception as exc:  # noqa: BLE001 - a CRC mismatch, data that does not decompress, a broken record
         what = ("fails its CRC" if isinstance(exc, CRCValidationError) else
                 f"is unreadable ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'damaged'})")
@@ -498,14 +498,45 @@ _RECORD_HEAD = struct.Struct("<BQ")          # a record's opcode and the length 
 _MESSAGE_HEAD = struct.Struct("<HIQQ")       # a Message record's channel id, sequence, log and publish time
 
 
-def _chunk_messages(chunk: Chunk, channel_ids: Collection[int]) -> list[Message]:
+_INDEX_HEAD = struct.Struct("<BQHI")        # a MessageIndex record's opcode, length, channel id, entries' size
+_INDEX_ENTRY = np.dtype([("log_time", "<u8"), ("offset", "<u8")])
+
+
+def _indexed_offsets(stream: Any, chunk_index: ChunkIndex, channel_ids: Collection[int]) -> np.ndarray | None:
+    """Where the chunk's messages on ``channel_ids`` start in its records (byte offsets, in order), from
+    the MessageIndex records after it (``message_index_offsets``); None when the chunk has none or one
+    does not read as one (then the chunk's records are walked)."""
+    indexes = chunk_index.message_index_offsets
+    if not indexes:
+        return None
+    found = [np.zeros(0, np.uint64)]
+    for at in sorted(offset for channel, offset in indexes.items() if channel in channel_ids):
+        stream.seek(at)
+        head = stream.read(_INDEX_HEAD.size)
+        if len(head) < _INDEX_HEAD.size:
+            return None
+        opcode, _, _, size = _INDEX_HEAD.unpack(head)
+        body = stream.read(size)
+        if opcode != Opcode.MESSAGE_INDEX or size % _INDEX_ENTRY.itemsize or len(body) != size:
+            return None
+        found.append(np.frombuffer(body, _INDEX_ENTRY)["offset"])
+    offsets = np.sort(np.concatenate(found))
+    return offsets if np.all(offsets[1:] > offsets[:-1]) else None   # an offset twice is no index
+
+
+def _chunk_messages(chunk: Chunk, channel_ids: Collection[int], offsets: np.ndarray | None) -> list[Message]:
     """The Message records of ``chunk`` on ``channel_ids``, in their order in the chunk. The chunk is
     decompressed and its CRC checked by mcap (``get_chunk_data_stream``, as ``breakup_chunk`` does);
-    the records are then split by their heads, and only the wanted messages are built (most of a
-    node's recording are outputs a replay does not read). Raises ValueError for a record that runs
-    past the chunk's end."""
+    then only the wanted messages are built (most of a node's recording are outputs a replay does not
+    read): those at ``offsets`` (``_indexed_offsets``), or, without them or where they do not point at
+    such a message, those the records split by their heads hold. Raises ValueError for a record that
+    runs past the chunk's end."""
     data_stream, size = get_chunk_data_stream(chunk, validate_crc=True)
     data = data_stream.read(size)
+    if offsets is not None:
+        indexed = _messages_at(data, offsets.tolist(), channel_ids)
+        if indexed is not None:
+            return indexed
     messages = []
     position = 0
     while position < size:
@@ -523,6 +554,27 @@ def _chunk_messages(chunk: Chunk, channel_ids: Collection[int]) -> list[Message]
             if channel_id in channel_ids:
                 messages.append(Message(channel_id=channel_id, log_time=log_time, publish_time=publish_time,
                                         sequence=sequence, data=data[body + _MESSAGE_HEAD.size:position]))
+    return messages
+
+
+def _messages_at(data: bytes, offsets: list[int], channel_ids: Collection[int]) -> list[Message] | None:
+    """The Message records at ``offsets`` of the chunk's records ``data``; None if one is not a whole
+    Message record on ``channel_ids`` there."""
+    messages = []
+    size = len(data)
+    for position in offsets:
+        body = position + _RECORD_HEAD.size
+        if body + _MESSAGE_HEAD.size > size:
+            return None
+        opcode, length = _RECORD_HEAD.unpack_from(data, position)
+        end = body + length
+        if opcode != Opcode.MESSAGE or length < _MESSAGE_HEAD.size or end > size:
+            return None
+        channel_id, sequence, log_time, publish_time = _MESSAGE_HEAD.unpack_from(data, body)
+        if channel_id not in channel_ids:
+            return None
+        messages.append(Message(channel_id=channel_id, log_time=log_time, publish_time=publish_time,
+                                sequence=sequence, data=data[body + _MESSAGE_HEAD.size:end]))
     return messages
 
 

@@ -14,9 +14,9 @@ Every output carries the header stamp of the triggering input, never wall-clock 
 
 from __future__ import annotations
 
+import functools
 import math
-from dataclasses import dataclass
-from typing import Any, Callable, Hashable, Sequence
+from typing import Any, Callable, Hashable, NamedTuple, Sequence
 
 import numpy as np
 
@@ -41,8 +41,7 @@ CAPACITY_FIELDS = {"lift_capacity_hitch_axis": "hitch_axis", "lift_capacity_610m
 HINGE_TAIL, HITCH_TAIL = "status", "status_text"   # the first field of each message's varying tail
 
 
-@dataclass(frozen=True)
-class Outputs:
+class Outputs(NamedTuple):
     """The three output messages of one solve, serialized (CDR, as published and recorded)."""
 
     hinge_reactions: bytes
@@ -50,19 +49,37 @@ class Outputs:
     steerability: bytes
 
 
+class _Statuses(NamedTuple):
+    """The status constants of HingeReactions and HitchState (from their definitions)."""
+
+    hinge_ok: int
+    hinge_overdetermined: int
+    hinge_high_residual: int
+    hitch_ok: int
+    hitch_warn: int
+
+
+@functools.cache
+def _statuses() -> _Statuses:
+    hinge, hitch = constants(HINGE_REACTIONS), constants(HITCH_STATE)
+    return _Statuses(hinge["STATUS_OK"], hinge["STATUS_OVERDETERMINED"], hinge["STATUS_HIGH_RESIDUAL"],
+                     hitch["STATUS_OK"], hitch["STATUS_WARN"])
+
+
 def hinge_status(step: Step, result: Result, overdetermined: bool) -> tuple[int, str]:
     """HingeReactions.status and status_text: HIGH_RESIDUAL when the measured pressures disagree,
     OVERDETERMINED when more measurements than degrees of freedom were solved by least squares."""
-    disagree = [f.text for f in step.findings if f.code is Code.PRESSURES_DISAGREE]
-    status = constants(HINGE_REACTIONS)
-    if disagree:
-        return status["STATUS_HIGH_RESIDUAL"], disagree[0]
-    return status["STATUS_OVERDETERMINED" if overdetermined else "STATUS_OK"], result.message or "ok"
+    statuses = _statuses()
+    for finding in step.findings:
+        if finding.code is Code.PRESSURES_DISAGREE:
+            return statuses.hinge_high_residual, finding.text
+    return statuses.hinge_overdetermined if overdetermined else statuses.hinge_ok, result.message or "ok"
 
 
 def hitch_status(step: Step) -> int:
     """HitchState.status of a solved step (WARN with any warning finding)."""
-    return constants(HITCH_STATE)["STATUS_WARN" if step.level == Level.WARN else "STATUS_OK"]
+    statuses = _statuses()
+    return statuses.hitch_warn if step.findings and step.level == Level.WARN else statuses.hitch_ok
 
 
 def steerability_reference(mech: Mechanism) -> int:
