@@ -239,7 +239,8 @@ def test_series_path_gives_what_the_batch_path_gives(name: str) -> None:
     from the one before, in one compiled call) gives what solve_batch + evaluate_batch give (every
     pose from the reference pose). The series: a slow stroke around the reference inputs with
     pressures from 0.3 to 3 times a reference value and angle readings wrapped by ±2π, and in it a
-    NaN reading, inputs far out of reach and a jump back."""
+    NaN reading, inputs far out of reach and a jump back, and inputs repeated with other pressures
+    (a pressure reading between two joint states: the pose and its capacities kept, its reserve not)."""
     mech, solver, model = _mechanism(name)
     kin = solver.kin
     s_ref, nc = kin.reference_inputs(), kin.cyl_att.shape[1]
@@ -251,6 +252,7 @@ def test_series_path_gives_what_the_batch_path_gives(name: str) -> None:
     s[20, 0] = np.nan                  # a sensor fault
     s[30:33] = 1.8 * s_ref             # out of reach (or off the branch) for three poses, then back
     s[40, nc:] += 3.0                  # an angle reading that jumps
+    s[11:14] = s[10]                   # the same inputs again, with other pressures
     cylinders = {n: s[:, j] for j, n in enumerate(kin.input_names[:nc])}
     angles = {n: s[:, nc + j] for j, n in enumerate(kin.input_names[nc:])}
     pressures = {p.name: 5e6 * rng.uniform(0.3, 3.0, n_pose) for p in mech.measurements.pressures}

@@ -1289,8 +1289,14 @@ def _capacity_pose(i, out, q, att_body, att_ref, hinge_att, cyl_att, lift, force
     if ok[i] and square:
         _capacity_points(i, out, q, att_body, att_ref, hinge_att, cyl_att, lift, force, gravity, weight_att,
                          weight_mass, spring_att, spring_force, point_att, column_scale, max_condition)
-    load = implement_load[i]
-    out[i, -1] = out[i, cg_point] / load if load > 0.0 else math.inf
+    _reserve(out[i], cg_point, implement_load[i])
+
+
+@njit(cache=True)
+def _reserve(row, cg_point, load):
+    """The lift reserve, the capacity row's last value: the capacity at the implement's cg (its
+    ``cg_point``-th value) over the implement load ``load`` (N; ∞ without a load)."""
+    row[-1] = row[cg_point] / load if load > 0.0 else math.inf
 
 
 @njit(cache=True)
@@ -1576,10 +1582,10 @@ def live_series(programs, buffer, q_start, s_start, limit, max_condition, first,
     last = -1
     for i in range(first, stop):
         if last < 0:
-            _live_pose_at(i, rows, s, pressures, q_start, s_start, limit, max_condition, kin, statics, outputs,
-                          reduced, machine)
+            _live_pose_at(i, rows, s, pressures, q_start, s_start, rows.capacity[i, :0], limit, max_condition, kin,
+                          statics, outputs, reduced, machine)
         else:
-            _live_pose_at(i, rows, s, pressures, rows.q[last:last + 1], s[last:last + 1], limit,
+            _live_pose_at(i, rows, s, pressures, rows.q[last:last + 1], s[last:last + 1], rows.capacity[last], limit,
                           max_condition, kin, statics, outputs, reduced, machine)
         if rows.plain[i]:
             last = i
@@ -1632,12 +1638,14 @@ def _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition,
 
 
 @njit(cache=True)
-def _live_pose_at(i, rows, s, pressures, q_start, s_start, limit, max_condition, kin, statics, outputs,
-                  reduced, machine):
+def _live_pose_at(i, rows, s, pressures, q_start, s_start, capacity_start, limit, max_condition, kin, statics,
+                  outputs, reduced, machine):
     """Pose i of ``live_series``, written into its rows of ``rows`` (``LiveRows``). The rows of a
     pose that is not plain are left as they are (the general path writes them), except the
     implement cg and the capacities, NaN until written (no implement; a capacity not computed),
-    and the transmission measure, NaN and −1 until the reduced statics give it."""
+    and the transmission measure, NaN and −1 until the reduced statics give it. ``capacity_start``:
+    the start pose's capacity row (empty when not known): a pose with the start pose's inputs has
+    its capacities at the points (they depend on the pose alone) and only its reserve is computed."""
     rows.implement_cg[i, 0], rows.implement_cg[i, 1] = math.nan, math.nan
     rows.capacity[i, :] = math.nan
     rows.pose[i].transmission_angle, rows.pose[i].weakest = math.nan, -1
@@ -1711,7 +1719,10 @@ def _live_pose_at(i, rows, s, pressures, q_start, s_start, limit, max_condition,
     if machine.parameters.shape[0]:
         steerability_pose(frame_points, frame_forces, load, rows.implement_cg[i, 0], machine.parameters,
                           rows.steerability[i])
-    if machine.point_att.shape[0]:
+    if machine.point_att.shape[0] and capacity_start.shape[0] and _same_inputs(s[i], s_start[0]):
+        rows.capacity[i, :] = capacity_start
+        _reserve(rows.capacity[i], machine.cg_point, load)
+    elif machine.point_att.shape[0]:
         square = 2 * machine.hinge_att.shape[1] + machine.cylinder_att.shape[1] == n
         _capacity_pose(0, rows.capacity[i:i + 1], rows.q[i:i + 1], kin.att_body, kin.att_ref, machine.hinge_att,
                        machine.cylinder_att, machine.lift, machine.lift_force, machine.gravity, machine.weight_att,
