@@ -1,5 +1,5 @@
 """The output messages written as CDR bytes, alone: one pose's three outputs (``OutputEncoder.outputs``),
-a recording's worth at once (``OutputEncoder.outputs_of``, as the replay), one MarkerArray
+a recording's worth at once (``OutputEncoder.output_rows``, as the replay), one MarkerArray
 (``LinkageMarkers.markers``) and one DiagnosticArray (``diagnostic_array``, CDR bytes published and
 recorded as they are), against rclpy's ``serialize_message`` of the same HitchState built with the
 generated class, timed in the same run. For the DiagnosticArray also what a message object costs on
@@ -93,7 +93,7 @@ def main() -> None:
     print(f"belarus_1221, {n} solved poses; median of 5 passes, us per pose")
     print(f"baseline: rclpy serialize_message(HitchState):     {base * us:7.2f} us")
     for label, run in (("OutputEncoder.outputs (3 messages)", one_by_one),
-                       ("OutputEncoder.outputs_of (3 messages)", lambda: encoder.outputs_of(monitor, solved)),
+                       ("OutputEncoder.output_rows (3 messages)", lambda: encoder.output_rows(monitor, solved)),
                        ("LinkageMarkers.markers (MarkerArray)", drawn), ("diagnostic_array (DiagnosticArray)", diagnostics),
                        ("an rclpy DiagnosticArray published+recorded", rclpy_diagnostics)):
         t = per_item(run, n)

@@ -25,7 +25,7 @@ from linkage_monitor.mechanics import load_mechanism, load_preset, preset_names
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Monitor
 from linkage_monitor.msg import HitchState
-from linkage_monitor.wire.outputs import OutputEncoder
+from linkage_monitor.wire.outputs import OutputEncoder, per_step
 from linkage_monitor.sim.telemetry import Noise, simulate
 from oracles.output_messages import outputs as oracle_outputs
 from test_wire import assert_rclpy_bytes
@@ -97,7 +97,8 @@ def test_every_preset_and_fixture_as_rclpy_builds_it(kind, name):
         solved += _check(monitor, encoder, steps[-1])
     assert solved > 0
     # all steps at once (the replay's encoding), a fresh encoder: the same bytes as one step at a time
-    assert OutputEncoder().outputs_of(monitor, steps) == [encoder.outputs(monitor, step) for step in steps]
+    assert per_step(OutputEncoder().output_rows(monitor, steps), len(steps)) == [encoder.outputs(monitor, step)
+                                                                                 for step in steps]
 
 
 def test_warnings_and_a_reconfigured_monitor():
@@ -119,7 +120,7 @@ def test_warnings_and_a_reconfigured_monitor():
 
 
 def test_many_steps_at_once_as_one_at_a_time():
-    """``outputs_of`` (the replay's: one template per status text, filled for all its steps at once)
+    """``output_rows`` (the replay's: one template per status text, filled for all its steps at once)
     writes the bytes ``outputs`` writes, over a simulated lift with sensor noise: OK steps, WARN
     steps whose texts carry numbers (one template each), steps without a pose, more distinct texts
     than the encoder keeps templates for."""
@@ -135,7 +136,7 @@ def test_many_steps_at_once_as_one_at_a_time():
         if i % 50 == 7:
             positions[0] = math.nan   # an input refused: a step without a pose
         steps.append(monitor.on_joint_state(list(stream.joint_names), positions, [], stamp, stamp))
-    ours = OutputEncoder().outputs_of(monitor, steps)
+    ours = per_step(OutputEncoder().output_rows(monitor, steps), len(steps))
     assert ours == [encoder.outputs(monitor, step) for step in steps]
     texts = {step.message for step in steps if step.pose is not None}
     assert any(o is None for o in ours) and len(texts) > OutputEncoder.MAX_TEMPLATES, len(texts)

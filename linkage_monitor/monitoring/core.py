@@ -33,6 +33,7 @@ from .inputs import InputTracker, Refused
 # (an ERROR; up to checks.CONSISTENCY_WARN_M the misfit is sensor noise, between the two a WARN).
 ASSEMBLY_LIMIT_M = 20e-3
 MESSAGE_JOIN = " | "  # between the sentences of several findings of one step
+NO_FINDINGS = "ok"    # the message of a step without findings
 FAILURE_CODE = {Status.INPUT: Code.MALFORMED_INPUT, Status.ASSEMBLY: Code.CANNOT_ASSEMBLE,
                 Status.DEAD_CENTRE: Code.DEAD_CENTRE}
 FAILURE_TEXT = {Code.MALFORMED_INPUT: "malformed input", Code.CANNOT_ASSEMBLE: "cannot assemble",
@@ -101,7 +102,7 @@ class Step:
     @property
     def message(self) -> str:
         """The findings' sentences joined, or 'ok'."""
-        return MESSAGE_JOIN.join(f.text for f in self.findings) or "ok"
+        return MESSAGE_JOIN.join(f.text for f in self.findings) or NO_FINDINGS
 
 
 @dataclass(frozen=True)

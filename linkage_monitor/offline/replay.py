@@ -36,6 +36,7 @@ from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
 from linkage_monitor.monitoring.core import Monitor, Run, Step
 from linkage_monitor.monitoring.events import ConfigEvent, Event
 from linkage_monitor.monitoring.findings import Level
+from linkage_monitor.wire.outputs import OutputEncoder, per_step
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, input_event
 
 ENCODE_BLOCK = 4096   # steps whose output messages are encoded at once (held in memory until written)
@@ -225,12 +226,11 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
                raw: list[RecordedInput], run: Run, rate: float | None, progress: TextIO | None) -> None:
     """Inputs (their recorded bytes, unchanged), outputs and diagnostics in recording order, as the
     node records them (``bag.step_recorder``), ENCODE_BLOCK steps at a time: their outputs encoded
-    at once (``OutputEncoder.outputs_of``) and, as fast as possible, all their messages written at once
+    at once (``OutputEncoder.output_rows``) and, as fast as possible, all their messages written at once
     (``StepRecorder.steps``). With ``rate`` the messages go one by one (``StepRecorder.input``, ``step``),
     each input's written at its receive time scaled by 1 / ``rate`` from the first: a block written at
     once cannot keep that pace."""
     from linkage_monitor.wire.markers import DEFAULT_RATE_HZ
-    from linkage_monitor.wire.outputs import OutputEncoder
     from linkage_monitor.wire.step_messages import StepMessenger
 
     writer = BagWriter(out_dir)
@@ -245,11 +245,13 @@ def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: 
                   mininterval=0.5) as bar:
             for start in range(0, len(raw), ENCODE_BLOCK):
                 inputs, steps = raw[start:start + ENCODE_BLOCK], run.steps[start:start + ENCODE_BLOCK]
-                sent = messenger.messages_of(steps, encoder.outputs_of(monitor, steps), [r.receive_ns for r in inputs])
+                outputs = encoder.output_rows(monitor, steps)
                 if not rate:
-                    recorder.steps(inputs, sent)
+                    sent = messenger.messages_of(steps, [None] * len(steps), [r.receive_ns for r in inputs])
+                    recorder.steps(inputs, sent, outputs)
                     bar.update(len(inputs))
                     continue
+                sent = messenger.messages_of(steps, per_step(outputs, len(steps)), [r.receive_ns for r in inputs])
                 for recorded, messages in zip(inputs, sent):
                     receive = recorded.receive_ns
                     delay = (receive - first) * 1e-9 / rate - (time.perf_counter() - pace_start)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Mapping
 
-from linkage_monitor.monitoring.core import Step
+from linkage_monitor.monitoring.core import NO_FINDINGS, Step
 from linkage_monitor.monitoring.findings import Level
 
 from .compose import encode
@@ -52,7 +52,10 @@ class DiagnosticGate:
 
     def due(self, step: Step) -> bool:
         """True if `step` should be reported now."""
-        key = (step.level, step.message)
-        report = step.level != Level.OK or key != self._last
+        key = (step.level, step.message) if step.findings else _OK   # most steps: OK without findings
+        report = key[0] != Level.OK or key != self._last
         self._last = key
         return report
+
+
+_OK = (Level.OK, NO_FINDINGS)   # the level and message of a step without findings

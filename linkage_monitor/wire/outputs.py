@@ -49,6 +49,16 @@ class Outputs(NamedTuple):
     steerability: bytes
 
 
+class OutputRows(NamedTuple):
+    """Output messages of one kind and one layout for several steps (``OutputEncoder.output_rows``):
+    ``kind`` the ``Outputs`` field they are, ``steps`` (n,) the steps' indices, ``rows`` (n, size) uint8
+    their CDR bytes, a row per step."""
+
+    kind: str
+    steps: np.ndarray
+    rows: np.ndarray
+
+
 class _Statuses(NamedTuple):
     """The status constants of HingeReactions and HitchState (from their definitions)."""
 
@@ -94,9 +104,9 @@ class OutputEncoder:
     The layout follows the monitor's effective mechanism and is laid out again when the monitor
     is reconfigured. A message's fixed part (names, counts) is a ``Template``; the status texts
     after it make one template per text (kept for the texts seen last, ``MAX_TEMPLATES``).
-    ``outputs`` writes one step's messages (the live node), ``outputs_of`` those of many steps at
-    once, the same bytes (the replay: each template filled for all its steps in a few array
-    operations).
+    ``outputs`` writes one step's messages (the live node), ``output_rows`` those of many steps at
+    once, the same bytes as rows (the replay: each template filled for all its steps in a few array
+    operations, recorded without a bytes object per message).
     """
 
     MAX_TEMPLATES = 64   # per message type: most steps share "ok"; texts with numbers in them are not kept long
@@ -119,12 +129,12 @@ class OutputEncoder:
                        hitch.fill(stamp, source.take(hitch.columns), (hitch_status(step),)),
                        self._steerability.fill(stamp, source.take(self._steerability.columns)))
 
-    def outputs_of(self, monitor: Monitor, steps: Sequence[Step]) -> list[Outputs | None]:
-        """``outputs`` of each of ``steps`` (steps of ``monitor`` in its present configuration)."""
+    def output_rows(self, monitor: Monitor, steps: Sequence[Step]) -> list[OutputRows]:
+        """The messages ``outputs`` gives each of ``steps`` (steps of ``monitor`` in its present
+        configuration), as rows: per message kind, one ``OutputRows`` per layout (status text)."""
         solved = [k for k, step in enumerate(steps) if step.pose is not None]
-        found: list[Outputs | None] = [None] * len(steps)
         if not solved:
-            return found
+            return []
         if monitor.mechanism is not self._mechanism:
             self._lay_out(monitor)
         poses = [steps[k] for k in solved]
@@ -133,12 +143,11 @@ class OutputEncoder:
         stamps = np.array([step.stamp_ns for step in poses], dtype=np.int64)
         hinge_keys = [hinge_status(step, result, self._overdetermined) for step, result in zip(poses, results)]
         flags = np.array([[hitch_status(step)] for step in poses], dtype=np.uint8)
-        hinges = _filled(self._hinge_template, hinge_keys, stamps, source)
-        hitches = _filled(self._hitch_template, [step.message for step in poses], stamps, source, flags)
-        steers = _filled(lambda _: self._steerability, [None] * len(poses), stamps, source)
-        for k, a, b, c in zip(solved, hinges, hitches, steers):
-            found[k] = Outputs(a, b, c)
-        return found
+        index = np.array(solved, dtype=np.intp)
+        return [*_filled("hinge_reactions", self._hinge_template, hinge_keys, index, stamps, source),
+                *_filled("hitch_state", self._hitch_template, [step.message for step in poses], index, stamps, source,
+                         flags),
+                *_filled("steerability", lambda _: self._steerability, [None] * len(poses), index, stamps, source)]
 
     # ---- layouts: the messages' fields by name, their values as columns of the poses' value rows ----
     def _lay_out(self, monitor: Monitor) -> None:
@@ -208,6 +217,15 @@ def _value_rows(monitor: Monitor, poses: list[Pose]) -> np.ndarray:
     return np.stack([pose.values if pose.values is not None else next(made) for pose in poses])
 
 
+def per_step(output_rows: Sequence[OutputRows], n: int) -> list[Outputs | None]:
+    """The ``Outputs`` of each of n steps from their ``OutputEncoder.output_rows`` (None: not solved)."""
+    found: list[dict[str, bytes]] = [{} for _ in range(n)]
+    for rows in output_rows:
+        for k, row in zip(rows.steps.tolist(), rows.rows):
+            found[k][rows.kind] = row.tobytes()
+    return [Outputs(**messages) if messages else None for messages in found]
+
+
 def _cached(cache: dict, key: Hashable, base: Template, tail: Callable[[Composer], None], limit: int) -> Template:
     """``base.extended(tail)``, kept in ``cache`` under ``key`` (the cache emptied first when full)."""
     template = cache.get(key)
@@ -218,20 +236,17 @@ def _cached(cache: dict, key: Hashable, base: Template, tail: Callable[[Composer
     return template
 
 
-def _filled(template_of: Callable[[Any], Template], keys: list, stamps: np.ndarray, source: np.ndarray,
-            flags: np.ndarray | None = None) -> list[bytes]:
-    """The messages of N poses: ``template_of(keys[i])`` filled with stamps[i], its columns of
-    source[i] and flags[i] (one ``Template.fill_rows`` per distinct key)."""
+def _filled(kind: str, template_of: Callable[[Any], Template], keys: list, steps: np.ndarray, stamps: np.ndarray,
+            source: np.ndarray, flags: np.ndarray | None = None) -> list[OutputRows]:
+    """The ``kind`` messages of N poses (of ``steps``): ``template_of(keys[i])`` filled with stamps[i], its
+    columns of source[i] and flags[i]; one ``Template.fill_rows`` per distinct key."""
     rows: dict[Any, list[int]] = {}
     for i, key in enumerate(keys):
         rows.setdefault(key, []).append(i)
-    found: list[bytes] = [b""] * len(keys)
+    found = []
     for key, index in rows.items():
         template = template_of(key)
         at = np.array(index, dtype=np.intp)
-        data = template.fill_rows(stamps[at], source[np.ix_(at, template.columns)],
-                                  flags[at] if flags is not None else None).tobytes()
-        size = len(template.data)
-        for j, i in enumerate(index):
-            found[i] = data[j * size:(j + 1) * size]
+        found.append(OutputRows(kind, steps[at], template.fill_rows(stamps[at], source[np.ix_(at, template.columns)],
+                                                                    flags[at] if flags is not None else None)))
     return found
