@@ -233,15 +233,8 @@ def _same_batch(a, b, where: str) -> None:
             _same_result(a.result(i), b.result(i), f"{where} pose {i}")
 
 
-@pytest.mark.parametrize("name", MECHANISMS)
-def test_series_path_gives_what_the_batch_path_gives(name: str) -> None:
-    """MachineModel.solve_series (replay: a recording solved as the live node solves it, each pose
-    from the one before, in one compiled call) gives what solve_batch + evaluate_batch give (every
-    pose from the reference pose). The series: a slow stroke around the reference inputs with
-    pressures from 0.3 to 3 times a reference value and angle readings wrapped by ±2π, and in it a
-    NaN reading, inputs far out of reach and a jump back, and inputs repeated with other pressures
-    (a pressure reading between two joint states: the pose and its capacities kept, its reserve not)."""
-    mech, solver, model = _mechanism(name)
+def _series_inputs(mech, solver) -> tuple[dict, dict, dict]:
+    """The series of ``test_series_path_gives_what_the_batch_path_gives``: cylinders, angles, pressures."""
     kin = solver.kin
     s_ref, nc = kin.reference_inputs(), kin.cyl_att.shape[1]
     rng = np.random.default_rng(5)
@@ -256,6 +249,44 @@ def test_series_path_gives_what_the_batch_path_gives(name: str) -> None:
     cylinders = {n: s[:, j] for j, n in enumerate(kin.input_names[:nc])}
     angles = {n: s[:, nc + j] for j, n in enumerate(kin.input_names[nc:])}
     pressures = {p.name: 5e6 * rng.uniform(0.3, 3.0, n_pose) for p in mech.measurements.pressures}
+    return cylinders, angles, pressures
+
+
+@pytest.mark.parametrize("name", MECHANISMS)
+def test_a_series_solved_in_parts_is_the_series_solved_at_once(name: str) -> None:
+    """``MachineModel.series`` (the replay: the poses solved part by part as the inputs are read, each
+    from the one before across the parts) gives ``solve_series``' answer bit for bit, with parts that
+    cut the series before, inside and after its bad inputs, jumps and repeated inputs."""
+    mech, solver, model = _mechanism(name)
+    cylinders, angles, pressures = _series_inputs(mech, solver)
+    whole = model.solve_series(cylinders, angles, pressures)
+    parts = model.series()
+    for lo, hi in zip((0, 1, 8, 11, 12, 21, 31, 45), (1, 8, 11, 12, 21, 31, 45, 60)):
+        parts.add(*({k: v[lo:hi] for k, v in group.items()} for group in (cylinders, angles, pressures)))
+    split = parts.finish()
+    np.testing.assert_array_equal(split.plain, whole.plain)
+    np.testing.assert_array_equal(split.values[whole.plain], whole.values[whole.plain])
+    assert split.batch.messages == whole.batch.messages and split.batch.weakest_transmission == whole.batch.weakest_transmission
+    for field in ("points", "body_poses", "hinge_force", "cylinder_force", "cap_pressure_measured"):
+        for key, column in getattr(whole.batch, field).items():
+            np.testing.assert_array_equal(getattr(split.batch, field)[key], column, err_msg=f"{name} {field} {key}")
+    for field in ("implement_load", "residual", "consistency_residual", "condition", "status", "transmission_angle"):
+        np.testing.assert_array_equal(getattr(split.batch, field), getattr(whole.batch, field), err_msg=f"{name} {field}")
+    for group in ("steerability", "lift_capacity"):
+        for key, column in getattr(whole.machine, group).items():
+            np.testing.assert_array_equal(getattr(split.machine, group)[key], column, err_msg=f"{name} {group} {key}")
+
+
+@pytest.mark.parametrize("name", MECHANISMS)
+def test_series_path_gives_what_the_batch_path_gives(name: str) -> None:
+    """MachineModel.solve_series (replay: a recording solved as the live node solves it, each pose
+    from the one before, in one compiled call) gives what solve_batch + evaluate_batch give (every
+    pose from the reference pose). The series: a slow stroke around the reference inputs with
+    pressures from 0.3 to 3 times a reference value and angle readings wrapped by ±2π, and in it a
+    NaN reading, inputs far out of reach and a jump back, and inputs repeated with other pressures
+    (a pressure reading between two joint states: the pose and its capacities kept, its reserve not)."""
+    mech, solver, model = _mechanism(name)
+    cylinders, angles, pressures = _series_inputs(mech, solver)
     series, machine, values, plain = model.solve_series(cylinders, angles, pressures)
     batch = solver.solve_batch(cylinders=cylinders, angles=angles, pressures=pressures)
     _same_batch(series, batch, name)

@@ -1554,7 +1554,7 @@ def live_buffer(rows_fields, s, pressures):
     return LiveBuffer(LiveRows(*rows_fields), s, pressures)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)   # a replay reads its next inputs while a part is solved
 def live_series(programs, buffer, q_start, s_start, limit, max_condition, first, stop):
     """Poses first..stop−1 of ``buffer`` (``live_buffer``) as the live node solves them, in one
     compiled call: the live node's one pose (a row of the rows it keeps), a recorded series (replay:

@@ -23,7 +23,7 @@ from .kinematics import KinematicState
 from .model import Mechanism, Tractor
 from .programs import ROW_SCALARS, MachineProgram, ValueRow
 from .results import BatchResult, Status, Result
-from .solver import ArrayMap, Inputs, Solver
+from .solver import ArrayMap, Inputs, Series, Solver
 
 _EMPTY = np.zeros(0)
 STEERABILITY_KEYS = kernels.STEERABILITY_COLUMNS   # front_axle_load, rear_axle_load, total_weight, wheelbase, ratio,
@@ -104,6 +104,22 @@ class MachineSeries(NamedTuple):
     machine: MachineBatch
     values: np.ndarray
     plain: np.ndarray
+
+
+class SeriesSolve:
+    """``MachineModel.solve_series`` part by part (``Solver.Series``): ``add`` the poses as they come (in
+    another thread if need be), ``finish`` for the ``MachineSeries`` of all of them."""
+
+    def __init__(self, model: MachineModel, series: Series) -> None:
+        self._model, self._series = model, series
+
+    def add(self, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap) -> None:
+        """The next poses (arrays (n,)), solved now."""
+        self._series.add(cylinders, angles, pressures)
+
+    def finish(self) -> MachineSeries:
+        """The ``MachineSeries`` of every pose added."""
+        return self._model._machine_series(*self._series.finish())
 
 
 class MachinePose(NamedTuple):
@@ -248,8 +264,19 @@ class MachineModel:
     def solve_series(self, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap) -> MachineSeries:
         """A recorded series of poses as the live node solves them, with their machine-level results
         (``Solver.solve_series``; replay): as ``solve_batch`` + ``evaluate_batch`` would give them,
-        and the value rows of the poses the compiled series solved."""
-        batch, steer, capacity, values, plain = self.solver.solve_series(cylinders, angles, pressures, self.program)
+        and the value rows of the poses the compiled series solved. ``series`` solves them in parts."""
+        series = self.series()
+        series.add(cylinders, angles, pressures)
+        return series.finish()
+
+    def series(self) -> SeriesSolve:
+        """A ``SeriesSolve``: ``solve_series`` part by part as the inputs come."""
+        return SeriesSolve(self, self.solver.series(self.program))
+
+    def _machine_series(self, batch: BatchResult, steer: np.ndarray, capacity: np.ndarray, values: np.ndarray,
+                        plain: np.ndarray) -> MachineSeries:
+        """``solve_series``' answer from ``Solver.solve_series``': the general path's poses' machine-level rows
+        computed (``evaluate_batch``'s)."""
         general = np.flatnonzero(~plain)
         if general.size:
             steer_rows, capacity_rows = self._batch_rows(batch, general)

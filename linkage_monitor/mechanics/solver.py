@@ -180,26 +180,50 @@ class Solver:
         (test_mechanics_fast_paths.py); with the machine-level rows of ``machine``
         (``MachineModel.program``): steerability (N, S), capacity (N, P + 1), the value rows
         (N, ``ValueRow.width``), and which poses have them (N,) (the others: ``MachineModel.evaluate_batch``'s
-        and ``MachineModel.value_rows``)."""
-        kin, mech = self.kin, self.mech
+        and ``MachineModel.value_rows``). ``series`` solves the same poses in parts."""
+        series = self.series(machine)
+        series.add(cylinders, angles, pressures)
+        return series.finish()
+
+    def series(self, machine: MachineProgram) -> Series:
+        """A ``Series`` of poses to be solved part by part as ``solve_series`` solves them all at once."""
+        return Series(self, machine)
+
+    def _series_part(self, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap, machine: MachineProgram,
+                     start: tuple[np.ndarray, np.ndarray]) -> _SeriesPart:
+        """One part of a ``Series``: its poses solved in one compiled call from ``start`` (q (1, n), s (1,
+        n_inputs)), each from the one before."""
+        kin = self.kin
         n_pose, arrays = self._arrays(cylinders, angles, pressures, {}, {})
         s = self._input_matrix(arrays, n_pose, "inputs")
         bad = self._input_problems(s, arrays).bad
         s = kin.wrap_angles(np.where(bad[:, None], kin.reference_inputs(), s))
         cap, rod = self._chamber_pressures(arrays["pressures"], n_pose)
         layout = self.statics_layout(frozenset(self._sensors[n].cylinder for n in arrays["pressures"]))
-        start = kin.reference
         rows = kernels.live_rows(n_pose, kin.n, kin.m, self.outputs_program(layout), machine)
         buffer = kernels.live_buffer(fields(rows), s, np.ascontiguousarray(np.stack([cap, rod], axis=1)))
-        kernels.live_series(self.live_programs(layout, machine), buffer, start.q[-1:], start.s[-1:],
-                            self._assembly_limit, self.dead_centre_cond, 0, n_pose)
-        plain = rows.plain & ~bad
+        kernels.live_series(self.live_programs(layout, machine), buffer, start[0], start[1], self._assembly_limit,
+                            self.dead_centre_cond, 0, n_pose)
+        return _SeriesPart(arrays, bad, s, rows, layout.force_known)
+
+    def _series_batch(self, parts: list[_SeriesPart]) -> tuple[BatchResult, np.ndarray, np.ndarray, np.ndarray,
+                                                               np.ndarray]:
+        """``solve_series``' answer from the parts of a ``Series``, in order."""
+        mech = self.mech
+        def joined(columns: list[np.ndarray]) -> np.ndarray:
+            return columns[0] if len(columns) == 1 else np.concatenate(columns)
+
+        rows = LiveRows(*(joined(list(column)) for column in zip(*(part.rows for part in parts))))
+        arrays = {kind: {name: joined([part.arrays[kind][name] for part in parts]) for name in parts[0].arrays[kind]}
+                  for kind in ("cylinders", "angles", "pressures")}
+        n_pose = len(rows.plain)
+        plain = rows.plain & ~joined([part.bad for part in parts])
         batch = BatchResult.from_stacked(
             self.names, {h.name: h.bodies for h in mech.hinges}, rows.point_xz, rows.q.reshape(n_pose, -1, 3),
             rows.hinge_force, rows.cylinder_values, rows.contact_values, rows.pose["implement_load"],
             rows.implement_cg, list(self.frame_load_names), rows.frame_load_points, rows.frame_load_forces,
             rows.pose["residual"], rows.pose["consistency_residual"], rows.pose["condition"],
-            rows.pose["transmission_angle"], self._weakest_names(self._reduced[layout.force_known], rows.pose["weakest"]))
+            rows.pose["transmission_angle"], self._weakest_names(self._reduced[parts[0].force_known], rows.pose["weakest"]))
         general = np.flatnonzero(~plain)
         if general.size:
             def taken(group: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -601,6 +625,43 @@ class _RowPool:
         rows = self._allocate(self.SIZE)
         s, pressures = np.empty((self.SIZE, self._n_inputs)), np.empty((self.SIZE, 2, self._n_cylinders))
         return _RowBlock(rows, s, pressures, kernels.live_buffer(fields(rows), s, pressures))
+
+
+class Series:
+    """A recorded series solved part by part as its inputs come (``add``), each pose from the one before
+    across the parts, as ``Solver.solve_series`` solves it in one call: the same poses, bit for bit
+    (``finish`` gives its answer). ``add`` may run in another thread while the caller reads the next
+    inputs: the compiled call releases the GIL."""
+
+    def __init__(self, solver: Solver, machine: MachineProgram) -> None:
+        self._solver, self._machine = solver, machine
+        reference = solver.kin.reference
+        self._start = (reference.q[-1:], reference.s[-1:])   # the last pose the compiled series took
+        self._parts: list[_SeriesPart] = []
+
+    def add(self, cylinders: ArrayMap, angles: ArrayMap, pressures: ArrayMap) -> None:
+        """The next poses (arrays (n,), the same inputs every time), solved now."""
+        part = self._solver._series_part(cylinders, angles, pressures, self._machine, self._start)
+        taken = np.flatnonzero(part.rows.plain)
+        if taken.size:
+            k = int(taken[-1])
+            self._start = (part.rows.q[k:k + 1], part.s[k:k + 1])
+        self._parts.append(part)
+
+    def finish(self) -> tuple[BatchResult, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``Solver.solve_series``' answer for every pose added."""
+        return self._solver._series_batch(self._parts)
+
+
+class _SeriesPart(NamedTuple):
+    """The poses of one ``Series.add``: their inputs by kind and name, which are bad, the inputs as the
+    compiled call took them (s), its rows, and the cylinders whose force the layout takes as measured."""
+
+    arrays: dict[str, dict[str, np.ndarray]]
+    bad: np.ndarray
+    s: np.ndarray
+    rows: LiveRows
+    force_known: frozenset[str]
 
 
 class _PlainLive(NamedTuple):

@@ -3,8 +3,9 @@
 One core, two drivers. The live node hands each input event (``monitoring.events``) to ``step``
 (each solve warm-starts from the last solved pose, which the core holds explicitly); the
 replay hands a whole recording to ``run``, which takes every event through the same
-acceptance stage, solves the due poses of each configuration segment in one batch, and checks
-them all at once with the live path's rule (``checks.pose_checks``). Both return one ``Step``
+acceptance stage, solves the due poses of each configuration segment as one series (each pose
+from the one before, part by part in a worker thread while the next events are accepted), and
+checks them all at once with the live path's rule (``checks.pose_checks``). Both return one ``Step``
 per input event: a level, the findings (code + sentence naming the input and the reason), the
 key-values for the diagnostic, and the solved ``Pose`` or None — nothing with garbage values.
 Units SI (m, rad, N, Pa, kg); frame x forward, z up, origin at the rear wheels' ground contact.
@@ -13,6 +14,7 @@ Units SI (m, rad, N, Pa, kg); frame x forward, z up, origin at the rear wheels' 
 from __future__ import annotations
 
 import math
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Iterable, Sequence
@@ -21,7 +23,7 @@ import numpy as np
 
 from linkage_monitor.mechanics import (AssemblyError, BatchResult, DeadCentreError, InputError, Inputs, LinkageError,
                                        Mechanism, Result, Solver, Status, apply_overrides)
-from linkage_monitor.mechanics.machine import MachineBatch, MachineModel, MachineResult
+from linkage_monitor.mechanics.machine import MachineBatch, MachineModel, MachineResult, MachineSeries
 
 from .checks import CONSISTENCY_WARN_M, RESIDUAL_WARN_SHARE, Check, CheckedValues, pose_checks
 from .config import MonitorConfig
@@ -214,55 +216,53 @@ class Monitor:
 
     # ---- the batched path: a whole recording -----------------------------------------------------
     def run(self, events: Iterable[Event]) -> Run:
-        """One Step per input event (ConfigEvents give none), the due poses solved in batches."""
+        """One Step per input event (ConfigEvents give none), the due poses solved in batches: a
+        segment's series part by part in a worker thread while the next events are accepted
+        (``_SegmentSeries``)."""
         steps: list[Step | None] = []
         segments: list[Segment] = []
-        segment: list[tuple[int, _Due]] = []
-        for event in events:
-            if isinstance(event, ConfigEvent):
-                self._solve_segment(segment, steps, segments)
-                segment = []
-                self.reconfigure(event.config)
-                continue
-            try:
-                due = self._accept(event)
-            except Exception as exc:  # noqa: BLE001 - as in step()
-                due = self._internal_error(event, exc)
-            if isinstance(due, Step):
-                steps.append(due)
-            else:
-                segment.append((len(steps), due))
-                steps.append(None)
-        self._solve_segment(segment, steps, segments)
+        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="series") as worker:
+            segment = _SegmentSeries(self, worker)
+            for event in events:
+                if isinstance(event, ConfigEvent):
+                    self._solve_segment(segment, steps, segments)
+                    self.reconfigure(event.config)
+                    segment = _SegmentSeries(self, worker)
+                    continue
+                try:
+                    due = self._accept(event)
+                except Exception as exc:  # noqa: BLE001 - as in step()
+                    due = self._internal_error(event, exc)
+                if isinstance(due, Step):
+                    steps.append(due)
+                else:
+                    segment.add(len(steps), due)
+                    steps.append(None)
+            self._solve_segment(segment, steps, segments)
         return Run(steps, segments)  # type: ignore[arg-type]  # every None was filled by _solve_segment
 
-    def _solve_segment(self, segment: list[tuple[int, _Due]], steps: list[Step | None],
-                       segments: list[Segment]) -> None:
-        if not segment:
+    def _solve_segment(self, segment: _SegmentSeries, steps: list[Step | None], segments: list[Segment]) -> None:
+        if not segment.dues:
             return
-        dues = [d for _, d in segment]
-
-        def column(kind: str) -> dict[str, np.ndarray]:
-            return {n: np.array([getattr(d.inputs, kind)[n] for d in dues]) for n in getattr(dues[0].inputs, kind)}
-
-        rates, accelerations = column("rates"), column("accelerations")
-        if rates or accelerations:   # kinetostatics: the general path
-            batch = self.solver.solve_batch(cylinders=column("cylinders"), angles=column("angles"),
-                                            pressures=column("pressures"), rates=rates, accelerations=accelerations)
+        dues = [d for _, d in segment.dues]
+        if self.config.kinetostatics:   # rates and accelerations: the general path
+            columns = [_column(dues, kind) for kind in INPUT_KINDS]
+            batch = self.solver.solve_batch(*columns)
             machine = self.machine.evaluate_batch(batch)
             values: list[np.ndarray | None] = [None] * len(batch)
         else:   # each pose from the one before, as the live path solves them
-            series = self.machine.solve_series(column("cylinders"), column("angles"), column("pressures"))
+            series = segment.finish()
             batch, machine = series.batch, series.machine
             values = [row if plain else None for row, plain in zip(series.values, series.plain.tolist())]
         results, machine_results = batch.results(), machine.results()
         checks = _segment_checks(batch, machine).tolist()
-        for k, ((i, due), status, check) in enumerate(zip(segment, batch.status.tolist(), checks)):
+        for k, ((i, due), status, check) in enumerate(zip(segment.dues, batch.status.tolist(), checks)):
             pose = Pose(results[k], machine_results[k], values[k])
             steps[i] = (self._pose_step(due, pose, check) if status < Status.INPUT
                         else self._failed(due, Status(status), batch.messages[k]))
-        segments.append(Segment(np.array([i for i, _ in segment]), np.array([d.stamp_ns for d in dues], dtype=np.int64),
-                                batch, machine, self.mechanism, self.config))
+        segments.append(Segment(np.array([i for i, _ in segment.dues]),
+                                np.array([d.stamp_ns for d in dues], dtype=np.int64), batch, machine, self.mechanism,
+                                self.config))
 
     # ---- the stages both paths share -------------------------------------------------------------
     def _accept(self, event: InputEvent) -> _Due | Step:
@@ -342,6 +342,51 @@ class Monitor:
                                     f"load {fmt(result.implement_load / 1e3)} kN exceeds the lift capacity "
                                     f"{fmt(machine.value('implement_cg') / 1e3)} kN at its centre of gravity"))
         return tuple(findings)
+
+
+INPUT_KINDS = ("cylinders", "angles", "pressures", "rates", "accelerations")   # the fields of ``Inputs``
+
+
+def _column(dues: Sequence[_Due], kind: str) -> dict[str, np.ndarray]:
+    """The inputs of ``kind`` of ``dues`` (one configuration's: the same names) as arrays (N,) by name."""
+    return {n: np.array([getattr(d.inputs, kind)[n] for d in dues]) for n in getattr(dues[0].inputs, kind)}
+
+
+class _SegmentSeries:
+    """The due poses of one configuration segment of ``Monitor.run`` (``dues``: (step index, due)),
+    solved PART at a time in ``worker`` as they are accepted (``MachineModel.series``: each pose from the
+    one before, as ``solve_series`` solves them all at once), unless the configuration takes
+    kinetostatics (then ``Monitor._solve_segment`` solves them at the end)."""
+
+    PART = 256   # poses per part: the last part, solved after the last input, is short
+
+    def __init__(self, monitor: Monitor, worker: ThreadPoolExecutor) -> None:
+        self.dues: list[tuple[int, _Due]] = []
+        self._series = None if monitor.config.kinetostatics else monitor.machine.series()
+        self._worker = worker
+        self._parts: list[Future[None]] = []
+        self._sent = 0   # dues handed to the worker
+
+    def add(self, step: int, due: _Due) -> None:
+        """The due solve of step ``step``."""
+        self.dues.append((step, due))
+        if len(self.dues) - self._sent >= self.PART:
+            self._send()
+
+    def finish(self) -> MachineSeries:
+        """The segment's ``MachineSeries`` (every part solved)."""
+        assert self._series is not None   # not a kinetostatics segment
+        self._send()
+        for part in self._parts:
+            part.result()   # raises what the part raised
+        return self._series.finish()
+
+    def _send(self) -> None:
+        if self._series is None or self._sent == len(self.dues):
+            return
+        dues = [d for _, d in self.dues[self._sent:]]
+        self._sent = len(self.dues)
+        self._parts.append(self._worker.submit(self._series.add, *(_column(dues, kind) for kind in INPUT_KINDS[:3])))
 
 
 def _segment_checks(batch: BatchResult, machine: MachineBatch) -> np.ndarray:
