@@ -208,22 +208,33 @@ class Solver:
 
     def _series_batch(self, parts: list[_SeriesPart]) -> tuple[BatchResult, np.ndarray, np.ndarray, np.ndarray,
                                                                np.ndarray]:
-        """``solve_series``' answer from the parts of a ``Series``, in order."""
+        """``solve_series``' answer from the parts of a ``Series``, in order (the list is emptied: each
+        row of the parts is let go once it is joined, so that joining takes little more memory than
+        the rows)."""
         mech = self.mech
+
         def joined(columns: list[np.ndarray]) -> np.ndarray:
             return columns[0] if len(columns) == 1 else np.concatenate(columns)
 
-        rows = LiveRows(*(joined(list(column)) for column in zip(*(part.rows for part in parts))))
+        force_known = parts[0].force_known
         arrays = {kind: {name: joined([part.arrays[kind][name] for part in parts]) for name in parts[0].arrays[kind]}
                   for kind in ("cylinders", "angles", "pressures")}
+        bad = joined([part.bad for part in parts])
+        columns = [list(column) for column in zip(*(part.rows for part in parts))]
+        parts.clear()
+        rows_joined = []
+        for k, column in enumerate(columns):
+            rows_joined.append(joined(column))
+            columns[k] = []
+        rows = LiveRows(*rows_joined)
         n_pose = len(rows.plain)
-        plain = rows.plain & ~joined([part.bad for part in parts])
+        plain = rows.plain & ~bad
         batch = BatchResult.from_stacked(
             self.names, {h.name: h.bodies for h in mech.hinges}, rows.point_xz, rows.q.reshape(n_pose, -1, 3),
             rows.hinge_force, rows.cylinder_values, rows.contact_values, rows.pose["implement_load"],
             rows.implement_cg, list(self.frame_load_names), rows.frame_load_points, rows.frame_load_forces,
             rows.pose["residual"], rows.pose["consistency_residual"], rows.pose["condition"],
-            rows.pose["transmission_angle"], self._weakest_names(self._reduced[parts[0].force_known], rows.pose["weakest"]))
+            rows.pose["transmission_angle"], self._weakest_names(self._reduced[force_known], rows.pose["weakest"]))
         general = np.flatnonzero(~plain)
         if general.size:
             def taken(group: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -649,7 +660,7 @@ class Series:
         self._parts.append(part)
 
     def finish(self) -> tuple[BatchResult, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``Solver.solve_series``' answer for every pose added."""
+        """``Solver.solve_series``' answer for every pose added (once: the parts are let go)."""
         return self._solver._series_batch(self._parts)
 
 
