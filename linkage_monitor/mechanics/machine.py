@@ -107,7 +107,7 @@ class MachineSeries(NamedTuple):
 
 
 class SeriesSolve:
-    """``MachineModel.solve_series`` part by part (``Solver.Series``): ``add`` the poses as they come (in
+    """``MachineModel.solve_series`` part by part (``solver.Series``): ``add`` the poses as they come (in
     another thread if need be), ``finish`` for the ``MachineSeries`` of all of them."""
 
     def __init__(self, model: MachineModel, series: Series) -> None:

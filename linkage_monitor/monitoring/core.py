@@ -245,13 +245,14 @@ class Monitor:
         if not segment.dues:
             return
         dues = [d for _, d in segment.dues]
-        if self.config.kinetostatics:   # rates and accelerations: the general path
-            columns = [_column(dues, kind) for kind in INPUT_KINDS]
-            batch = self.solver.solve_batch(*columns)
+        series = segment.finish()
+        if series is None:   # kinetostatics (rates and accelerations): the general path
+            c = {kind: _column(dues, kind) for kind in INPUT_KINDS}
+            batch = self.solver.solve_batch(cylinders=c["cylinders"], angles=c["angles"], pressures=c["pressures"],
+                                            rates=c["rates"], accelerations=c["accelerations"])
             machine = self.machine.evaluate_batch(batch)
             values: list[np.ndarray | None] = [None] * len(batch)
         else:   # each pose from the one before, as the live path solves them
-            series = segment.finish()
             batch, machine = series.batch, series.machine
             values = [row if plain else None for row, plain in zip(series.values, series.plain.tolist())]
         results, machine_results = batch.results(), machine.results()
@@ -356,7 +357,7 @@ class _SegmentSeries:
     """The due poses of one configuration segment of ``Monitor.run`` (``dues``: (step index, due)),
     solved PART at a time in ``worker`` as they are accepted (``MachineModel.series``: each pose from the
     one before, as ``solve_series`` solves them all at once), unless the configuration takes
-    kinetostatics (then ``Monitor._solve_segment`` solves them at the end)."""
+    kinetostatics (then ``finish`` gives None and ``Monitor._solve_segment`` solves them at the end)."""
 
     PART = 256   # poses per part: the last part, solved after the last input, is short
 
@@ -373,20 +374,23 @@ class _SegmentSeries:
         if len(self.dues) - self._sent >= self.PART:
             self._send()
 
-    def finish(self) -> MachineSeries:
-        """The segment's ``MachineSeries`` (every part solved)."""
-        assert self._series is not None   # not a kinetostatics segment
+    def finish(self) -> MachineSeries | None:
+        """The segment's ``MachineSeries`` (every part solved); None for a kinetostatics segment."""
+        if self._series is None:
+            return None
         self._send()
         for part in self._parts:
             part.result()   # raises what the part raised
         return self._series.finish()
 
     def _send(self) -> None:
+        """Hand the dues not yet handed to the worker."""
         if self._series is None or self._sent == len(self.dues):
             return
         dues = [d for _, d in self.dues[self._sent:]]
         self._sent = len(self.dues)
-        self._parts.append(self._worker.submit(self._series.add, *(_column(dues, kind) for kind in INPUT_KINDS[:3])))
+        self._parts.append(self._worker.submit(self._series.add, _column(dues, "cylinders"), _column(dues, "angles"),
+                                               _column(dues, "pressures")))
 
 
 def _segment_checks(batch: BatchResult, machine: MachineBatch) -> np.ndarray:
