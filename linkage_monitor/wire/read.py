@@ -87,13 +87,21 @@ class Shape(NamedTuple):
 _SHAPES: dict[tuple[str, int], list[Shape]] = {}   # (type name, size) -> the shapes read last, newest first
 
 
+class _Number(NamedTuple):
+    """Where a field's numbers lie in a message: byte ``offset``, their ``struct`` code, how ``many``."""
+
+    offset: int
+    code: str
+    many: int
+
+
 class _Tracer(Reader):
-    """A Reader that notes where each number it reads lies: (offset, struct code, count), and which
-    bytes are alignment padding (whatever the writer left there): (start, end)."""
+    """A Reader that notes where the numbers it reads lie (``_Number``), and which bytes are alignment
+    padding (whatever the writer left there): (start, end)."""
 
     def __init__(self, data: bytes) -> None:
         super().__init__(data)
-        self.numbers: list[tuple[int, str, int]] = []
+        self.numbers: list[_Number] = []
         self.padding: list[tuple[int, int]] = []
 
     def _take(self, size: int, what: str, align: int) -> int:
@@ -105,18 +113,18 @@ class _Tracer(Reader):
 
     def time_ns(self, what: str = "stamp") -> int:
         value = super().time_ns(what)
-        self.numbers.append((self.offset - 8, "iI", 2))
+        self.numbers.append(_Number(self.offset - 8, "iI", 2))
         return value
 
     def float64(self, what: str) -> float:
         value = super().float64(what)
-        self.numbers.append((self.offset - 8, "d", 1))
+        self.numbers.append(_Number(self.offset - 8, "d", 1))
         return value
 
     def float64s(self, what: str) -> tuple[float, ...]:
         values = super().float64s(what)
         if values:
-            self.numbers.append((self.offset - 8 * len(values), f"{len(values)}d", len(values)))
+            self.numbers.append(_Number(self.offset - 8 * len(values), f"{len(values)}d", len(values)))
         return values
 
 
@@ -131,8 +139,8 @@ def _read_whole(type_name: str, data: bytes) -> dict[str, Any]:
         if len(reader.numbers) == before:
             fields.append(ShapeField(path, "same", 0, values[path]))
         else:
-            _, code, count = reader.numbers[-1]
-            fields.append(ShapeField(path, {"iI": "time", "d": "float"}.get(code, "floats"), count, None))
+            last = reader.numbers[-1]
+            fields.append(ShapeField(path, {"iI": "time", "d": "float"}.get(last.code, "floats"), last.many, None))
     if reader.order == "<":
         _keep(type_name, data, reader, tuple(fields))
     return values
@@ -143,10 +151,10 @@ def _keep(type_name: str, data: bytes, reader: _Tracer, fields: tuple[ShapeField
     end = reader.offset
     mask = bytearray(b"\xff" * end)
     codes, at = ["<"], 0
-    for start, code, count in reader.numbers:
-        codes += [f"{start - at}x"] * (start > at) + [code]
-        at = start + 8 * (1 if code == "iI" else count)
-        mask[start:at] = bytes(at - start)
+    for number in reader.numbers:
+        codes += [f"{number.offset - at}x"] * (number.offset > at) + [number.code]
+        at = number.offset + 8 * (1 if number.code == "iI" else number.many)
+        mask[number.offset:at] = bytes(at - number.offset)
     for start, stop in reader.padding:
         mask[start:stop] = bytes(stop - start)
     mask_int = int.from_bytes(mask, "little")
