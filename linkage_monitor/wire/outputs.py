@@ -24,7 +24,7 @@ from linkage_monitor.mechanics import Mechanism, Result
 from linkage_monitor.mechanics.machine import STEERABILITY_KEYS
 from linkage_monitor.mechanics.programs import ROW_SCALARS, ValueRow
 from linkage_monitor.mechanics.results import CylinderResult
-from linkage_monitor.monitoring.core import Monitor, Pose, Step
+from linkage_monitor.monitoring.core import NO_FINDINGS, Monitor, Pose, Step
 from linkage_monitor.monitoring.findings import Code, Level
 
 from .compose import STAMP, Column, Composer, Flag
@@ -83,7 +83,7 @@ def hinge_status(step: Step, result: Result, overdetermined: bool) -> tuple[int,
     for finding in step.findings:
         if finding.code is Code.PRESSURES_DISAGREE:
             return statuses.hinge_high_residual, finding.text
-    return statuses.hinge_overdetermined if overdetermined else statuses.hinge_ok, result.message or "ok"
+    return statuses.hinge_overdetermined if overdetermined else statuses.hinge_ok, result.message or NO_FINDINGS
 
 
 def hitch_status(step: Step) -> int:

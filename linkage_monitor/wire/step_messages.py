@@ -41,7 +41,9 @@ class StepMessenger:
     def messages(self, step: Step, outputs: Outputs | None, now_ns: int) -> StepMessages:
         """What ``step`` sends, its ``outputs`` written by ``wire.outputs.OutputEncoder``; ``now_ns``: the
         monitor's clock (ns), the diagnostic's stamp when the step's cannot be a ROS time."""
-        return self.messages_of([step], [outputs], [now_ns])[0]
+        markers = (self.markers.markers(step.stamp_ns, step.pose.result)
+                   if step.pose is not None and self._marker_gate.due(step.stamp_ns) else None)
+        return self._sent(step, outputs, markers, now_ns)
 
     def messages_of(self, steps: Sequence[Step], outputs: Sequence[Outputs | None],
                     now_ns: Sequence[int]) -> list[StepMessages]:
@@ -49,9 +51,12 @@ class StepMessenger:
         drawn = [k for k, step in enumerate(steps) if step.pose is not None and self._marker_gate.due(step.stamp_ns)]
         markers = dict(zip(drawn, self.markers.markers_of([steps[k].stamp_ns for k in drawn],
                                                           [steps[k].pose.result for k in drawn])))  # type: ignore[union-attr]
-        return [StepMessages(step.stamp_ns, out, markers.get(k),
-                             self.diagnostic(step, now) if self._diagnostic_gate.due(step) else None)
-                for k, (step, out, now) in enumerate(zip(steps, outputs, now_ns))]
+        return [self._sent(step, out, markers.get(k), now) for k, (step, out, now) in enumerate(zip(steps, outputs, now_ns))]
+
+    def _sent(self, step: Step, outputs: Outputs | None, markers: bytes | None, now_ns: int) -> StepMessages:
+        """``step``'s messages with its ``outputs`` and ``markers``, and its diagnostic when one is due."""
+        return StepMessages(step.stamp_ns, outputs, markers,
+                            self.diagnostic(step, now_ns) if self._diagnostic_gate.due(step) else None)
 
     def diagnostic(self, step: Step, now_ns: int) -> bytes:
         """The DiagnosticArray of ``step`` (also the heartbeat's repetition of the last one)."""
