@@ -157,8 +157,12 @@ def _same_result(a, b, where: str) -> None:
     assert a.frame_load_points.shape == b.frame_load_points.shape == b.frame_load_forces.shape
     np.testing.assert_allclose(a.frame_load_points, b.frame_load_points, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(a.frame_load_forces, b.frame_load_forces, rtol=1e-9, atol=1e-6)
-    for field in ("implement_load", "implement_cg", "residual", "consistency_residual"):
+    for field in ("implement_load", "implement_cg", "residual", "consistency_residual", "largest_force"):
         np.testing.assert_allclose(getattr(a, field), getattr(b, field), rtol=1e-9, atol=1e-6, err_msg=f"{where} {field}")
+    for result in (a, b):   # each its own arrays' largest magnitude, by numpy (0 with no force)
+        magnitudes = np.concatenate([np.hypot(result.hinge_force[:, 0], result.hinge_force[:, 1]),
+                                     np.abs(result.cylinder_values[:, 1]), [0.0]])
+        assert result.largest_force == magnitudes.max(), where
 
 
 PRESETS = ["belarus_1221", "damping_hitch", "drill_coulter", "ksu1_mower_adapter", "ttz1080_base_change"]

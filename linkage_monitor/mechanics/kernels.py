@@ -1697,6 +1697,7 @@ def _live_pose_at(i, rows, s, pressures, q_start, s_start, capacity_start, limit
         cylinder[0], cylinder[1] = lengths[0, n_springs + k], force
         cylinder[2] = force * outputs.per_cap_area[k]
         cylinder[3], cylinder[4] = pressures[i, 0, k], pressures[i, 1, k]
+    rows.pose[i].largest_force = largest_force(rows.hinge_force[i], rows.cylinder_values[i, :, 1])
     n_frame_hinges = outputs.frame_hinge_index.shape[0]
     frame_points, frame_forces = rows.frame_load_points[i], rows.frame_load_forces[i]
     for j in range(outputs.frame_att.shape[0]):   # the forces ON the ground body: hinges, then member ends

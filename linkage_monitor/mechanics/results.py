@@ -118,7 +118,8 @@ class Result:
     general path's dead-centre measure: the larger of the kinematic Jacobian's and the
     equilibrium matrix's condition numbers (NaN where the reduced path serves: its measure is
     ``transmission_angle``), ``consistency_residual`` =
-    norm of the kinematic constraint residual (m). ``status`` = "ok" or "lift_off" (a contact
+    norm of the kinematic constraint residual (m). ``largest_force`` = the largest hinge reaction or
+    cylinder force magnitude (N; 0 with neither; ``kernels.largest_force``). ``status`` = "ok" or "lift_off" (a contact
     pulls: N < 0; ``message`` names it).
     """
 
@@ -135,6 +136,7 @@ class Result:
     residual: float
     consistency_residual: float
     condition: float
+    largest_force: float
     status: str
     message: str = ""
     state: object = field(default=None, repr=False)  # the solver's pose, to warm-start the next solve
@@ -145,11 +147,6 @@ class Result:
     def hinge_magnitude(self) -> np.ndarray:
         """|F| (H,) N of each hinge reaction."""
         return np.hypot(self.hinge_force[:, 0], self.hinge_force[:, 1])
-
-    @cached_property
-    def largest_force(self) -> float:
-        """The largest hinge reaction or cylinder force magnitude (N; 0 with neither)."""
-        return kernels.largest_force(self.hinge_force, self.cylinder_values[:, 1])
 
     @cached_property
     def points(self) -> dict[str, np.ndarray]:
@@ -262,14 +259,16 @@ class BatchResult:
         contacts = columns(*(getattr(self, field) for field in CONTACT_FIELDS), keys=names.contacts)
         cgs, load_points, load_forces = (a[span].copy() for a in (self.implement_cg, self.frame_load_points,
                                                                   self.frame_load_forces))
-        scalars = zip(*(a[span].tolist() for a in (self.implement_load, self.residual, self.consistency_residual,
-                                                    self.condition, self.status, self.transmission_angle)))
+        largest = kernels.largest_forces(hinges, cylinders[:, :, CYLINDER_FIELDS.index("cylinder_force")])
+        scalars = zip(*(a.tolist() for a in (self.implement_load[span], self.residual[span],
+                                             self.consistency_residual[span], self.condition[span], largest,
+                                             self.status[span], self.transmission_angle[span])))
         rows = zip(points, poses, hinges, cylinders, contacts, cgs, load_points, load_forces)   # views, one per pose
         return [Result(names, point, pose, hinge, cylinder, contact, load, cg, load_point, load_force, residual,
-                       consistency, condition, STATUS_LABELS[int(status)], message, transmission_angle=angle,
-                       weakest_transmission=weakest)
+                       consistency, condition, largest_force, STATUS_LABELS[int(status)], message,
+                       transmission_angle=angle, weakest_transmission=weakest)
                 for (point, pose, hinge, cylinder, contact, cg, load_point, load_force),
-                (load, residual, consistency, condition, status, angle), message, weakest
+                (load, residual, consistency, condition, largest_force, status, angle), message, weakest
                 in zip(rows, scalars, self.messages[span], self.weakest_transmission[span])]
 
     @classmethod

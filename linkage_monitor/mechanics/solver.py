@@ -442,7 +442,8 @@ class Solver:
         return SolvedPose(Result(self.names, rows.point_xz[i], q[0].reshape(-1, 3), rows.hinge_force[i],
                                  rows.cylinder_values[i], rows.contact_values[i], pose["implement_load"],
                                  rows.implement_cg[i], rows.frame_load_points[i], rows.frame_load_forces[i],
-                                 pose["residual"], pose["consistency_residual"], pose["condition"], _OK, state=state,
+                                 pose["residual"], pose["consistency_residual"], pose["condition"],
+                                 pose["largest_force"], _OK, state=state,
                                  transmission_angle=pose["transmission_angle"],
                                  weakest_transmission=live.measure_names[pose["weakest"]]),
                           rows.steerability[i], rows.capacity[i], rows.values[i])
