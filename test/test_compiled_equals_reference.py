@@ -67,7 +67,7 @@ def assert_batches_equal(got: BatchResult, expected: BatchResult) -> None:
     for name in fields:
         for key, value in getattr(expected, name).items():
             _close(getattr(got, name)[key], value, f"{name}[{key}]")
-    for name in ("implement_load", "frame_load_forces", "residual", "consistency_residual"):
+    for name in ("implement_load", "frame_load_forces", "residual", "consistency_residual", "largest_force"):
         _close(getattr(got, name), getattr(expected, name), name)
     # the condition number: the oracle's is the larger of the kinematic and the equilibrium matrix's;
     # where the reduced path serves a pose (a transmission angle) there is no equilibrium matrix

@@ -13,7 +13,6 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from . import kernels
 
 if TYPE_CHECKING:
     from .model import Mechanism
@@ -181,8 +180,8 @@ class BatchResult:
 
     ``status`` (N,) int: a :class:`Status` value per pose; ``messages[i]`` says what went wrong with pose i ("" when ok).
     ``hinge_force[name]`` (N, 2) N on bodies[1] from bodies[0]; ``frame_load_points`` and
-    ``frame_load_forces`` (N, K, 2) in the order of ``frame_load_names``. ``transmission_angle``
-    (N,) rad and ``weakest_transmission`` (N names) as :class:`Result`'s.
+    ``frame_load_forces`` (N, K, 2) in the order of ``frame_load_names``. ``largest_force`` (N,) N,
+    ``transmission_angle`` (N,) rad and ``weakest_transmission`` (N names) as :class:`Result`'s.
     """
 
     points: dict[str, np.ndarray]
@@ -204,6 +203,7 @@ class BatchResult:
     residual: np.ndarray
     consistency_residual: np.ndarray
     condition: np.ndarray
+    largest_force: np.ndarray
     status: np.ndarray
     messages: list[str]
     transmission_angle: np.ndarray
@@ -211,14 +211,6 @@ class BatchResult:
 
     def __len__(self) -> int:
         return len(self.status)
-
-    @property
-    def largest_force(self) -> np.ndarray:
-        """``Result.largest_force`` of every pose (N,) N; NaN for a failed pose."""
-        n = len(self)
-        hinges = (np.stack(list(self.hinge_force.values()), axis=1) if self.hinge_force else np.zeros((n, 0, 2)))
-        cylinders = (np.stack(list(self.cylinder_force.values()), axis=1) if self.cylinder_force else np.zeros((n, 0)))
-        return kernels.largest_forces(hinges, cylinders)
 
     def assign(self, index: np.ndarray, other: "BatchResult") -> None:
         """Poses ``index`` (len(other),) replaced by the poses of ``other`` (the same solver's)."""
@@ -259,10 +251,9 @@ class BatchResult:
         contacts = columns(*(getattr(self, field) for field in CONTACT_FIELDS), keys=names.contacts)
         cgs, load_points, load_forces = (a[span].copy() for a in (self.implement_cg, self.frame_load_points,
                                                                   self.frame_load_forces))
-        largest = kernels.largest_forces(hinges, cylinders[:, :, CYLINDER_FIELDS.index("cylinder_force")])
-        scalars = zip(*(a.tolist() for a in (self.implement_load[span], self.residual[span],
-                                             self.consistency_residual[span], self.condition[span], largest,
-                                             self.status[span], self.transmission_angle[span])))
+        scalars = zip(*(a[span].tolist() for a in (self.implement_load, self.residual, self.consistency_residual,
+                                                    self.condition, self.largest_force, self.status,
+                                                    self.transmission_angle)))
         rows = zip(points, poses, hinges, cylinders, contacts, cgs, load_points, load_forces)   # views, one per pose
         return [Result(names, point, pose, hinge, cylinder, contact, load, cg, load_point, load_force, residual,
                        consistency, condition, largest_force, STATUS_LABELS[int(status)], message,
@@ -277,7 +268,8 @@ class BatchResult:
                      contact_values: np.ndarray, implement_load: np.ndarray, implement_cg: np.ndarray,
                      frame_load_names: list[str], frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
                      residual: np.ndarray, consistency_residual: np.ndarray, condition: np.ndarray,
-                     transmission_angle: np.ndarray, weakest_transmission: list[str]) -> "BatchResult":
+                     largest_force: np.ndarray, transmission_angle: np.ndarray, weakest_transmission: list[str]
+                     ) -> "BatchResult":
         """N solved poses (status OK) from arrays stacked as :class:`Result`'s, with a first axis of
         poses (``results`` the other way round); each column is a view of the stack."""
         n_pose = len(residual)
@@ -292,7 +284,8 @@ class BatchResult:
                for j, field in enumerate(CONTACT_FIELDS)},
             implement_load=implement_load, implement_cg=implement_cg, frame_load_names=frame_load_names,
             frame_load_points=frame_load_points, frame_load_forces=frame_load_forces, residual=residual,
-            consistency_residual=consistency_residual, condition=condition, status=np.zeros(n_pose, dtype=int),
+            consistency_residual=consistency_residual, condition=condition, largest_force=largest_force,
+            status=np.zeros(n_pose, dtype=int),
             messages=[""] * n_pose, transmission_angle=transmission_angle, weakest_transmission=weakest_transmission)
 
     @property

@@ -234,7 +234,7 @@ class Solver:
             rows.hinge_force, rows.cylinder_values, rows.contact_values, rows.pose["implement_load"],
             rows.implement_cg, list(self.frame_load_names), rows.frame_load_points, rows.frame_load_forces,
             rows.pose["residual"], rows.pose["consistency_residual"], rows.pose["condition"],
-            rows.pose["transmission_angle"], self._weakest_names(self._reduced[force_known], rows.pose["weakest"]))
+            rows.pose["largest_force"], rows.pose["transmission_angle"], self._weakest_names(self._reduced[force_known], rows.pose["weakest"]))
         general = np.flatnonzero(~plain)
         if general.size:
             def taken(group: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -563,6 +563,8 @@ class Solver:
             fl_points.append(p[:, att])
             fl_forces.append(sign * member_force[:, m, None] * axes[:, m])
         shape = (n_pose, 0, 2)
+        hinges = np.stack(list(hinge_force.values()), axis=1) if hinge_force else np.zeros(shape)
+        largest = kernels.largest_forces(hinges, np.ascontiguousarray(member_force[:, sol.spring_force.shape[1]:]))
         return BatchResult(
             points={n: p[:, a] for n, a in self._point_att.items()},
             body_poses={b.name: q[:, 3 * i:3 * i + 3] for i, b in enumerate(mech.moving_bodies)},
@@ -579,7 +581,8 @@ class Solver:
             frame_load_points=np.stack(fl_points, axis=1) if fl_points else np.zeros(shape),
             frame_load_forces=np.stack(fl_forces, axis=1) if fl_forces else np.zeros(shape),
             residual=np.where(failed, np.nan, sol.residual), consistency_residual=np.zeros(n_pose),
-            condition=np.zeros(n_pose), status=np.zeros(n_pose, dtype=int), messages=[""] * n_pose,
+            condition=np.zeros(n_pose), largest_force=largest, status=np.zeros(n_pose, dtype=int),
+            messages=[""] * n_pose,
             transmission_angle=np.full(n_pose, np.nan), weakest_transmission=[""] * n_pose)
 
 

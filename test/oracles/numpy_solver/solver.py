@@ -291,6 +291,8 @@ class Solver:
             fl_points.append(p[:, att])
             fl_forces.append(sign * member_force[:, m, None] * axes[:, m])
         shape = (n_pose, 0, 2)
+        magnitudes = [np.hypot(f[:, 0], f[:, 1]) for f in hinge_force.values()] + [np.abs(f) for f in cyl_force.values()]
+        largest = np.max(np.stack(magnitudes + [np.zeros(n_pose)], axis=1), axis=1)   # NaN propagates (failed)
         return BatchResult(
             points={n: p[:, a] for n, a in self._point_att.items()},
             body_poses={b.name: q[:, 3 * i:3 * i + 3] for i, b in enumerate(mech.moving_bodies)},
@@ -307,5 +309,6 @@ class Solver:
             frame_load_points=np.stack(fl_points, axis=1) if fl_points else np.zeros(shape),
             frame_load_forces=np.stack(fl_forces, axis=1) if fl_forces else np.zeros(shape),
             residual=np.where(failed, np.nan, sol.residual), consistency_residual=np.zeros(n_pose),
-            condition=np.zeros(n_pose), status=np.zeros(n_pose, dtype=int), messages=[""] * n_pose,
+            condition=np.zeros(n_pose), largest_force=largest, status=np.zeros(n_pose, dtype=int),
+            messages=[""] * n_pose,
             transmission_angle=np.full(n_pose, np.nan), weakest_transmission=[""] * n_pose)
