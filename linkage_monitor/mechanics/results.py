@@ -118,8 +118,8 @@ class Result:
     equilibrium matrix's condition numbers (NaN where the reduced path serves: its measure is
     ``transmission_angle``), ``consistency_residual`` =
     norm of the kinematic constraint residual (m). ``largest_force`` = the largest hinge reaction or
-    cylinder force magnitude (N; 0 with neither; ``kernels.largest_force``). ``status`` = "ok" or "lift_off" (a contact
-    pulls: N < 0; ``message`` names it).
+    cylinder force magnitude (N; 0 with neither; ``kernels.largest_force``). ``status`` = "ok" or
+    "lift_off" (a contact pulls: N < 0; ``message`` names it).
     """
 
     names: ResultNames

@@ -234,7 +234,8 @@ class Solver:
             rows.hinge_force, rows.cylinder_values, rows.contact_values, rows.pose["implement_load"],
             rows.implement_cg, list(self.frame_load_names), rows.frame_load_points, rows.frame_load_forces,
             rows.pose["residual"], rows.pose["consistency_residual"], rows.pose["condition"],
-            rows.pose["largest_force"], rows.pose["transmission_angle"], self._weakest_names(self._reduced[force_known], rows.pose["weakest"]))
+            rows.pose["largest_force"], rows.pose["transmission_angle"],
+            self._weakest_names(self._reduced[force_known], rows.pose["weakest"]))
         general = np.flatnonzero(~plain)
         if general.size:
             def taken(group: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
