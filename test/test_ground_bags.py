@@ -1,10 +1,10 @@
 """The two ground-driven sample bags (tools/make_bags.py: the simulator's field_copy and relief
 scenarios recorded through the real node), replayed, show their seed's result.
 
-- seed 002 (ksu1_mower_field_copy): the shoe drag T70 = f·N70 loads the tilt cylinder HI more
+- Kotov & Krol (ksu1_mower_field_copy): the shoe drag T70 = f·N70 loads the tilt cylinder HI more
   as f grows (0, 0.5, 0.8: the paper's range), while the lift cylinder AC carries the same force
   (it depends only on the spring block): the bag replayed with the mechanism at each f.
-- seed 004 (drill_coulter_relief): the inertia loads (kinetostatics on minus off, the same bag)
+- Naumenko et al. 2021 (drill_coulter_relief): the inertia loads (kinetostatics on minus off, the same bag)
   at 0.4 m/s are 4× those at 0.2 m/s over the same relief: they scale with v².
 """
 

@@ -30,7 +30,7 @@ def test_reference_inputs_are_inside_their_limits(preset):
 
 
 def test_belarus_stroke_of_the_paper_and_its_angles_are_inside():
-    """Seed 003 Table 1 runs the stroke S from 0.515 m to 0.715 m (Popov 2009)."""
+    """Popov 2009 Table 1 runs the stroke S from 0.515 m to 0.715 m."""
     mech = load_preset("belarus_1221")
     limits = input_limits(mech)
     strokes = np.linspace(0.515, 0.715, 30)

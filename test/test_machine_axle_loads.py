@@ -1,9 +1,9 @@
 """Axle loads and steerability from the tractor's free body (linkage_monitor.mechanics.machine).
 
-Oracle: seed 003's moment balance of the whole tractor-implement unit about the rear wheels'
+Oracle: Popov 2009's moment balance of the whole tractor-implement unit about the rear wheels'
 ground contact B. Our frame: x forward, z up, origin B; the implement's cg lies behind B, so
 x_S6 < 0 and its weight turns the unit backwards:
-    L·R_A = P_tr·x_tr + P_cw·x_cw + P_6·x_S6        (seed 003's R_A, signs from this convention)
+    L·R_A = P_tr·x_tr + P_cw·x_cw + P_6·x_S6        (Popov 2009's R_A, signs from this convention)
 with P = m·g (N), x in m. Valid in transport (only weights act; the Belarus links are weightless).
 """
 
@@ -23,11 +23,11 @@ from linkage_monitor.monitoring.core import Monitor
 from linkage_monitor.monitoring.findings import Code, Level
 from linkage_monitor.mechanics.machine import MachineModel
 
-STROKE = (0.515, 0.715)  # m, seed 003 Table 1's range of S
+STROKE = (0.515, 0.715)  # m, Popov 2009 Table 1's range of S
 
 
 def _unit_front_axle_load(mech, x_s6: float, implement_weight: float) -> float:
-    """seed 003: R_A = (P_cw·x_cw + P_tr·x_tr + P_6·x_S6) / L (our frame, x_S6 < 0), N."""
+    """Popov 2009: R_A = (P_cw·x_cw + P_tr·x_tr + P_6·x_S6) / L (our frame, x_S6 < 0), N."""
     t, g = mech.tractor, mech.gravity
     return (t.front_ballast.mass * g * t.front_ballast.x + t.mass * g * t.cg[0] + implement_weight * x_s6) / t.wheelbase
 
@@ -54,23 +54,23 @@ def test_transport_free_body_equals_whole_unit_balance(tractor_mass, ballast, ba
     total = (tractor_mass + ballast) * mech.gravity + weight
     np.testing.assert_allclose(steer["front_axle_load"][0] + steer["rear_axle_load"][0], total, rtol=1e-9)
     np.testing.assert_allclose(steer["total_weight"][0], total, rtol=1e-9)
-    # seed 003: k = R_A / (P_tr + P_cw + P_6); the manual rule: k = R_A / P_tr
+    # Popov 2009: k = R_A / (P_tr + P_cw + P_6); the manual rule: k = R_A / P_tr
     np.testing.assert_allclose(steer["ratio_unit"][0], expected / total, rtol=1e-9)
     np.testing.assert_allclose(steer["ratio_tractor"][0], expected / (tractor_mass * mech.gravity), rtol=1e-9)
 
 
 def test_steerability_limits_close_the_inequality():
-    """The ballast and implement mass reported make k = ratio_min exactly (seed 003's inequality, solved by hand)."""
+    """The ballast and implement mass reported make k = ratio_min exactly (Popov 2009's inequality, solved by hand)."""
     model = _model({})
     mech, g = model.mech, model.mech.gravity
     batch = model.stroke_poses("lift_cylinder", np.array([0.555]))
     steer = model.evaluate_batch(batch).steerability
     x_s6, t = batch.implement_cg[0, 0], mech.tractor
-    # largest implement: R_A(m) / (P_tr + P_cw + m·g) = 0.2 with R_A(m) from seed 003's balance
+    # largest implement: R_A(m) / (P_tr + P_cw + m·g) = 0.2 with R_A(m) from Popov 2009's balance
     m = steer["max_implement_mass"][0]
     k = _unit_front_axle_load(mech, x_s6, m * g) / ((t.mass + t.front_ballast.mass + m) * g)
     np.testing.assert_allclose(k, 0.2, rtol=1e-9)
-    # docs/seed003_belarus.md (independent scratch script): header allowed by k = 0.2 is 20.5 kN at XS6 = 1.832 m
+    # docs/belarus-1221-geometry.md (independent scratch script): header allowed by k = 0.2 is 20.5 kN at XS6 = 1.832 m
     assert abs(m * g / 1e3 - 20.5) < 0.05
     # ballast for k = 0.2 with a 2500 kg implement (heavier than the limit): balance by hand again
     heavy = _model({"implement.mass": 2500.0})
@@ -142,7 +142,7 @@ def test_soil_forces_differ_from_whole_unit_balance_by_their_moment():
 
 
 def test_margin_below_zero_and_reserve_below_one_are_flagged():
-    """3000 kg header: k < 0.2 by seed 003's balance, and 29.4 kN > Table 2's G_s = 23.03 kN at S = 0.535 m."""
+    """3000 kg header: k < 0.2 by Popov 2009's balance, and 29.4 kN > Table 2's G_s = 23.03 kN at S = 0.535 m."""
     mech = apply_overrides(load_preset("belarus_1221"), {"implement.mass": 3000.0})
     solver = Solver(mech)
     model = MachineModel(mech, solver)
@@ -160,7 +160,7 @@ def test_margin_below_zero_and_reserve_below_one_are_flagged():
     codes = {f.code for f in steps.findings}
     assert {Code.STEERABILITY_LOW, Code.LIFT_RESERVE_LOW} <= codes and steps.level == Level.WARN
     assert any(f"{k - 0.2:+.3f}" in f.text for f in steps.findings if f.code is Code.STEERABILITY_LOW)
-    # the preset's own 15.0 kN header: k = 0.254 (docs/seed003_belarus.md), G_s 23.03 kN > 15 kN: no finding
+    # the preset's own 15.0 kN header: k = 0.254 (docs/belarus-1221-geometry.md), G_s 23.03 kN > 15 kN: no finding
     light = load_preset("belarus_1221")
     assert _monitor_steps(light, None).findings == ()
 

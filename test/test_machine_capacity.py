@@ -1,8 +1,8 @@
-"""Lift capacity (linkage_monitor.mechanics.machine + capacity) against seed 003 and virtual work.
+"""Lift capacity (linkage_monitor.mechanics.machine + capacity) against Popov 2009 and virtual work.
 
 Production method: virtual work at the solved pose (mechanics.kernels.lift_capacity). Oracles: a
-mechanism copy per capacity point solved on its own by the frozen numpy solver (oracles.capacity_copies), seed 003's G = p_max·η·A / I with I = dz_point/dS from central
-differences of the kinematics (virtual work, weightless links), and Tables 1-2 of seed 003.
+mechanism copy per capacity point solved on its own by the frozen numpy solver (oracles.capacity_copies), Popov 2009's G = p_max·η·A / I with I = dz_point/dS from central
+differences of the kinematics (virtual work, weightless links), and Tables 1-2 of Popov 2009.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from linkage_monitor.mechanics.capacity import capacity_force, lift_cylinder, re
 from linkage_monitor.mechanics.machine import MachineModel
 from oracles.capacity_copies import capacity_copies
 
-# seed 003 Table 1 (S [m], I_S [-]) and Table 2 (G_s [kN]): Popov (2009)
+# Popov 2009 Table 1 (S [m], I_S [-]) and Table 2 (G_s [kN]): Popov (2009)
 TABLE_S = np.array([0.535, 0.555, 0.575, 0.595, 0.615, 0.635, 0.655, 0.675, 0.695, 0.715])
 TABLE_I_S = np.array([7.164, 6.647, 6.427, 6.343, 6.336, 6.369, 6.411, 6.426, 6.362, 6.148])
 TABLE_G_S = np.array([23.03, 24.82, 25.67, 26.01, 26.04, 25.90, 25.73, 25.67, 25.93, 26.83])
@@ -45,7 +45,7 @@ def _velocity_ratios(model: MachineModel, lengths: np.ndarray) -> dict[str, np.n
 
 
 def test_statics_capacity_equals_virtual_work_capacity(belarus):
-    """seed 003: G = p_max·η·A / I; the Belarus links are weightless, so virtual work is exact."""
+    """Popov 2009: G = p_max·η·A / I; the Belarus links are weightless, so virtual work is exact."""
     lengths = np.linspace(0.52, 0.71, 7)
     _, machine = belarus.capacity_curve("lift_cylinder", lengths)
     force = capacity_force(lift_cylinder(belarus.mech))
@@ -63,7 +63,7 @@ def test_capacity_point_610mm_is_on_the_implement(belarus):
 
 
 def test_table2_lift_capacity_at_the_header_cg(belarus):
-    """seed 003 Table 2: G_s = 165.0 kN / I_S, the capacity at the header's cg (docs/seed003_belarus.md)."""
+    """Popov 2009 Table 2: G_s = 165.0 kN / I_S, the capacity at the header's cg (docs/belarus-1221-geometry.md)."""
     _, machine = belarus.capacity_curve("lift_cylinder", TABLE_S)
     i_s = _velocity_ratios(belarus, TABLE_S)["implement_cg"]
     matches = np.abs(i_s - TABLE_I_S) < 0.01  # rows where the preset's kinematics match Table 1 (I_S to 0.01)
@@ -76,7 +76,7 @@ def test_table2_lift_capacity_at_the_header_cg(belarus):
     np.testing.assert_allclose(165.0 / TABLE_I_S, TABLE_G_S, atol=0.01)
     # p_max·η·A = 165.0 kN (preset: 19.384 MPa × 0.80 × 0.01064 m²)
     np.testing.assert_allclose(capacity_force(lift_cylinder(belarus.mech)) / 1e3, 165.0, rtol=1e-4)
-    # ours vs the paper: the fitted geometry reproduces G_s within 0.013 kN (docs/seed003_belarus.md);
+    # ours vs the paper: the fitted geometry reproduces G_s within 0.013 kN (docs/belarus-1221-geometry.md);
     # allowed 0.05 kN = printed rounding 0.005 kN + the fit's I_S error up to 0.005 (0.02 kN)
     np.testing.assert_allclose(ours, TABLE_G_S, atol=0.05)
 
@@ -108,13 +108,13 @@ def test_machine_summary_for_solve_json():
     assert tuple(summary["lift_capacity"]) == CAPACITY_KEYS
     assert tuple(summary["steerability"]) == STEERABILITY_KEYS
     assert abs(summary["lift_capacity"]["implement_cg"] / 1e3 - 23.03) < 0.05  # Table 2, G_s at S = 0.535 m
-    # docs/seed003_belarus.md: R_A = 22.2 kN, k = 0.254 (header 15.0 kN; the pressure 10.132 MPa estimates 15.05 kN)
+    # docs/belarus-1221-geometry.md: R_A = 22.2 kN, k = 0.254 (header 15.0 kN; the pressure 10.132 MPa estimates 15.05 kN)
     assert abs(summary["steerability"]["front_axle_load"] / 1e3 - 22.2) < 0.1
     assert abs(summary["steerability"]["ratio"] - 0.254) < 0.002
 
 
 def test_no_negative_capacity_where_the_cylinder_lowers_the_point():
-    """seed 001's base-change cylinder pushes the front axle down, not up: its 'implement' (the
+    """Akhmetov & Usmanov 2018's base-change cylinder pushes the front axle down, not up: its 'implement' (the
     axle load) has no lift capacity; the summary says None instead of a negative load."""
     from linkage_monitor.mechanics import Inputs, Solver, load_preset
     from linkage_monitor.mechanics.machine import machine_summary

@@ -33,7 +33,7 @@ def test_capacity_png_is_a_real_image(tmp_path, capsys):
     # S = 0.715 m: Table 2's G_s = 26.83 kN
     np.testing.assert_allclose(np.array(curve["lift_capacity"]["implement_cg"])[[0, -1]] / 1e3,
                                [18.98, 26.83], atol=0.05)
-    # docs/seed003_belarus.md: the steerable header weight at k = 0.2 is about 20.5 kN over the working range
+    # docs/belarus-1221-geometry.md: the steerable header weight at k = 0.2 is about 20.5 kN over the working range
     assert 19.5 < min(curve["max_implement_weight"]) / 1e3 < 21.5
 
 

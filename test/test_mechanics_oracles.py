@@ -69,7 +69,7 @@ def spring_forces(mech: Mechanism, batch: BatchResult) -> list[tuple[np.ndarray,
 
 
 def contact_direction(c) -> np.ndarray:
-    """n − f·t with t the travel direction projected perpendicular to n (seed 002: T = f·N)."""
+    """n − f·t with t the travel direction projected perpendicular to n (Kotov & Krol: T = f·N)."""
     n = np.asarray(c.normal, float) / np.linalg.norm(c.normal)
     t = np.asarray(c.travel, float) - np.dot(c.travel, n) * n
     return n - c.friction * t / np.linalg.norm(t)

@@ -42,7 +42,7 @@ def test_cylinder_force_equals_virtual_work(fixture: str, cyl: str, spread: floa
 
 def test_spring_and_friction_contact_virtual_work() -> None:
     """Measured cylinder force (pressures) + spring + friction shoe: the solved normal force must make
-    the virtual work of all forces vanish (seed 002 structure)."""
+    the virtual work of all forces vanish (Kotov & Krol structure)."""
     mech = load_mechanism(FIXTURES / "spring_contact.yaml")
     solver = Solver(mech)
     lengths = _random_strokes(solver, 600, 0.15, seed=2)

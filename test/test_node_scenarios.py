@@ -184,7 +184,7 @@ def test_lift_outputs_carry_simulated_stamps_and_equal_offline_solver(ros, tmp_p
                 offline[key] = (result, machine.evaluate(result))
             errors = _compare(topic, msg, *offline[key], mech)
             assert not errors, f"{topic} at stamp {stamp}: " + "; ".join(errors)
-    # the cycle was really driven through: the lift arm moved over the raise (seed 003: 3.5-3.8 s lift)
+    # the cycle was really driven through: the lift arm moved over the raise (Popov 2009: 3.5-3.8 s lift)
     heights = [m.hitch_axis_height for m in client.received["hitch_state"]]
     assert max(heights) - min(heights) > 0.2
 

@@ -6,7 +6,7 @@ unknowns — hinge reactions, cylinder forces, contact normals, the implement lo
 largest of them (the tolerance of the dead-centre decision), over random poses inside each
 mechanism's input range (``limits.input_limits``) of every preset and test fixture that decomposes.
 The transmission measure is checked against its definition computed from the points by hand, and
-the seed-003 hitch against its paper's table.
+the Belarus-1221 hitch (Popov 2009) against its paper's table.
 """
 
 from __future__ import annotations
@@ -101,7 +101,7 @@ def test_the_reduced_path_gives_the_general_paths_reactions_and_cylinder_forces(
     p, rel = kin.positions(q[None])
     cylinder_force = np.full((1, len(MECHANISMS[name].cylinders)), force)   # N; read for the measured ones only
     accel = None
-    if moving:   # kinetostatics (seed 004): random input rates and accelerations, the inertia loads they give
+    if moving:   # kinetostatics (Naumenko et al. 2021): random input rates and accelerations, the inertia loads they give
         rng = np.random.default_rng(seed)
         q_dot, q_ddot = kin.rates(q[None], rng.uniform(-1, 1, (1, kin.n_inputs)), rng.uniform(-5, 5, (1, kin.n_inputs)))
         linear, _ = kin.point_rates(q_ddot, rel)
@@ -151,8 +151,8 @@ def test_the_transmission_measure_is_its_definition_from_the_points(name: str) -
     assert measure.angle[0] == pytest.approx(math.asin(np.nanmin(measure.sine[0])) if weakest >= 0 else math.pi / 2)
 
 
-def test_seed_003_cylinder_force_in_the_reference_pose() -> None:
-    """belarus_1221 at S = 0.535 m: F_pr = 107.52 kN (seed 003, Popov 2009, Table 2, first row: docs/seed003_belarus.md;
+def test_popov_cylinder_force_in_the_reference_pose() -> None:
+    """belarus_1221 at S = 0.535 m: F_pr = 107.52 kN (Popov 2009, Table 2, first row: docs/belarus-1221-geometry.md;
     the preset's geometry is fitted to that table within 0.1 kN)."""
     solver = SOLVERS["belarus_1221"]
     kin = solver.kin

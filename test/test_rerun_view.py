@@ -37,7 +37,7 @@ def machine_series(mech: Mechanism, batch: BatchResult) -> dict[str, np.ndarray]
     from the mechanics' machine-level module); only their shape matters to the view.
 
     Front axle share: moments about the rear wheels' contact of tractor, ballast and implement
-    weights / wheelbase / total weight (seed 003's steerability); lift reserve: relief force of
+    weights / wheelbase / total weight (Popov 2009's steerability); lift reserve: relief force of
     the cylinders (p·A·count·η) / cylinder force.
     """
     t, cyl = mech.tractor, mech.cylinders[0]
@@ -82,7 +82,7 @@ def column(tables: dict[str, list], entity: str, name: str) -> list:
 
 @pytest.fixture(scope="module")
 def replay(tmp_path_factory):
-    """A replay over the working stroke 0.52-0.71 m (seed 003, Table 1) with two poses that
+    """A replay over the working stroke 0.52-0.71 m (Popov 2009, Table 1) with two poses that
     cannot be solved: a NaN stroke (sensor fault) and 2.0 m (out of reach)."""
     strokes = np.linspace(0.52, 0.71, 60)
     strokes[[7, 40]] = [np.nan, 2.0]

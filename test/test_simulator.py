@@ -1,7 +1,7 @@
 """The telemetry simulator: physically consistent streams, noise, overload, real ROS publishing.
 
 Oracles: the solver's estimate of the implement load from the simulated sensors (the
-simulator computes pressures the other way round, from a load), seed 003 Table 1-2 and its
+simulator computes pressures the other way round, from a load), Popov 2009 Table 1-2 and its
 whole-unit moment balance for steerability (written out here), the FluidPressure definition
 (absolute pressure), and the statistics of Gaussian noise.
 """
@@ -26,7 +26,7 @@ from linkage_monitor.sim.telemetry import CYLINDER_SCENARIOS, Noise, find_stroke
 
 ROOT = Path(__file__).resolve().parents[1]
 G = 9.80665                   # m/s², the preset's gravity
-W_HEADER = 15.00e3            # N, seed 003: F_pr = 15.00 kN · I_S, the ZhSK-4V header's weight
+W_HEADER = 15.00e3            # N, Popov 2009: F_pr = 15.00 kN · I_S, the ZhSK-4V header's weight
 
 
 @pytest.fixture(scope="module")
@@ -39,8 +39,8 @@ def solver(belarus):
     return Solver(belarus)
 
 
-def seed003_margin(tractor, load: np.ndarray, cg_x: np.ndarray) -> np.ndarray:
-    """k − 0.2 from seed 003's moment balance about B: R_A = (P_tr·b + P_cw·x_cw + P_6·x_S6)/L, k = R_A/ΣP."""
+def popov_margin(tractor, load: np.ndarray, cg_x: np.ndarray) -> np.ndarray:
+    """k − 0.2 from Popov 2009's moment balance about B: R_A = (P_tr·b + P_cw·x_cw + P_6·x_S6)/L, k = R_A/ΣP."""
     p_tr, p_cw = tractor.mass * G, tractor.front_ballast.mass * G
     r_a = (p_tr * tractor.cg[0] + p_cw * tractor.front_ballast.x + load * cg_x) / tractor.wheelbase
     return r_a / (p_tr + p_cw + load) - 0.2
@@ -60,12 +60,12 @@ def test_zero_noise_stream_gives_back_the_load_through_the_solver(belarus, solve
     assert np.all((stream.truth.cylinder_lengths >= low) & (stream.truth.cylinder_lengths <= high))
 
 
-def test_work_position_pressure_matches_seed003_table2(belarus):
+def test_work_position_pressure_matches_popov_table2(belarus):
     stream = simulate(belarus, "lift", rate_hz=20.0, duration_s=1.0, noise=Noise(), seed=0, start_ns=0)
     cyl = belarus.cylinder("lift_cylinder")
     force = stream.truth.pressures[:, 0] * cyl.count * cyl.cap_area
     assert np.all(stream.truth.cylinder_lengths[:, 0] == 0.535)   # work = the preset's reference length
-    # seed 003 Table 2, S = 0.535 m: F_pr = 107.52 kN; the preset's fit is within 0.1 kN (docs/seed003_belarus.md)
+    # Popov 2009 Table 2, S = 0.535 m: F_pr = 107.52 kN; the preset's fit is within 0.1 kN (docs/belarus-1221-geometry.md)
     np.testing.assert_allclose(force, 107.52e3, atol=0.1e3)
     np.testing.assert_allclose(stream.truth.implement_load, W_HEADER, rtol=1e-4)   # 1529.57 kg · g
 
@@ -78,7 +78,7 @@ def test_stroke_is_the_assemblable_range(belarus):
     res = Solver(mechanism_from_dict(raw)).solve_batch(
         cylinders={"lift_cylinder": [stroke.low - 0.002, stroke.low, stroke.high, stroke.high + 0.002]})
     assert list(res.status) == [3, 0, 0, 3]   # assembly error 2 mm outside (grid step 0.9 mm), ok at the ends
-    # seed 003 Table 1 prints poses for S = 0.515 ... 0.715 m: all assemblable
+    # Popov 2009 Table 1 prints poses for S = 0.515 ... 0.715 m: all assemblable
     assert stroke.low <= 0.515 and stroke.high >= 0.715
     assert stroke.work < stroke.transport < stroke.high
 
@@ -87,7 +87,7 @@ def test_lift_cycle_timing_and_transport_bumps(belarus):
     rate = 50.0
     lift = simulate(belarus, "lift", rate_hz=rate, duration_s=None, noise=Noise(), seed=0, start_ns=0)
     raise_time = np.count_nonzero(lift.truth.phase == "raise") / rate
-    assert 3.5 <= raise_time <= 3.8                       # seed 003: lift time 3.5-3.8 s
+    assert 3.5 <= raise_time <= 3.8                       # Popov 2009: lift time 3.5-3.8 s
     lengths = lift.truth.cylinder_lengths[:, 0]
     assert lengths[0] == lift.stroke.work and np.isclose(lengths.max(), lift.stroke.transport, atol=1e-6)
     transport = simulate(belarus, "transport", rate_hz=rate, duration_s=None, noise=Noise(), seed=5, start_ns=0)
@@ -120,11 +120,11 @@ def test_overload_margin_crosses_zero_at_the_announced_sample(belarus, solver):
     idx = stream.truth.overload_index
     assert idx is not None and 0 < idx < len(stream)
     res = solver.solve_batch(**stream.solver_inputs())
-    margin = seed003_margin(belarus.tractor, res.implement_load, res.implement_cg[:, 0])
+    margin = popov_margin(belarus.tractor, res.implement_load, res.implement_cg[:, 0])
     assert margin[idx - 1] > 0.0 > margin[idx]
     assert np.all(margin[:idx] > 0.0) and np.all(margin[idx:] < 0.0)      # a monotone ramp crosses once
     assert np.all(stream.truth.phase[idx:] == "overloaded")
-    assert abs(seed003_margin(belarus.tractor, stream.truth.largest_steerable_load,
+    assert abs(popov_margin(belarus.tractor, stream.truth.largest_steerable_load,
                               stream.truth.implement_cg[0, 0])) < 1e-12
     # the relief valve is never exceeded: the load ramps to at most 95 % of what it can hold
     assert stream.truth.pressures.max() <= belarus.cylinder("lift_cylinder").relief_pressure
@@ -194,11 +194,11 @@ def test_node_publishes_joint_states_and_fluid_pressure(belarus, solver):
         assert list(js.name) == ["lift_arm_angle", "lift_cylinder"]
         inputs = Inputs(angles={"lift_arm_angle": js.position[0]}, cylinders={"lift_cylinder": js.position[1]},
                         pressures={"lift_cap_pressure": fp.fluid_pressure - 101325.0})   # absolute -> gauge
-        # the header's weight (seed 003: 15.00 kN = 1529.57 kg · g), whatever the pose of the lift cycle
+        # the header's weight (Popov 2009: 15.00 kN = 1529.57 kg · g), whatever the pose of the lift cycle
         assert solver.solve(inputs).implement_load == pytest.approx(belarus.implement.mass * G, rel=1e-6)
 
 
-# ---- ground-driven scenarios (seeds 002, 004) ------------------------------------------------------
+# ---- ground-driven scenarios (Kotov & Krol, Naumenko et al. 2021) ------------------------------------------------------
 @pytest.mark.parametrize("preset, scenario", [("ksu1_mower_adapter", "field_copy"), ("drill_coulter", "relief")])
 def test_ground_stream_puts_the_contact_on_the_ground_and_rates_match_the_angles(preset, scenario):
     """Zero noise: the solver, given the stream's angle, puts the contact point at the ground

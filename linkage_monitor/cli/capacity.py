@@ -26,7 +26,7 @@ def add_capacity_parser(subparsers: argparse._SubParsersAction) -> argparse.Argu
     p = subparsers.add_parser(
         "capacity", help="lift capacity (hitch axis, 610 mm, implement cg) and steerability limit over the stroke",
         description="Lift capacity at p_max*eta over the lift cylinder's stroke (transport poses) with the "
-                    "largest implement weight the tractor can steer with (seed 003 Fig. 4-5).")
+                    "largest implement weight the tractor can steer with (Popov 2009, Fig. 4-5).")
     add_mechanism_group(p)
     p.add_argument("--stroke", nargs=2, type=bounded(0.0, 100.0, "m", lo_open=True), metavar=("MIN_M", "MAX_M"),
                    help="lift cylinder lengths to sweep, m (default: the range around the reference length in "

@@ -26,8 +26,8 @@ def add_simulate_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenario", choices=SCENARIOS, default="lift",
                         help="driven by the lift cylinder: lift cycle, transport over bumps, field work, or "
                              "overload (steerability < 0); driven by the ground (one angle sensor and a contact, "
-                             "seeds 002/004): field_copy (shoes follow the field +-125 mm) or relief (a wheel over "
-                             "seed 004's relief at 0.2 then 0.4 m/s, with angle rates); default lift")
+                             "Kotov & Krol; Naumenko et al. 2021): field_copy (shoes follow the field +-125 mm) or relief (a wheel over "
+                             "Naumenko et al. 2021's relief at 0.2 then 0.4 m/s, with angle rates); default lift")
     parser.add_argument("--rate", type=bounded(0.1, 100_000.0, "Hz"), default=50.0, metavar="HZ",
                         help="samples per second, 0.1 to 100000, default 50")
     parser.add_argument("--noise-angle", type=bounded(0.0, 1.0, "rad"), default=NOISE_ANGLE, metavar="RAD",

@@ -1,4 +1,4 @@
-"""Lift capacity inputs (seed 003: G = p_max·η·A / I): the lift cylinder, its largest force, the
+"""Lift capacity inputs (Popov 2009: G = p_max·η·A / I): the lift cylinder, its largest force, the
 points where capacity is reported; and the stroke-only copy of a mechanism for stroke sweeps.
 SI units; frame x forward, z up, origin at the rear wheels' ground contact B.
 """
@@ -14,7 +14,7 @@ from .model import Cylinder, Mechanism
 from .schema import mechanism_from_dict
 from .solver import Solver
 
-BEHIND_DISTANCE = 0.610  # m, ISO 730 / seed 003: "610 mm behind the hitch axis"
+BEHIND_DISTANCE = 0.610  # m, ISO 730 / Popov 2009: "610 mm behind the hitch axis"
 
 
 def lift_cylinder(mech: Mechanism, name: str | None = None) -> Cylinder:
@@ -43,7 +43,7 @@ def reference_length(mech: Mechanism, cylinder: str) -> float:
 
 
 def capacity_force(cyl: Cylinder) -> float:
-    """Largest pushing force of the lift cylinder(s), N: count·p_max·η·A_cap (seed 003, G·I = p_max·η·A)."""
+    """Largest pushing force of the lift cylinder(s), N: count·p_max·η·A_cap (Popov 2009, G·I = p_max·η·A)."""
     return cyl.count * relief_pressure(cyl) * cyl.efficiency * cyl.cap_area
 
 

@@ -1,6 +1,6 @@
 """A linkage as a chain of dyads: its pose in closed form from the driving inputs (reduced coordinates).
 
-A textbook (and seed 003) assembles a hitch step by step from the frame outward: the lift arm
+A textbook (and Popov 2009) assembles a hitch step by step from the frame outward: the lift arm
 turned about its pivot by the lift cylinder's length (law of cosines) or by its angle sensor, then
 each pair of links hinged to each other and each to a placed body (an RRR dyad: two circles
 intersect). ``decompose`` finds such a chain from the mechanism's data (bodies, hinges, measured

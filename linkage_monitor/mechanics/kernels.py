@@ -970,7 +970,7 @@ def _known_loads(b: np.ndarray, i: int, p: np.ndarray, axes: np.ndarray, member_
                  accel: np.ndarray, alpha: np.ndarray, has_accel: bool, layout: StaticsProgram) -> None:
     """The known loads of pose i as generalized forces into b (n_eq,) ([Fx, Fz, M/lc] per body,
     ``solve_statics``' layout): constant loads, the ends of members of known force, and with
-    ``has_accel`` the inertia loads −m·a at each cg and −I·α (seed 004)."""
+    ``has_accel`` the inertia loads −m·a at each cg and −I·α (Naumenko et al. 2021)."""
     lc, const_force, known_att, known_body = layout.lc, layout.const_force, layout.known_att, layout.known_body
     end_member, end_sign, mass_att, mass_body = layout.end_member, layout.end_sign, layout.mass_att, layout.mass_body
     mass, inertia = layout.mass, layout.inertia
@@ -1093,7 +1093,7 @@ def _reverse_pass(g: np.ndarray, u: np.ndarray, p: np.ndarray, axes: np.ndarray,
     - RRR (B1 pivoted at A1, B2 at A2, hinged to each other at H): moments about A1 of B1 and
       about A2 of B2 give the joint force J on B1 (2×2, Cramer):
       (H − A1) × J = −M1, (H − A2) × J = M2, det = (H − A1) × (H − A2) = |HA1|·|HA2|·sin μ;
-      then the pivots' forces from ΣF: −(F1 + J) on B1, −(F2 − J) on B2 (seed 003's hand solution,
+      then the pivots' forces from ΣF: −(F1 + J) on B1, −(F2 − J) on B2 (Popov 2009's hand solution,
       the moment about each dyad's hinges).
     - CYLINDER with an unknown force (B pivoted at A, the cylinder on B's end E): the moment about A,
       M + (E − A) × f·e = 0, e the unit force on B per newton: f = −M / ((E − A) × e); its other end
@@ -1261,7 +1261,7 @@ def lift_capacity(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray, hing
     the motion with every hinge closed, every other cylinder held at its length and the lift
     cylinder extending by δs:
 
-        G·δz_point = F·δs − Σ m·g·δz_cg + Σ F_spring·δL_spring        (seed 003: G = p_max·η·A·ds/dz)
+        G·δz_point = F·δs − Σ m·g·δz_cg + Σ F_spring·δL_spring        (Popov 2009: G = p_max·η·A·ds/dz)
 
     (weights m at ``weight_att``, spring forces (N, n_springs) + = pushing). The motion δq solves
     [hinge rows; cylinder rows]·δq = e_lift, one factorization per pose for every point.
@@ -1350,7 +1350,7 @@ def _dp(dq: np.ndarray, att: int, att_body: np.ndarray, rel: np.ndarray) -> tupl
     return dq[3 * b] - rel[att, 1] * dq[3 * b + 2], dq[3 * b + 1] + rel[att, 0] * dq[3 * b + 2]
 
 
-# ---- axle loads and steerability (seed 003) --------------------------------------------------------
+# ---- axle loads and steerability (Popov 2009) --------------------------------------------------------
 # ``steerability_pose``'s parameters (one float64 array, in this order) and its row's columns
 # (machine.STEERABILITY_KEYS in this order)
 STEERABILITY_PARAMETERS = ("gravity", "wheelbase", "ratio_min", "tractor_mass", "tractor_cg_x", "ballast_mass",
@@ -1376,9 +1376,9 @@ def steerability_pose(points: np.ndarray, forces: np.ndarray, implement_load: fl
     STEERABILITY_PARAMETERS (``unit_reference`` 1.0: ratio of the unit's weight, 0.0: of the empty
     tractor's).
 
-    Axle loads (seed 003's moment balance about B, on the tractor's free body):
+    Axle loads (Popov 2009's moment balance about B, on the tractor's free body):
     L·R_A = m_tr·g·x_tr + m_cw·g·x_cw − Σ(x·Fz − z·Fx); R_B = (m_tr + m_cw)·g − ΣFz − R_A.
-    Steerability (seed 003): k = R_A / W ≥ ratio_min = r, W = R_A + R_B (unit) or m_tr·g (tractor).
+    Steerability (Popov 2009): k = R_A / W ≥ ratio_min = r, W = R_A + R_B (unit) or m_tr·g (tractor).
     By global equilibrium R_A grows by g·x/L per kg at x, so with c = 1 for the unit and 0 for the
     tractor reference: the extra front ballast for k = r (front_ballast_needed, beyond the m_cw0
     carried) Δm_cw = max(0, (r·W − R_A)/(g·(x_cw/L − r·c))), 0 when k ≥ r;

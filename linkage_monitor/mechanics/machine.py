@@ -1,6 +1,6 @@
 """Machine-level results: axle loads, steerability and lift capacity, per pose and batched.
 
-Axle loads come from the free body of the tractor (seed 003's moment balance about B, done on
+Axle loads come from the free body of the tractor (Popov 2009's moment balance about B, done on
 the tractor alone so that soil forces on the implement count correctly): tractor weight at its
 cg, the front ballast, and every force the linkage puts on the frame (``Result.frame_load_forces``);
 the wheel traction forces act at ground level (z = 0) and have no moment about B.
@@ -153,8 +153,8 @@ def steerability(tractor: Tractor, gravity: float, frame_load_points: np.ndarray
                  implement_load: np.ndarray, implement_x: np.ndarray) -> dict[str, np.ndarray]:
     """Axle loads and steerability (``STEERABILITY_KEYS``, arrays (N,)) of N poses from the forces the
     linkage puts ON the frame (points / forces (N, K, 2), m / N) and the implement load (N,) N at x
-    (N,) m: the tractor's free body (seed 003's moment balance about B, done on the tractor alone so
-    that soil forces on the implement count correctly; wheel traction acts at z = 0) and seed 003's
+    (N,) m: the tractor's free body (Popov 2009's moment balance about B, done on the tractor alone so
+    that soil forces on the implement count correctly; wheel traction acts at z = 0) and Popov 2009's
     steerability k = R_A / W ≥ ratio_min (formulas: ``kernels.steerability_pose``)."""
     rows = _steerability_rows(machine_parameters(tractor, gravity), frame_load_points, frame_load_forces,
                               implement_load, implement_x)
@@ -303,7 +303,7 @@ class MachineModel:
         ``kernels.lift_capacity``), then the lift reserve (capacity at the implement cg / implement
         load (N,) N): (N, len(capacity points) + 1) in ``capacity_keys`` order. NaN where not ``ok``
         (failed), where the motion is at a dead centre, or at a point that the cylinder pushing at
-        p_max lowers instead of lifting (e.g. the front axle of seed 001's base-change
+        p_max lowers instead of lifting (e.g. the front axle of Akhmetov & Usmanov 2018's base-change
         parallelogram: no lift capacity, not a negative load)."""
         kin = self.solver.kin
         q = np.ascontiguousarray(q, dtype=float)

@@ -93,7 +93,7 @@ class Contact:
 
     @property
     def force_direction(self) -> np.ndarray:
-        """Force on the body per newton of normal force: n − f·t, t = travel projected ⟂ n (seed 002, T70 = f·N70)."""
+        """Force on the body per newton of normal force: n − f·t, t = travel projected ⟂ n (Kotov & Krol, T70 = f·N70)."""
         t = self.travel - np.dot(self.travel, self.normal) * self.normal
         norm = float(np.hypot(*t))
         t = t / norm if norm > 0.0 else t
@@ -160,7 +160,7 @@ class FrontBallast:
 
 @dataclass(frozen=True)
 class Tractor:
-    """Tractor data for axle loads and steerability (seed 003)."""
+    """Tractor data for axle loads and steerability (Popov 2009)."""
 
     mass: float
     cg: np.ndarray

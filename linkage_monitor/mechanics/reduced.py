@@ -1,7 +1,7 @@
 """Statics and transmission in reduced coordinates: along the chain of dyads, no linear system.
 
 A mechanism that :func:`.chain.decompose` turns into a chain of steps (ANGLE / CYLINDER / RRR) is
-solved as a textbook (and seed 003) solves a hitch by hand: from the outermost step inward, the
+solved as a textbook (and Popov 2009) solves a hitch by hand: from the outermost step inward, the
 moment of each step's bodies about its pivots gives the step's unknowns — a 2×2 in closed form per
 RRR dyad, a scalar per cylinder — and the force sums give the pivots' reactions
 (``kernels.solve_reduced_statics``). The same pass yields each step's transmission measure

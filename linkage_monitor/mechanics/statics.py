@@ -3,7 +3,7 @@
 Equations per moving body: ΣFx = 0, ΣFz = 0, ΣM about the origin B = 0 (moment rows divided by
 the length scale ``lc`` so the matrix is dimensionless). Unknowns: hinge reactions (fx, fz: the
 force on ``bodies[1]`` from ``bodies[0]``), axial forces of cylinders whose force is not measured
-(+ = pushing), contact normal forces (friction T = f·N folded into the column, seed 002), and,
+(+ = pushing), contact normal forces (friction T = f·N folded into the column, Kotov & Krol), and,
 when measured cylinder forces leave an extra equation, the vertical load at the implement cg.
 The index structure (:class:`StaticsLayout`) is built once per set of measured cylinder forces;
 the per-pose assembly and solution run compiled (``kernels.solve_statics``).
@@ -200,7 +200,7 @@ class StaticsLayout:
               ) -> StaticsSolution:
         """Unknown reactions for N poses; ``cylinder_force`` (N, n_cyl) N is used where measured.
         ``accel``: accelerations (N, K, 2) m/s² of every attachment and angular accelerations (N, n_bodies)
-        rad/s² of the bodies, for the inertia loads (kinetostatics, seed 004)."""
+        rad/s² of the bodies, for the inertia loads (kinetostatics, Naumenko et al. 2021)."""
         ns = self.n_springs
         member_force, lin, alpha, has_accel = self.kernel_loads(p, cylinder_force, accel)
         u, residual, cond, axes, length = kernels.solve_statics(np.ascontiguousarray(p, dtype=float), member_force,

@@ -52,7 +52,7 @@ class MonitorConfig:
     FluidPressure carries absolute pressure (its definition) or gauge. atmospheric_pressure: Pa.
     staleness_limit_s: s, largest age of any input at a solve. stamp_tolerance_s: s, largest
     distance of a header stamp from the monitor's clock. kinetostatics: use JointState
-    velocities (and their differences) for inertia loads (seed 004). dead_centre_transmission_deg:
+    velocities (and their differences) for inertia loads (Naumenko et al. 2021). dead_centre_transmission_deg:
     degrees, a pose whose smallest transmission angle along the linkage's chain of dyads is below
     this is a dead centre (``Solver(dead_centre_transmission_deg=)``).
     """

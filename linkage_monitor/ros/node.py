@@ -70,56 +70,74 @@ DRAIN_LIMIT = 200  # input messages worked off per executor callback (then timer
 ABANDONED_RERUN: list[Any] = []   # Rerun views whose sink failed (LinkageMonitorNode._rerun_failed)
 NAME_CHECK_S = 10.0  # s, how long after its start the node looks for another node of its name
 
-# name: (default, description, read_only, (min, max) for doubles)
-PARAMETERS: dict[str, tuple[Any, str, bool, tuple[float, float] | None]] = {
-    "mechanism": ("belarus_1221", "Preset name or path of the mechanism YAML (docs/mechanism-schema.md)",
-                  True, None),
-    "joint_state_topic": ("joint_states", "Input sensor_msgs/JointState topic (angles rad, cylinder lengths m)",
-                          True, None),
-    "joint_map": ([""], "JointState names mapped to the mechanism's measurements, as 'joint_name=measurement' "
-                  "(unlisted measurements are expected under their own name)", True, None),
-    "pressure_topics": ([""], "One sensor_msgs/FluidPressure topic per cylinder chamber, as "
-                        "'topic=pressure_sensor'; default 'pressure/<sensor>' for every sensor; ['none']: no "
-                        "pressures (the implement load is then implement_mass, the pressures predicted)", True, None),
-    "pressure_absolute": (True, "FluidPressure carries absolute pressure (true, per its definition) or gauge",
-                          True, None),
-    "atmospheric_pressure": (ATMOSPHERIC_PRESSURE, "Pa, subtracted from absolute pressures", True,
-                             (50_000.0, 110_000.0)),
-    "sensor_qos": ("sensor_data", "QoS of the inputs: 'sensor_data' (best effort, keep last 5) or 'reliable' "
-                   "(keep last reliable_queue_depth)", True, None),
-    "reliable_queue_depth": (10_000, "messages queued per input topic with sensor_qos 'reliable': a burst (e.g. a "
-                             "bag played faster than real time) waits there instead of being dropped; what does "
-                             "not fit is reported lost", True, (1, 1_000_000)),
-    "staleness_limit": (0.5, "s, no solve if the stamps of the inputs differ by more than this", False,
-                        (0.0, 3600.0)),
-    "stamp_tolerance": (10.0, "s, an input whose header stamp is farther than this from the node's clock is "
-                        "refused (ERROR)", False, (0.001, 1e6)),
-    "kinetostatics": (False, "Add inertia loads from JointState velocities and their change (seed 004)", True, None),
-    "dead_centre_transmission_deg": (DEAD_CENTRE_TRANSMISSION_DEG, "degrees, a pose whose smallest transmission "
-                                     "angle along the linkage's chain of dyads is below this is a dead centre (ERROR, "
-                                     "no outputs); applies from the next message", False, (0.0, 45.0)),
-    "implement_mass": (-1.0, "kg, implement mass; -1 (exactly) keeps the mechanism file's value, other negatives "
-                       "are refused; applies from the next message", False, (-1.0, 100_000.0)),
-    "tractor_mass": (-1.0, "kg, tractor operating mass without ballast; -1 (exactly) keeps the file's value", False,
-                     (-1.0, 100_000.0)),
-    "front_ballast_mass": (-1.0, "kg, front ballast; -1 (exactly) keeps the file's value", False, (-1.0, 10_000.0)),
-    "ratio_min": (-1.0, "minimum share of weight on the steered axle (seed 003: 0.2); -1 (exactly) keeps the file's value",
-                  False, (-1.0, 1.0)),
-    "record": (True, "Record every input and output to a rosbag2 MCAP bag", True, None),
-    "record_dir": ("out/bags", "Directory under which each run's bag directory is created", True, None),
-    "record_name": ("", "Name of this run's bag directory; empty: <mechanism>_<YYYYmmdd_HHMMSS>", True, None),
-    "max_bag_size": (0, "B, the bag starts a new file once the current one has reached this size (as ros2 bag "
-                     "record --max-bag-size); 0: one file", True, (0, 1 << 50)),
-    "max_bag_duration": (0.0, "s, the bag starts a new file once the current one spans this long (as ros2 bag "
-                         "record --max-bag-duration); 0: one file", True, (0.0, 1e9)),
-    "rerun": ("off", "Rerun logging: 'off', 'save' (to rerun_path) or 'connect' (to a running viewer)", True,
-              None),
-    "rerun_path": ("out/linkage_monitor.rrd", "The .rrd file written when rerun = 'save'", True, None),
-    "rerun_rate": (30.0, "Hz, largest rate at which solved poses are logged to Rerun (the bag keeps every one)",
-                   True, (0.1, 10_000.0)),
-    "marker_rate": (DEFAULT_MARKER_RATE_HZ, "Hz, largest rate at which the linkage is published as a "
-                    "visualization_msgs/MarkerArray on linkage_markers (frame 'linkage'); 0: not at all", True,
-                    (0.0, 1000.0)),
+
+@dataclass(frozen=True)
+class Declaration:
+    """One node parameter: its default, unit ('' for none), description, whether it is read-only
+    (set at start only) and its range [lo, hi] (numbers; None for none) — what the node declares,
+    checks and ``--help`` prints."""
+
+    default: Any
+    unit: str
+    description: str
+    read_only: bool
+    bounds: tuple[float, float] | None = None
+
+
+PARAMETERS: dict[str, Declaration] = {
+    "mechanism": Declaration("belarus_1221", "", "Preset name or path of the mechanism YAML "
+                             "(docs/mechanism-schema.md)", True),
+    "joint_state_topic": Declaration("joint_states", "", "Input sensor_msgs/JointState topic (angles rad, cylinder "
+                                     "lengths m)", True),
+    "joint_map": Declaration([""], "", "JointState names mapped to the mechanism's measurements, as "
+                             "'joint_name=measurement' (unlisted measurements are expected under their own name)", True),
+    "pressure_topics": Declaration([""], "", "One sensor_msgs/FluidPressure topic per cylinder chamber, as "
+                                   "'topic=pressure_sensor'; default 'pressure/<sensor>' for every sensor; ['none']: no "
+                                   "pressures (the implement load is then implement_mass, the pressures predicted)", True),
+    "pressure_absolute": Declaration(True, "", "FluidPressure carries absolute pressure (true, per its definition) "
+                                     "or gauge", True),
+    "atmospheric_pressure": Declaration(ATMOSPHERIC_PRESSURE, "Pa", "subtracted from absolute pressures", True,
+                                        (50_000.0, 110_000.0)),
+    "sensor_qos": Declaration("sensor_data", "", "QoS of the inputs: 'sensor_data' (best effort, keep last 5) or "
+                              "'reliable' (keep last reliable_queue_depth)", True),
+    "reliable_queue_depth": Declaration(10_000, "messages", "queued per input topic with sensor_qos 'reliable': a "
+                                        "burst (e.g. a bag played faster than real time) waits there instead of being "
+                                        "dropped; what does not fit is reported lost", True, (1, 1_000_000)),
+    "staleness_limit": Declaration(0.5, "s", "no solve if the stamps of the inputs differ by more than this; "
+                                   "/diagnostics goes STALE when no input has been solved for this long (steady "
+                                   "clock, checked every second)", False, (0.0, 3600.0)),
+    "stamp_tolerance": Declaration(10.0, "s", "an input whose header stamp is farther than this from the node's clock "
+                                   "is refused (ERROR)", False, (0.001, 1e6)),
+    "kinetostatics": Declaration(False, "", "Add inertia loads from JointState velocities and their change (seed 004)",
+                                 True),
+    "dead_centre_transmission_deg": Declaration(DEAD_CENTRE_TRANSMISSION_DEG, "degrees", "a pose whose smallest "
+                                                "transmission angle along the linkage's chain of dyads is below this "
+                                                "is a dead centre (ERROR, no outputs); applies from the next message",
+                                                False, (0.0, 45.0)),
+    "implement_mass": Declaration(-1.0, "kg", "implement mass; -1 (exactly) keeps the mechanism file's value, other "
+                                  "negatives are refused; applies from the next message", False, (-1.0, 100_000.0)),
+    "tractor_mass": Declaration(-1.0, "kg", "tractor operating mass without ballast; -1 (exactly) keeps the file's "
+                                "value", False, (-1.0, 100_000.0)),
+    "front_ballast_mass": Declaration(-1.0, "kg", "front ballast; -1 (exactly) keeps the file's value", False,
+                                      (-1.0, 10_000.0)),
+    "ratio_min": Declaration(-1.0, "", "minimum share of weight on the steered axle (seed 003: 0.2); -1 (exactly) "
+                             "keeps the file's value", False, (-1.0, 1.0)),
+    "record": Declaration(True, "", "Record every input and output to a rosbag2 MCAP bag", True),
+    "record_dir": Declaration("out/bags", "", "Directory under which each run's bag directory is created", True),
+    "record_name": Declaration("", "", "Name of this run's bag directory; empty: <mechanism>_<YYYYmmdd_HHMMSS>",
+                               True),
+    "max_bag_size": Declaration(0, "B", "the bag starts a new file once the current one has reached this size (as "
+                                "ros2 bag record --max-bag-size); 0: one file", True, (0, 1 << 50)),
+    "max_bag_duration": Declaration(0.0, "s", "the bag starts a new file once the current one spans this long (as "
+                                    "ros2 bag record --max-bag-duration); 0: one file", True, (0.0, 1e9)),
+    "rerun": Declaration("off", "", "Rerun logging: 'off', 'save' (to rerun_path) or 'connect' (to a running "
+                         "viewer)", True),
+    "rerun_path": Declaration("out/linkage_monitor.rrd", "", "The .rrd file written when rerun = 'save'", True),
+    "rerun_rate": Declaration(30.0, "Hz", "largest rate at which solved poses are logged to Rerun (the bag keeps "
+                              "every one)", True, (0.1, 10_000.0)),
+    "marker_rate": Declaration(DEFAULT_MARKER_RATE_HZ, "Hz", "largest rate at which the linkage is published as a "
+                               "visualization_msgs/MarkerArray on linkage_markers (frame 'linkage'); 0: not at all",
+                               True, (0.0, 1000.0)),
 }
 SENSOR_QOS = ("sensor_data", "reliable")
 RERUN_MODES = ("off", "save", "connect")

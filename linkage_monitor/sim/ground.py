@@ -1,17 +1,17 @@
 """Ground-driven scenarios: linkages that the ground moves, not a cylinder (no rclpy).
 
-Some linkages follow the field: the mower header rides on its shoes (seed 002, field-copying
+Some linkages follow the field: the mower header rides on its shoes (Kotov & Krol, field-copying
 mode: both cylinders locked, one degree of freedom measured as the float lever's angle), the
-drill coulter's support wheel rolls over the relief (seed 004). Their scenarios prescribe the
+drill coulter's support wheel rolls over the relief (Naumenko et al. 2021). Their scenarios prescribe the
 height of the ground contact over time; the kinematics turns it into the one angle reading
 (a monotonic map solved once on a grid, then interpolated), measured cylinders stay at their
 reference lengths, pressures (if the mechanism has sensors) follow from the statics.
 
 ``field_copy`` the shoes follow a field whose height under them is
                h(t) = 0.125 m·(0.6 sin(2π·0.15 t + φ1) + 0.3 sin(2π·0.41 t + φ2) + 0.1 sin(2π·0.93 t + φ3))
-               (seed 002's copying range ±125 mm about the reference line; phases from the seed).
+               (Kotov & Krol's copying range ±125 mm about the reference line; phases from the seed).
                Default 30 s. Phase ``field_copy``. The shoe drag f is the mechanism's (contacts.friction).
-``relief``     the wheel rolls over seed 004's relief y(x) = A·(1 − cos(2π·x/l)), l = 0.2 m,
+``relief``     the wheel rolls over Naumenko et al. 2021's relief y(x) = A·(1 − cos(2π·x/l)), l = 0.2 m,
                A = 0.049 m, at v = 0.2 m/s for the first half, then 0.4 m/s (x continuous): the
                inertia loads of the second half are 4× those of the first at the same x (they
                scale with v²). The crests decelerate the wheel by A·(2πv/l)²: 0.78 g at 0.4 m/s;
@@ -33,9 +33,9 @@ from linkage_monitor.mechanics import Mechanism, Solver
 from linkage_monitor.mechanics.capacity import reference_length
 from linkage_monitor.mechanics.results import Status
 
-COPY_RANGE_M = 0.125              # seed 002: the header copies the ground ±125 mm
-RELIEF_WAVELENGTH_M = 0.2         # seed 004: l
-RELIEF_AMPLITUDE_M = 0.049        # seed 004: A
+COPY_RANGE_M = 0.125              # Kotov & Krol: the header copies the ground ±125 mm
+RELIEF_WAVELENGTH_M = 0.2         # Naumenko et al. 2021: l
+RELIEF_AMPLITUDE_M = 0.049        # Naumenko et al. 2021: A
 RELIEF_SPEEDS_M_S = (0.2, 0.4)    # m/s, first half, second half of the run (below lift-off, ~0.45 m/s)
 GROUND_SCENARIOS = {"field_copy": 30.0, "relief": 8.0}   # name -> default duration, s
 _GRID = 4001                      # angle grid of the kinematic map
@@ -103,7 +103,7 @@ def ground_profile(scenario: str, t: np.ndarray, rng: np.random.Generator) -> tu
     v = np.where(t <= half, v_slow, v_fast)
     x = np.where(t <= half, v_slow * t, v_slow * half + v_fast * (t - half))
     k = 2.0 * np.pi / RELIEF_WAVELENGTH_M
-    height = RELIEF_AMPLITUDE_M * (1.0 - np.cos(k * x))     # seed 004: y = (h/2)(1 − cos 2πx/l)
+    height = RELIEF_AMPLITUDE_M * (1.0 - np.cos(k * x))     # Naumenko et al. 2021: y = (h/2)(1 − cos 2πx/l)
     rate = RELIEF_AMPLITUDE_M * k * np.sin(k * x) * v
     phase = np.where(t <= half, f"v={v_slow:.1f} m/s", f"v={v_fast:.1f} m/s")
     return height, rate, phase

@@ -14,13 +14,13 @@ cylinders are held at their reference length) through a scenario and gives, per 
 
 Scenarios (t in s; ``W0`` = implement weight = implement.mass·g, N; "work" = the reference
 length of the driving cylinder; "transport" = work + 0.6·(top of the assemblable stroke − work);
-belarus_1221: work 0.535 m, assemblable 0.4993-0.7989 m, transport 0.6934 m; seed 003 Table 1
+belarus_1221: work 0.535 m, assemblable 0.4993-0.7989 m, transport 0.6934 m; Popov 2009 Table 1
 spans 0.515-0.715 m):
 
 ``lift``      one lift cycle of 12.6 s, repeated: work position 2.0 s → raise to transport in
-              3.6 s (seed 003: lift time 3.5-3.8 s; raised-cosine stroke, peak cylinder speed
+              3.6 s (Popov 2009: lift time 3.5-3.8 s; raised-cosine stroke, peak cylinder speed
               π/2·Δs/3.6 s = 0.069 m/s for belarus_1221) → hold 3.0 s → lower in 4.0 s
-              (throttled, by gravity). Load = W0 (quasi-static, inertia neglected as in seed 003).
+              (throttled, by gravity). Load = W0 (quasi-static, inertia neglected as in Popov 2009).
               Phases ``work``, ``raise``, ``transport``, ``lower``.
 ``transport`` raised, driving over bumps: the cylinder is held at transport, the implement's
               vertical acceleration is a(t) = g·Σ A_k·sin(2π·f_k·t + φ_k), A = 0.15, 0.10, 0.05
@@ -36,14 +36,14 @@ spans 0.515-0.715 m):
 ``overload``  transport position, a static load ramp (e.g. a hopper being filled): W0 (at most
               0.75·W_max) for 2 s, then linear in 10 s up to min(1.5·W_max, 0.95·W_relief), then
               held 3 s (default 15 s). W_max = the largest implement load the tractor can steer
-              with (seed 003's moment balance about B, ``mechanics.machine.steerability``) at the
+              with (Popov 2009's moment balance about B, ``mechanics.machine.steerability``) at the
               transport pose; W_relief = the load that brings the cap pressure to relief_pressure.
               belarus_1221: W0 = 15.00 kN, W_max = 22.91 kN, ramp end 30.73 kN (18.41 MPa).
               Phases ``transport``, ``loading``, ``overloaded`` (margin < 0);
               ``truth.overload_index`` = first sample with a negative margin (50 Hz: 352, t = 7.04 s).
               Needs the mechanism's ``tractor`` block.
 
-``field_copy``, ``relief``: driven by the ground, not by a cylinder (seeds 002 and 004): see
+``field_copy``, ``relief``: driven by the ground, not by a cylinder (Kotov & Krol; Naumenko et al. 2021): see
               :mod:`linkage_monitor.sim.ground`.
 
 Frame: x forward, z up, origin at the rear wheels' ground contact B; SI units.
@@ -106,7 +106,7 @@ class GroundTruth:
     cylinder_lengths (N, C) m in the order of ``SimulatedStream.cylinder_names``; angles (N, A)
     rad and pressures (N, P) gauge Pa in the stream's order; implement_load (N,) N, + = down,
     vertical at the implement cg; implement_cg (N, 2) m; phase (N,) str; steerability_margin
-    (N,) k − ratio_min (seed 003), NaN without a tractor block; largest_steerable_load N (NaN
+    (N,) k − ratio_min (Popov 2009), NaN without a tractor block; largest_steerable_load N (NaN
     without a tractor block); overload_index: first sample with a negative margin, or None.
     """
 
@@ -204,7 +204,7 @@ class _Poses:
     frame_load_forces: np.ndarray
 
     def steerability_margin(self, mech: Mechanism, load: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(k − ratio_min, largest steerable implement load N) per sample (seed 003, via mechanics.machine)."""
+        """(k − ratio_min, largest steerable implement load N) per sample (Popov 2009, via mechanics.machine)."""
         assert mech.tractor is not None   # the callers check: only mechanisms with a tractor block
         steer = steerability(mech.tractor, mech.gravity, self.frame_load_points, self.frame_load_forces,
                              np.broadcast_to(load, self.implement_cg[:, 0].shape), self.implement_cg[:, 0])
@@ -311,7 +311,7 @@ def _sines(t: np.ndarray, amplitudes: tuple[float, ...], freqs: tuple[float, ...
     return sum(a * np.sin(2.0 * np.pi * f * t + p) for a, f, p in zip(amplitudes, freqs, phases))
 
 
-LIFT_SEGMENTS = (("work", 2.0), ("raise", 3.6), ("transport", 3.0), ("lower", 4.0))  # s; seed 003: lift 3.5-3.8 s
+LIFT_SEGMENTS = (("work", 2.0), ("raise", 3.6), ("transport", 3.0), ("lower", 4.0))  # s; Popov 2009: lift 3.5-3.8 s
 
 
 def _lift(t: np.ndarray, setting: _Setting, rng: np.random.Generator) -> _Profile:

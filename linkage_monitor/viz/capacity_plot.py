@@ -1,4 +1,4 @@
-"""Lift-capacity curve over the cylinder stroke as a PNG (matplotlib), drawn like seed 003 Fig. 4-5.
+"""Lift-capacity curve over the cylinder stroke as a PNG (matplotlib), drawn like Popov 2009 Fig. 4-5.
 
 Capacity at the hitch axis, 610 mm behind it and at the implement's centre of gravity (kN) vs. the
 lift cylinder length (m), with the steerability limit: the largest implement weight the tractor

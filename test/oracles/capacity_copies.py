@@ -2,7 +2,7 @@
 by the frozen numpy solver (oracles.numpy_solver). The copy's implement load acts at the point, the
 lift cylinder's cap pressure is "measured" at p_max·η (rod chamber at 0 gauge), loads and ground
 contacts are removed; the solver's implement-load estimate in the copy is the vertical load (N) the
-cylinder holds there (seed 003: G = p_max·η·A / I, by the equilibrium of every body). The package
+cylinder holds there (Popov 2009: G = p_max·η·A / I, by the equilibrium of every body). The package
 computes the same by virtual work (mechanics.kernels.lift_capacity). SI units.
 """
 

@@ -1,4 +1,4 @@
-"""The bundled presets: one YAML per seed paper beside this file, read with importlib.resources
+"""The bundled presets: one YAML per source paper beside this file, read with importlib.resources
 (so they load from a wheel or a zip as well as from a checkout)."""
 
 from __future__ import annotations

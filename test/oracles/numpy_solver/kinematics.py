@@ -404,7 +404,7 @@ class Kinematics:
 
     # ---- rates ----------------------------------------------------------------------------
     def rates(self, q: np.ndarray, s_dot: np.ndarray, s_ddot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Body velocities q̇ and accelerations q̈ (N, n) from input rates ṡ and s̈ (seed 004, φ', φ'')."""
+        """Body velocities q̇ and accelerations q̈ (N, n) from input rates ṡ and s̈ (Naumenko et al. 2021, φ', φ'')."""
         n_pose = q.shape[0]
         nh, nc = self.hinge_att.shape[1], self.cyl_att.shape[1]
         _, jac = self.residual_jacobian(q, np.zeros((n_pose, self.n_inputs)))

@@ -3,7 +3,7 @@
 Equations per moving body: ΣFx = 0, ΣFz = 0, ΣM about the origin B = 0 (moment rows divided by
 the length scale ``lc`` so the matrix is dimensionless). Unknowns: hinge reactions (fx, fz: the
 force on ``bodies[1]`` from ``bodies[0]``), axial forces of cylinders whose force is not measured
-(+ = pushing), contact normal forces (friction T = f·N folded into the column, seed 002), and,
+(+ = pushing), contact normal forces (friction T = f·N folded into the column, Kotov & Krol), and,
 when measured cylinder forces leave an extra equation, the vertical load at the implement cg.
 The index structure (:class:`StaticsLayout`) is built once per set of measured cylinder forces.
 """
@@ -197,7 +197,7 @@ class StaticsLayout:
                   self.end_sign * member_force.take(self.end_member, axis=1)[..., None] * axes.take(self.end_member, axis=1)]
         att, scatter = self.known_att, self._scatter_static
         moments: float | np.ndarray = 0.0
-        if accel is not None:  # kinetostatics (seed 004): −m·a_cg at the cg, −I·α about it
+        if accel is not None:  # kinetostatics (Naumenko et al. 2021): −m·a_cg at the cg, −I·α about it
             a_att, alpha = accel
             forces.append(-self.mass[:, None] * a_att[:, self.mass_att])
             att, scatter = self.known_att_accel, self._scatter_accel

@@ -1,14 +1,14 @@
-"""Seed 002 (Kotov & Krol) oracle: the KSU-1 header linkage by kinematics and virtual work.
+"""Kotov & Krol oracle: the KSU-1 header linkage by kinematics and virtual work.
 
 Closed-form position analysis (lever 5 turns about O; the adapter closes the four-bar
 O-F-I-H with the locked tilt cylinder; lever 2 turns about B when the lift cylinder's length
-changes) and virtual work with the shoe force N*(n - f*t) (seed 002: T70 = f*N70):
+changes) and virtual work with the shoe force N*(n - f*t) (Kotov & Krol: T70 = f*N70):
 
 - N70:  spring*dL_spring + (-G7)*dz_G + N*(dz_R - f*dx_R) = 0 along the one DOF (lever 5 turns);
 - HI:   F_HI*ds + (-G7)*dz_G + N*(dz_R - f*dx_R) = 0 when only the tilt cylinder's length s
         changes (lever 5 held);
 - AC:   F_AC*da + spring*dL_spring = 0 when only the lift cylinder's length a changes: lever 2
-        (seed 002, eq. 4) sees the spring block and the lift cylinder only.
+        (Kotov & Krol, eq. 4) sees the spring block and the lift cylinder only.
 
 Derivatives by a 5-point central difference (error ~1e-11 relative). Nothing here imports
 ``linkage_monitor``. Frame x forward, z up, m, N; points by the preset's letters.

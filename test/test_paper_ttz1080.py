@@ -1,6 +1,6 @@
-"""Seed 001: TTZ-1080 wheelbase-change parallelogram OKMN (preset ``ttz1080_base_change``).
+"""Akhmetov & Usmanov 2018: TTZ-1080 wheelbase-change parallelogram OKMN (preset ``ttz1080_base_change``).
 
-What the paper's numbers allow to check (docs/seeds_001_002_004.md has the full account):
+What the paper's numbers allow to check (docs/parallelogram-mower-coulter-checks.md has the full account):
 
 - Checkable and reproduced: the mobility W = 1 (eq. 1); the arithmetic of eqs. (6), (7), (12),
   the force-component square roots and the 9 deg decomposition; the paper's vertical balance of
@@ -22,12 +22,12 @@ import numpy as np
 import pytest
 
 from linkage_monitor.mechanics import Inputs, Solver, load_preset
-from oracles.seed001 import G_PAPER, arm_about, cylinder_force, theta_for_length, vertical_load
+from oracles.akhmetov2018 import G_PAPER, arm_about, cylinder_force, theta_for_length, vertical_load
 
-KGF = G_PAPER  # N per kgf as the paper uses it: 1976 kgf = 19384.56 N (seed 001 table)
-G_N = 19384.56  # N, front-axle weight (seed 001 table)
-F_ROLL = 0.018  # rolling resistance coefficient on concrete (seed 001 table)
-F_H_PAPER = 12560.0 * KGF  # N, cylinder push (seed 001, eq. 6)
+KGF = G_PAPER  # N per kgf as the paper uses it: 1976 kgf = 19384.56 N (Akhmetov & Usmanov 2018 table)
+G_N = 19384.56  # N, front-axle weight (Akhmetov & Usmanov 2018 table)
+F_ROLL = 0.018  # rolling resistance coefficient on concrete (Akhmetov & Usmanov 2018 table)
+F_H_PAPER = 12560.0 * KGF  # N, cylinder push (Akhmetov & Usmanov 2018, eq. 6)
 
 
 @pytest.fixture(scope="module")
@@ -47,9 +47,9 @@ def _points(mech) -> dict[str, np.ndarray]:
 # ---- structure ---------------------------------------------------------------------------
 
 def test_mobility_is_one_and_the_cylinder_closes_it(mech, solver):
-    """W = 3n - 2p2 - p1 = 3*3 - 2*4 - 0 = 1 (seed 001, eq. 1); the measured cylinder makes it 0."""
+    """W = 3n - 2p2 - p1 = 3*3 - 2*4 - 0 = 1 (Akhmetov & Usmanov 2018, eq. 1); the measured cylinder makes it 0."""
     n, p2 = len(mech.moving_bodies), len(mech.hinges)
-    assert (n, p2) == (3, 4)  # seed 001, Fig. 2: links OK, KM, MN; hinges O, K, M, N
+    assert (n, p2) == (3, 4)  # Akhmetov & Usmanov 2018, Fig. 2: links OK, KM, MN; hinges O, K, M, N
     assert 3 * n - 2 * p2 - len(mech.measurements.cylinders) == 0
     kin = solver.kin
     _, jac = kin.residual_jacobian(kin.q_ref[None], kin.reference_inputs()[None])
@@ -59,7 +59,7 @@ def test_mobility_is_one_and_the_cylinder_closes_it(mech, solver):
 
 
 def test_preset_geometry_matches_the_paper(mech):
-    """|OK| = |MN| = 0.380, |KM| = |ON| = 0.600, R_c = 0.170, h_c = 98.55 mm (seed 001 table, eq. 6)."""
+    """|OK| = |MN| = 0.380, |KM| = |ON| = 0.600, R_c = 0.170, h_c = 98.55 mm (Akhmetov & Usmanov 2018 table, eq. 6)."""
     p = _points(mech)
     dist = lambda a, b: float(np.hypot(*(p[a] - p[b])))  # noqa: E731
     assert dist("O", "K") == pytest.approx(0.380, abs=2e-5)
@@ -77,7 +77,7 @@ def test_preset_geometry_matches_the_paper(mech):
 # ---- the paper's own arithmetic -----------------------------------------------------------
 
 def test_paper_arithmetic_of_eqs_6_to_12():
-    """Pure arithmetic of seed 001 with its printed inputs (kgf, mm)."""
+    """Pure arithmetic of Akhmetov & Usmanov 2018 with its printed inputs (kgf, mm)."""
     f_h, h_c, l1, l2, g_n = 12560.0, 98.55, 380.0, 600.0, 1976.0
     m_f = 35.57 * 750.65                                              # P_f * arm, eq. (7)
     assert 0.018 * g_n == pytest.approx(35.57, abs=0.005)             # P_f = f * G_n (table)
@@ -97,7 +97,7 @@ def test_paper_arithmetic_of_eqs_6_to_12():
 
 
 def test_paper_internal_consistency():
-    """What the paper's numbers satisfy among themselves (seed 001)."""
+    """What the paper's numbers satisfy among themselves (Akhmetov & Usmanov 2018)."""
     # KM: F12t and F32t are the vertical hinge forces of a horizontal bar; with G_n they balance
     assert 1077.3 + 898.7 == pytest.approx(1976.0, abs=0.05)
     assert 340.62 + 259.36 == pytest.approx(600.0, abs=0.05)          # h2 + h2' = |KM|
@@ -124,7 +124,7 @@ def test_cylinder_force_derived_from_axle_load_matches_virtual_work(mech, solver
     """Over the stroke, the solver's push equals the virtual-work value for G_n and P_f (oracle)."""
     p = _points(mech)
     load = np.asarray(mech.loads[0].force)
-    assert load == pytest.approx([-F_ROLL * G_N, G_N])  # seed 001 table: G_n up, P_f = f*G_n back
+    assert load == pytest.approx([-F_ROLL * G_N, G_N])  # Akhmetov & Usmanov 2018 table: G_n up, P_f = f*G_n back
     lengths = np.linspace(0.55, 0.84, 7)
     batch = solver.solve_batch(cylinders={"base_change_cylinder": lengths})
     assert np.all(batch.status == 0), batch.messages

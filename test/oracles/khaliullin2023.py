@@ -1,8 +1,8 @@
-"""Seed 000 (Khaliullin et al. 2023) closed forms, an oracle for the `damping_hitch` preset.
+"""Khaliullin et al. 2023 closed forms, an oracle for the `damping_hitch` preset.
 
 The paper solves its hitch link by link with hand-derived formulas, eqs. (1)-(72). This
 module implements the reactions it prints, eqs. (6)-(8), (18)-(20), (40)-(42), (61)-(63)
-and (70)-(72), in two variants (see docs/seed000_closed_forms.md for the derivation):
+and (70)-(72), in two variants (see docs/damping-hitch-closed-forms.md for the derivation):
 
 - ``"printed"``: the formulas as printed. Every lever arm is a triangle height from
   Heron's formula, ``arm = 2 S / base`` (eqs. 2-5 and alike), hence never negative; the
@@ -76,7 +76,7 @@ def lever_arm(pts: Points, about: str, tail: str, head: str, variant: Variant) -
     corrected: the moment about `about` of a unit force at `tail` pointing to `head`,
     counter-clockwise positive in the paper frame. The caller orders tail/head so that the
     corrected arm is positive in the orientation of the paper's figure (the sense is
-    derived for each arm in docs/seed000_closed_forms.md).
+    derived for each arm in docs/damping-hitch-closed-forms.md).
     """
     p, q, r = pts[about], pts[tail], pts[head]
     base = length(q, r)
@@ -87,7 +87,7 @@ def lever_arm(pts: Points, about: str, tail: str, head: str, variant: Variant) -
 
 
 def implement_reactions(pts: Points, r_x: float, r_y: float, variant: Variant) -> dict[str, float]:
-    """Top-link tension R_C = R_D and hinge B reaction R_BX, R_BY (N); seed 000 eqs. (6)-(8)."""
+    """Top-link tension R_C = R_D and hinge B reaction R_BX, R_BY (N); Khaliullin et al. 2023 eqs. (6)-(8)."""
     X, Y = pts["G"]
     B, C, D = pts["B"], pts["C"], pts["D"]
     l_dc = length(D, C)
@@ -159,7 +159,7 @@ def sub_frame_reactions(
 
 
 def hitch_reactions(pts: Points, r_x: float, r_y: float, variant: Variant) -> dict[str, float]:
-    """All reactions of seed 000, link by link in the paper's order (N); eqs. (6)-(72)."""
+    """All reactions of Khaliullin et al. 2023, link by link in the paper's order (N); eqs. (6)-(72)."""
     out = implement_reactions(pts, r_x, r_y, variant)
     out |= rocker_reactions(pts, out["R_D"], variant)
     out |= lower_link_reactions(pts, out["R_BX"], out["R_BY"], variant)

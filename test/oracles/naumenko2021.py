@@ -1,7 +1,7 @@
-"""Seed 004 (Naumenko et al. 2021) oracle: coulter parallelogram over a sinusoidal relief.
+"""Naumenko et al. 2021 oracle: coulter parallelogram over a sinusoidal relief.
 
-Relief (seed 004, eq. 13): y = (h/2)(1 - cos(2 pi x / l)), x = v t + x0 (here x0 = 0: the wheel
-starts in a trough). The parallelogram turns by phi (seed 004's sense: B rises and moves back):
+Relief (Naumenko et al. 2021, eq. 13): y = (h/2)(1 - cos(2 pi x / l)), x = v t + x0 (here x0 = 0: the wheel
+starts in a trough). The parallelogram turns by phi (Naumenko et al. 2021's sense: B rises and moves back):
 x_r = AB sin(phi0 + phi) - AB sin(phi0), y_r = AB cos(phi0) - AB cos(phi0 + phi) (eq. 14-15), and
 the post point follows the relief, which gives the implicit equation (16):
 
@@ -114,7 +114,7 @@ def rotor_acceleration(link: Rotor, phi: float, dphi: float, ddphi: float) -> np
 
 def normal_force(phi: float, dphi: float, ddphi: float, links: tuple[Rotor, ...], post_mass: float,
                  link: Parallelogram, friction: float, gravity: float) -> float:
-    """Wheel normal force N (N) by virtual work along phi with d'Alembert forces (seed 004, eq. 1-12).
+    """Wheel normal force N (N) by virtual work along phi with d'Alembert forces (Naumenko et al. 2021, eq. 1-12).
 
     The ground force on the post is N*(0, 1) - f*N*(1, 0) (vertical normal, drag backwards).
     """

@@ -1,4 +1,4 @@
-"""Seed 002: KSU-1 mower header linkage in field-copying mode (preset ``ksu1_mower_adapter``).
+"""Kotov & Krol: KSU-1 mower header linkage in field-copying mode (preset ``ksu1_mower_adapter``).
 
 The paper's finding (Fig. 2, conclusions): the shoe drag T70 = f*N70 changes the tilt-cylinder
 force HI noticeably, while the lift-cylinder force AC follows the spring block only. Its
@@ -14,10 +14,10 @@ import pytest
 from scipy.optimize import brentq
 
 from linkage_monitor.mechanics import Solver, apply_overrides, load_preset
-from oracles.seed002 import Header, forces, pose
+from oracles.kotov_krol import Header, forces, pose
 
-FRICTIONS = (0.0, 0.5, 0.6, 0.7, 0.8)  # seed 002: f = 0; 0.5; 0.6; 0.7; 0.8
-COPY = 0.125  # m, seed 002: copying range +-125 mm from the conditional horizon
+FRICTIONS = (0.0, 0.5, 0.6, 0.7, 0.8)  # Kotov & Krol: f = 0; 0.5; 0.6; 0.7; 0.8
+COPY = 0.125  # m, Kotov & Krol: copying range +-125 mm from the conditional horizon
 
 
 @pytest.fixture(scope="module")
@@ -84,7 +84,7 @@ def test_forces_match_virtual_work_oracle(mech, angles, sweep):
 
 
 def test_lift_force_follows_the_spring_only_by_eq_4(mech, angles, sweep):
-    """Seed 002, eq. (4): R23 = -((BD x R24).e_z) / ((BC x ort(AC)).e_z), R24 = spring force on lever 2."""
+    """Kotov & Krol, eq. (4): R23 = -((BD x R24).e_z) / ((BC x ort(AC)).e_z), R24 = spring force on lever 2."""
     ref = _ref(mech)
     s = mech.springs[0]
     bd, bc = ref["D"] - ref["B"], ref["C"] - ref["B"]
@@ -100,7 +100,7 @@ def test_lift_force_follows_the_spring_only_by_eq_4(mech, angles, sweep):
 
 
 def test_shoe_drag_changes_the_tilt_force_and_not_the_lift_force(sweep):
-    """The paper's finding over +-125 mm and f = 0 ... 0.8 (seed 002, Fig. 2 a, b)."""
+    """The paper's finding over +-125 mm and f = 0 ... 0.8 (Kotov & Krol, Fig. 2 a, b)."""
     lift0, tilt0 = sweep[0.0].cylinder_force["lift_cylinder"], sweep[0.0].cylinder_force["tilt_cylinder"]
     for f in FRICTIONS[1:]:
         lift = sweep[f].cylinder_force["lift_cylinder"]

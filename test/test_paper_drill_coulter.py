@@ -1,6 +1,6 @@
-"""Seed 004: seed-drill coulter parallelogram over a sinusoidal relief (preset ``drill_coulter``).
+"""Naumenko et al. 2021: seed-drill coulter parallelogram over a sinusoidal relief (preset ``drill_coulter``).
 
-Relief of seed 004: wavelength l = 0.2 m, amplitude A = 0.049 m with A = h/2 (the paper: "wave
+Relief of Naumenko et al. 2021: wavelength l = 0.2 m, amplitude A = 0.049 m with A = h/2 (the paper: "wave
 length l = 2a, amplitude A = h/2", Fig. 2), so y = (h/2)(1 - cos(2 pi x/l)) rises 0 ... h = 0.098 m.
 Checks: (1) the solver's kinematics with the measured angle -phi(t) from eq. (16) put the wheel
 centre on the relief; (2) kinetostatics with phi', phi'' from eq. (17)-(18) match a d'Alembert
@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from linkage_monitor.mechanics import Solver, load_preset
-from oracles.seed004 import (Parallelogram, Relief, Rotor, normal_force, phi_at, phi_rates, rotor_acceleration)
+from oracles.naumenko2021 import (Parallelogram, Relief, Rotor, normal_force, phi_at, phi_rates, rotor_acceleration)
 
-RELIEF = Relief(h=2 * 0.049, l=0.2)  # seed 004: l = 0.2 m, A = 0.049 m = h/2
+RELIEF = Relief(h=2 * 0.049, l=0.2)  # Naumenko et al. 2021: l = 0.2 m, A = 0.049 m = h/2
 ANGLE = "upper_link_angle"            # reads -phi (the preset's convention)
 
 

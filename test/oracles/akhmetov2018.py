@@ -1,4 +1,4 @@
-"""Seed 001 (Akhmetov & Usmanov 2018) oracle: the TTZ-1080 parallelogram OKMN by virtual work.
+"""Akhmetov & Usmanov 2018 oracle: the TTZ-1080 parallelogram OKMN by virtual work.
 
 The bar KM of a parallelogram does not rotate: it translates with K on the circle of radius
 |OK| about O. Turning the front link OK by dtheta (counter-clockwise +) moves every point of KM

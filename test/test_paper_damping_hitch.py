@@ -1,10 +1,10 @@
-"""Seed 000 oracle: the general solver on the `damping_hitch` preset vs the paper's closed forms.
+"""Khaliullin et al. 2023 oracle: the general solver on the `damping_hitch` preset vs the paper's closed forms.
 
-The closed forms (test/oracles/seed000.py, Khaliullin et al. 2023, eqs. 6-72) are derived
+The closed forms (test/oracles/khaliullin2023.py, Khaliullin et al. 2023, eqs. 6-72) are derived
 link by link by hand; the solver assembles one global system. Where the printed formulas
 are right they must agree to round-off; where they are wrong (eq. 20's typo, Heron arms and
 arccos losing a sign) the tests assert the error the derivation in
-docs/seed000_closed_forms.md predicts.
+docs/damping-hitch-closed-forms.md predicts.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from linkage_monitor.mechanics import Inputs, Solver, mechanism_from_dict, preset_path
-from oracles import seed000 as oracle
+from oracles import khaliullin2023 as oracle
 
 PRESET = yaml.safe_load(preset_path("damping_hitch").read_text(encoding="utf-8"))
 POINT_NAMES = sorted(PRESET["points"])
