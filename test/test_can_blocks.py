@@ -221,14 +221,15 @@ SYNTHETIC_MAPS = {
     "numpy": """mechanism: belarus_1221
 dbc: [synthetic.dbc]
 inputs:
-  lift_arm_angle: {message: Mixed, signal: Angle, unit: deg, scale: 1.5, offset: -160}
-  lift_cylinder: {message: Mixed, signal: Stroke, unit: mm}
+  lift_arm_angle: {message: Mixed, signal: Angle, unit: deg, scale: 1.5, offset: -160, source_address: 0x22}
+  lift_cylinder: {message: Mixed, signal: Stroke, unit: mm, source_address: 0x22}
   lift_cap_pressure: {message: Pressure, signal: Cap, unit: kPa, pressure: absolute}
 """,
     "one by one": """mechanism: belarus_1221
 dbc: [synthetic.dbc]
 inputs:
-  lift_arm_angle: {message: Mixed, signal: Nibble, table: {signal: [1, 5, 14], value: [-2.9, -2.8, -2.7]}}
+  lift_arm_angle: {message: Mixed, signal: Nibble, table: {signal: [1, 5, 14], value: [-2.9, -2.8, -2.7]},
+                   source_address: 0x80}
   lift_cap_pressure: {message: FloatPressure, signal: Cap, unit: kPa, pressure: gauge}
 """,
 }
@@ -548,7 +549,8 @@ def test_can_to_bag_in_blocks_records_what_the_bridge_records(tmp_path: Path, ca
                                                    _mcap_messages(tmp_path / "frames")]
     assert _rosbags_messages(tmp_path / "blocks") == _rosbags_messages(tmp_path / "frames")
     assert converted.counts == reference.counts
-    refused = [frame for frame in frames if reference.decode(frame, frame.stamp_ns).finding is not None]
+    again = _decoder(text, tmp_path)   # a new decoder: the sources a decoder has seen are its state
+    refused = [frame for frame in frames if again.decode(frame, frame.stamp_ns).finding is not None]
     assert len(converted.refusals) == len(refused) > 0
 
 

@@ -170,8 +170,8 @@ def test_mapping_errors_name_the_key(change: str, key: str) -> None:
     ("inputs:\n  rockshaft: {message: RearHitchStatus, signal: RearHitchPosition}\n", "inputs.rockshaft"),
     ("inputs:\n  lift_arm_angle: {message: NoSuchMessage, signal: X}\n", "inputs.lift_arm_angle.message"),
     ("inputs:\n  lift_arm_angle: {message: RearHitchStatus, signal: X}\n", "inputs.lift_arm_angle.signal"),
-    ("inputs:\n  lift_cap_pressure: {message: ExampleLiftCylinderPressure, signal: LiftCylinderCapPressure}\n",
-     "inputs.lift_cap_pressure.pressure"),
+    ("inputs:\n  lift_cap_pressure: {message: ExampleLiftCylinderPressure, signal: LiftCylinderCapPressure, "
+     "unit: kPa}\n", "inputs.lift_cap_pressure.pressure"),
     ("inputs:\n  lift_arm_angle: {message: RearHitchStatus, signal: RearHitchPosition, unit: kPa}\n",
      "inputs.lift_arm_angle.unit"),
 ])

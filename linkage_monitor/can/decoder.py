@@ -7,8 +7,13 @@ not use, a remote request) or refused with a Finding naming the frame and the re
 frame, bus-off, a data length other than the DBC's, a J1939 'error indicator' or 'not
 available' value, a value outside the signal's DBC range or outside the mapping's table). A
 refused frame feeds nothing: the monitor never solves on a value that is not there.
-J1939 frames (29-bit identifiers of a J1939 DBC message) are matched by parameter group number,
-whatever their source address and priority. Units SI (rad, m, Pa).
+J1939 frames (29-bit identifiers of a J1939 DBC message) are matched by parameter group number and
+source address, whatever their priority: an input whose mapping names a ``source_address`` takes
+frames of that ECU only (those of other sources are ignored, counted per identifier); an input that
+names none takes one source, and once a second one sends its parameter group both are refused
+(``sensors_disagree``, naming the two): two ECUs give two values, and the monitor would alternate
+between them. A multiplexed message feeds the mapped signals its multiplexer selects in each frame.
+Units SI (rad, m, Pa).
 
 ``decode_block`` decodes a FrameBlock (many frames, as columns) with numpy: the mapped signals' raw
 values from the data bytes (``signals``), scaled, checked and converted by the same arithmetic as
@@ -58,6 +63,7 @@ OUTCOMES = tuple(Outcome)   # BlockDecoded.outcome holds indices into this
 DECODED, IGNORED, REFUSED = (OUTCOMES.index(o) for o in (Outcome.DECODED, Outcome.IGNORED, Outcome.REFUSED))
 EXACT = 1 << 53   # integers up to this are exact as float64
 _Pascal = TypeVar("_Pascal", float, np.ndarray)
+_Ident = TypeVar("_Ident", int, np.ndarray)
 
 
 @dataclass(frozen=True)
@@ -78,13 +84,29 @@ class FrameCounts:
     ignored: int = 0
     refused: int = 0
     unknown_ids: Counter = field(default_factory=Counter)
+    untrusted_ids: Counter = field(default_factory=Counter)   # J1939 frames of a source the mapping does not name
+    two_sources: dict[str, list[int]] = field(default_factory=dict)   # message -> the source addresses sending it
 
     def summary(self) -> str:
-        """``1203 frames: 1200 decoded, 2 ignored (1 unknown identifier), 1 refused``."""
-        ids = ", ".join(f"0x{i:X}" for i, _ in self.unknown_ids.most_common(5))
-        unknown = f" ({sum(self.unknown_ids.values())} of unknown identifiers {ids})" if self.unknown_ids else ""
-        return (f"{self.received} frames: {self.decoded} decoded, {self.ignored} ignored{unknown}, "
-                f"{self.refused} refused")
+        """``1203 frames: 1200 decoded, 2 ignored (2 of unknown identifiers 0x123 ×2), 1 refused``, then
+        the frames of untrusted sources and the messages sent by two sources."""
+        ignored = [f"{sum(ids.values())} of {what} {_counted(ids)}" for what, ids in (
+            ("unknown identifiers", self.unknown_ids), ("sources the mapping does not trust", self.untrusted_ids)) if ids]
+        text = (f"{self.received} frames: {self.decoded} decoded, {self.ignored} ignored"
+                f"{' (' + '; '.join(ignored) + ')' if ignored else ''}, {self.refused} refused")
+        for message, sources in self.two_sources.items():
+            text += (f"; {message} sent by {len(sources)} sources ({', '.join(f'0x{a:02X}' for a in sources)}): "
+                     "not used, name the one to trust (source_address)")
+        return text
+
+
+SHOWN_IDS = 10   # identifiers a summary lists with their counts
+
+
+def _counted(ids: Counter) -> str:
+    """``0x123 ×2, 0x18FEF100 ×1`` (the most frequent SHOWN_IDS, then how many more)."""
+    shown = ", ".join(f"0x{i:X} ×{n}" for i, n in ids.most_common(SHOWN_IDS))
+    return shown + (f" and {len(ids) - SHOWN_IDS} more" if len(ids) > SHOWN_IDS else "")
 
 
 @dataclass(frozen=True)
@@ -113,14 +135,16 @@ class _MessageRoute:
     routes: tuple[_Route, ...]
     j1939: bool
     vector: tuple[_Vector, ...] | None   # its signals read with numpy; None: decoded one frame at a time
+    source_address: int | None = None    # J1939: the one ECU trusted; None: any one source
 
 
 class _RowKeys(NamedTuple):
-    """Per frame of a block: its mapped message (index into the decoder's routes; -1: none) and whether
-    a DBC knows its identifier."""
+    """Per frame of a block: its mapped message (index into the decoder's routes; -1: none), whether
+    a DBC knows its identifier and whether it is of a source the mapping does not trust."""
 
     route: np.ndarray
     known: np.ndarray
+    untrusted: np.ndarray
 
 
 class DecodedInputs(NamedTuple):
@@ -192,6 +216,59 @@ def load_databases(paths: Sequence[str | Path]) -> Database:
     return db
 
 
+def _is_j1939(message: Any) -> bool:
+    """Whether a cantools message is a J1939 parameter group (29-bit, the DBC's ProtocolType J1939)."""
+    return bool(message.is_extended_frame and message.protocol == "j1939")
+
+
+def source_address(ident: _Ident) -> _Ident:
+    """The J1939 source address of a 29-bit identifier (its low byte; also of an array of them)."""
+    return ident & 0xFF
+
+
+# DBC unit spellings -> the mapping's unit names (UNITS), beside the names themselves in any case
+UNIT_ALIASES = {"°": "deg", "degree": "deg", "degrees": "deg", "millimetre": "mm", "millimeter": "mm"}
+
+
+def dbc_unit(text: str | None) -> tuple[str, str] | None:
+    """(quantity, unit) of a DBC signal's unit string when it is one of UNITS (``kPa`` -> pressure, kPa;
+    ``KPA`` too), None for an empty or other unit (``%``, ``rpm``)."""
+    name = (text or "").strip()
+    name = UNIT_ALIASES.get(name.lower(), name)
+    for quantity, units in UNITS.items():
+        for unit in units:
+            if name == unit or name.lower() == unit.lower():
+                return quantity, unit
+    return None
+
+
+def _check_signal(where: str, item: InputMap, kind: str, message: Any, signal: Any) -> None:
+    """InputError if the DBC signal cannot feed ``item`` as mapped: a scale of 0 (every value the
+    offset), or a unit other than the mapping's: without a table, value = scale · signal + offset is
+    read in the mapping's ``unit`` (SI when none), so a DBC unit of the input's quantity must be that
+    unit, one of another quantity cannot be it, and any other DBC unit (``%``) needs ``unit`` written."""
+    name = f"{message.name}.{signal.name}"
+    if signal.scale == 0:
+        raise InputError(f"{where}.signal: {name} has factor 0 in the DBC: every frame would read its offset "
+                         f"({fmt(signal.offset)}); correct the signal's factor in the DBC")
+    if item.table is not None:
+        return   # the table maps the signal's unit to the mapping's
+    declared = (signal.unit or "").strip()
+    quantity = KIND_UNITS[kind]
+    mapped = item.unit or SI_UNIT[kind]
+    read_as = f"'{item.unit}'" if item.unit else f"{SI_UNIT[kind]} (no 'unit' given: SI)"
+    found = dbc_unit(declared)
+    if found is not None and found[0] != quantity:
+        raise InputError(f"{where}: the DBC gives {name} in {declared} (a {found[0]}), but {item.name} is "
+                         f"{'an' if kind == ANGLE else 'a'} {quantity}: map a {quantity} signal, or give a table")
+    if found is not None and found[1] != mapped:
+        raise InputError(f"{where}.unit: the DBC gives {name} in {declared}, the mapping reads it as {read_as}: "
+                         f"write 'unit: {found[1]}' (scale and offset then in {found[1]})")
+    if found is None and declared and item.unit is None:
+        raise InputError(f"{where}.unit: the DBC gives {name} in '{declared}', not a unit of {quantity}: write the "
+                         f"unit scale · signal + offset is in ('unit: {SI_UNIT[kind]}', ...), or give a table")
+
+
 def input_kinds(mech: Mechanism) -> dict[str, str]:
     """Measurement name -> its kind (angle, cylinder, pressure) in ``mech``."""
     kinds = {a.name: ANGLE for a in mech.measurements.angles}
@@ -213,7 +290,7 @@ class CanDecoder:
         self.counts = FrameCounts()
         kinds = input_kinds(mechanism)
         topic_of_sensor = {sensor: topic for topic, sensor in config.pressure_topics.items()}
-        grouped: dict[str, list[_Route]] = {}
+        grouped: dict[tuple[str, int | None], list[_Route]] = {}
         for item in mapping.inputs:
             where = f"mapping {mapping.source}: inputs.{item.name}"
             kind = kinds.get(item.name)
@@ -234,6 +311,7 @@ class CanDecoder:
             unit = item.unit or SI_UNIT[kind]
             if unit not in units:
                 raise InputError(f"{where}.unit: '{unit}' is not a unit of {KIND_UNITS[kind]} ({', '.join(units)})")
+            _check_signal(where, item, kind, message, signal)
             if kind == PRESSURE:
                 if item.pressure is None:
                     raise InputError(f"{where}.pressure: required for a pressure: gauge or absolute")
@@ -243,21 +321,27 @@ class CanDecoder:
             elif item.pressure is not None:
                 raise InputError(f"{where}.pressure: only for pressures ('{item.name}' is {'an' if kind == ANGLE else 'a'} "
                                  f"{kind})")
+            if item.source_address is not None and not _is_j1939(message):
+                raise InputError(f"{where}.source_address: {item.message} is not a J1939 message (29-bit, "
+                                 "ProtocolType J1939): its identifier names its sender; remove source_address")
             topic = topic_of_sensor[item.name] if kind == PRESSURE else config.topics.joint_states
-            grouped.setdefault(message.name, []).append(_Route(item, kind, signal, units[unit], topic))
+            grouped.setdefault((message.name, item.source_address), []).append(
+                _Route(item, kind, signal, units[unit], topic))
         self._by_id: dict[tuple[int, bool], _MessageRoute] = {}
-        self._by_pgn: dict[int, _MessageRoute] = {}
+        self._by_pgn: dict[int, dict[int | None, _MessageRoute]] = {}
         self._known_ids = {(m.frame_id, m.is_extended_frame) for m in db.messages}
-        self._known_pgns = {pgn(m.frame_id) for m in db.messages if m.is_extended_frame and m.protocol == "j1939"}
+        self._known_pgns = {pgn(m.frame_id) for m in db.messages if _is_j1939(m)}
         self._routes: list[_MessageRoute] = []
-        for name, routes in grouped.items():
+        self._senders: dict[int, list[int]] = {}   # route index -> the source addresses seen (any-source routes)
+        for (name, source_address), routes in grouped.items():
             message = db.get_message_by_name(name)
-            j1939 = message.is_extended_frame and message.protocol == "j1939"
-            route = _MessageRoute(message, tuple(routes), j1939, _vector_of(message, routes, j1939))
+            j1939 = _is_j1939(message)
+            route = _MessageRoute(message, tuple(routes), j1939, _vector_of(message, routes, j1939), source_address)
             self._routes.append(route)
-            self._by_id[(message.frame_id, message.is_extended_frame)] = route
             if j1939:
-                self._by_pgn[pgn(message.frame_id)] = route
+                self._by_pgn.setdefault(pgn(message.frame_id), {})[source_address] = route
+            else:
+                self._by_id[(message.frame_id, message.is_extended_frame)] = route
 
     # ---- one frame ----------------------------------------------------------------------------
     def decode(self, frame: Frame, receive_ns: int) -> Decoded:
@@ -277,11 +361,34 @@ class CanDecoder:
         return decoded
 
     def _route_of(self, ident: int, extended: bool) -> _MessageRoute | None:
-        """The mapped message of an identifier (J1939: by parameter group number), None if unmapped."""
+        """The mapped message of an identifier (J1939: by parameter group number and source address: the
+        source's own route, else the route of any source), None if unmapped or of an untrusted source."""
         route = self._by_id.get((ident, extended))
         if route is None and extended:
-            route = self._by_pgn.get(pgn(ident))
+            by_source = self._by_pgn.get(pgn(ident), {})
+            route = by_source.get(source_address(ident), by_source.get(None))
         return route
+
+    def _untrusted(self, ident: int, extended: bool) -> bool:
+        """Whether a J1939 frame is of a mapped parameter group whose inputs trust other sources only."""
+        return extended and pgn(ident) in self._by_pgn and self._route_of(ident, extended) is None
+
+    def _second_source(self, frame: Frame, index: int) -> Decoded | None:
+        """The refusal of a frame of any-source route ``index`` once two sources send its parameter group
+        (the sources seen kept in order), None while one source does."""
+        senders = self._senders.setdefault(index, [])
+        sender = source_address(frame.arbitration_id)
+        if sender not in senders:
+            senders.append(sender)
+        if len(senders) < 2:
+            return None
+        route = self._routes[index]
+        self.counts.two_sources[route.message.name] = list(senders)
+        names = ", ".join(r.input.name for r in route.routes)
+        return self._refuse(frame, Code.SENSORS_DISAGREE, (
+            f"comes from source address 0x{sender:02X}; {' and '.join(f'0x{a:02X}' for a in senders)} both send "
+            f"PGN {pgn(frame.arbitration_id)}: two ECUs give {names}, neither is used. Name the one to trust in "
+            f"the mapping (inputs.{route.routes[0].input.name}.source_address: 0x{senders[0]:02X})"), route.message)
 
     def _known(self, ident: int, extended: bool) -> bool:
         """Whether a DBC knows the identifier (J1939: its parameter group number)."""
@@ -305,11 +412,17 @@ class CanDecoder:
                 "damaged on the wire (check wiring, termination and bit rate)")))
         route = self._route_of(frame.arbitration_id, frame.is_extended)
         if route is None:
-            if not self._known(frame.arbitration_id, frame.is_extended):
+            if self._untrusted(frame.arbitration_id, frame.is_extended):
+                self.counts.untrusted_ids[frame.arbitration_id] += 1
+            elif not self._known(frame.arbitration_id, frame.is_extended):
                 self.counts.unknown_ids[frame.arbitration_id] += 1
             return Decoded(Outcome.IGNORED)
         if frame.is_remote:
             return Decoded(Outcome.IGNORED)
+        if route.j1939 and route.source_address is None:
+            refused = self._second_source(frame, self._routes.index(route))
+            if refused is not None:
+                return refused
         message = route.message
         if frame.dlc != message.length or len(frame.data) != message.length:
             return self._refuse(frame, Code.MALFORMED_INPUT, f"has {len(frame.data)} data bytes (DLC {frame.dlc}), "
@@ -320,6 +433,8 @@ class CanDecoder:
         pressures: list[tuple[str, float]] = []
         for r in route.routes:
             signal = r.signal
+            if signal.name not in raw:   # a multiplexed signal its multiplexer does not select in this frame
+                continue
             value = raw[signal.name]
             if route.j1939 and not signal.is_signed:
                 meaning = classify(int(value), signal.length)
@@ -355,7 +470,7 @@ class CanDecoder:
             events.append(JointStateEvent(self.config.topics.joint_states, tuple(names), tuple(positions), (),
                                           frame.stamp_ns, receive_ns))
         events.extend(PressureEvent(topic, value, frame.stamp_ns, receive_ns) for topic, value in pressures)
-        return Decoded(Outcome.DECODED, tuple(events))
+        return Decoded(Outcome.DECODED, tuple(events)) if events else Decoded(Outcome.IGNORED)
 
     # ---- many frames ---------------------------------------------------------------------------
     def decode_block(self, block: FrameBlock) -> BlockDecoded:
@@ -364,10 +479,14 @@ class CanDecoder:
         outcome = np.full(len(block), IGNORED, np.int8)
         keys = self._key_rows(block)
         single = block.is_error | (block.is_remote & (keys.route >= 0))
-        self._count_unknown(block.arbitration_id[(keys.route < 0) & ~keys.known & ~block.is_error])
+        unmapped = (keys.route < 0) & ~block.is_error
+        self._count_ids(self.counts.untrusted_ids, block.arbitration_id[unmapped & keys.untrusted])
+        self._count_ids(self.counts.unknown_ids, block.arbitration_id[unmapped & ~keys.untrusted & ~keys.known])
         inputs = []
         for index, route in enumerate(self._routes):
             rows = np.flatnonzero((keys.route == index) & ~single)
+            if route.j1939 and route.source_address is None:
+                rows = self._one_source_rows(index, block, rows, single)
             length = route.message.length
             fits = (block.dlc[rows] == length) & (block.length[rows] == length) & (route.vector is not None)
             single[rows[~fits]] = True
@@ -391,21 +510,40 @@ class CanDecoder:
         identifier of the block."""
         keys, inverse = np.unique(block.arbitration_id * 2 + block.is_extended, return_inverse=True)
         index = {id(route): k for k, route in enumerate(self._routes)}
-        route, known = np.full(len(keys), -1, np.int64), np.zeros(len(keys), bool)
+        route, known, untrusted = np.full(len(keys), -1, np.int64), np.zeros(len(keys), bool), np.zeros(len(keys), bool)
         for k, value in enumerate(keys.tolist()):
             ident, extended = value >> 1, bool(value & 1)
             found = self._route_of(ident, extended)
             route[k] = -1 if found is None else index[id(found)]
             known[k] = self._known(ident, extended)
+            untrusted[k] = self._untrusted(ident, extended)
         inverse = inverse.ravel()
-        return _RowKeys(route[inverse], known[inverse])
+        return _RowKeys(route[inverse], known[inverse], untrusted[inverse])
 
-    def _count_unknown(self, idents: np.ndarray) -> None:
-        """Count frames of identifiers no DBC knows (``idents``, in frame order) as ``decode`` does: each
+    @staticmethod
+    def _count_ids(counter: Counter, idents: np.ndarray) -> None:
+        """Count frames of identifiers ``idents`` (in frame order) into ``counter`` as ``decode`` does: each
         identifier at its first appearance."""
         ids, first, count = np.unique(idents, return_index=True, return_counts=True)
         for k in np.argsort(first, kind="stable").tolist():
-            self.counts.unknown_ids[int(ids[k])] += int(count[k])
+            counter[int(ids[k])] += int(count[k])
+
+    def _one_source_rows(self, index: int, block: FrameBlock, rows: np.ndarray, single: np.ndarray) -> np.ndarray:
+        """The frames ``rows`` of any-source route ``index`` sent while one source sends its parameter group
+        (kept for numpy); from the first frame of a second source on, every one is marked ``single``, for
+        ``decode`` to refuse (``_second_source``)."""
+        if not len(rows):
+            return rows
+        senders = self._senders.get(index, [])
+        sources = source_address(block.arbitration_id[rows])
+        first = senders[0] if senders else int(sources[0])
+        cut = len(rows) if len(senders) < 2 else 0
+        other = np.flatnonzero(sources[:cut] != first)
+        cut = int(other[0]) if len(other) else cut
+        single[rows[cut:]] = True
+        if cut:
+            self._senders[index] = [first]
+        return rows[:cut]
 
     def _decode_rows(self, route: _MessageRoute, block: FrameBlock, rows: np.ndarray
                      ) -> tuple[DecodedInputs, np.ndarray]:

@@ -25,8 +25,9 @@ UNITS: dict[str, dict[str, float]] = {
 }
 DEFAULT_SILENCE_S = 1.0
 TOP_KEYS = {"mechanism", "dbc", "silence_timeout", "inputs"}
-INPUT_KEYS = {"message", "signal", "unit", "scale", "offset", "table", "pressure"}
+INPUT_KEYS = {"message", "signal", "unit", "scale", "offset", "table", "pressure", "source_address"}
 PRESSURE_KINDS = ("gauge", "absolute")
+MAX_SOURCE_ADDRESS = 253   # J1939: 254 is the null address, 255 global
 
 
 @dataclass(frozen=True)
@@ -36,7 +37,8 @@ class InputMap:
     name: the mechanism's measurement (angle sensor, cylinder, pressure sensor); message / signal:
     DBC names; unit: the unit of the signal's physical value (after the DBC's scaling) or of the
     table's values; scale / offset: value = scale · signal + offset, in ``unit``; table: signal ->
-    value in ``unit`` instead of scale/offset; pressure: 'gauge' or 'absolute' (pressures only).
+    value in ``unit`` instead of scale/offset; pressure: 'gauge' or 'absolute' (pressures only);
+    source_address: the J1939 source address (ECU) whose frames are trusted, None: any one source.
     """
 
     name: str
@@ -47,6 +49,7 @@ class InputMap:
     offset: float = 0.0
     table: PositionTable | None = None
     pressure: str | None = None
+    source_address: int | None = None
 
 
 @dataclass(frozen=True)
@@ -103,16 +106,47 @@ def _input(name: str, data: Any, source: str) -> InputMap:
     pressure = data.get("pressure")
     if pressure is not None and pressure not in PRESSURE_KINDS:
         raise _fail(source, f"{where}.pressure", f"{pressure!r}: expected gauge or absolute")
-    return InputMap(name=name, message=data["message"], signal=data["signal"], unit=unit,
-                    scale=_number(data.get("scale", 1.0), source, f"{where}.scale"),
+    scale = _number(data.get("scale", 1.0), source, f"{where}.scale")
+    if scale == 0:
+        raise _fail(source, f"{where}.scale", f"0 makes every value of {data['signal']} the offset: give the "
+                    "signal's factor (default 1)")
+    return InputMap(name=name, message=data["message"], signal=data["signal"], unit=unit, scale=scale,
                     offset=_number(data.get("offset", 0.0), source, f"{where}.offset"), table=table,
-                    pressure=pressure)
+                    pressure=pressure, source_address=_source_address(data.get("source_address"), source, where))
+
+
+def _source_address(value: Any, source: str, where: str) -> int | None:
+    """The J1939 source address an input trusts (0 to MAX_SOURCE_ADDRESS), None if not given."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_SOURCE_ADDRESS:
+        raise _fail(source, f"{where}.source_address", f"{value!r}: expected the J1939 source address of the ECU "
+                    f"to trust, 0 to {MAX_SOURCE_ADDRESS} (0xFD), e.g. 0xF0")
+    return value
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """yaml's safe loader refusing a key given twice in one mapping (yaml keeps the last silently)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        seen: dict[Any, int] = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            line = key_node.start_mark.line + 1
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key {key!r} given twice (lines {seen[key]} and {line}): keep one", key_node.start_mark)
+            seen[key] = line
+        return super().construct_mapping(node, deep=deep)
 
 
 def mapping_from_text(text: str, source: str, folder: Path) -> CanMapping:
     """Parse and check the structure of a mapping (not yet against DBC and mechanism)."""
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_UniqueKeyLoader)   # noqa: S506 - a safe loader
+    except yaml.constructor.ConstructorError as exc:
+        raise InputError(f"mapping {source}: line {exc.problem_mark.line + 1 if exc.problem_mark else '?'}: "
+                         f"{exc.problem}") from None
     except yaml.YAMLError as exc:
         raise InputError(f"mapping {source}: not YAML ({str(exc).splitlines()[0]})") from None
     if not isinstance(data, Mapping):
@@ -146,4 +180,7 @@ def load_mapping(path: str | Path) -> CanMapping:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise InputError(f"mapping {path}: cannot be read ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"mapping {path}: not UTF-8 text (byte 0x{exc.object[exc.start]:02X} at offset {exc.start}): "
+                         "save it as UTF-8") from None
     return mapping_from_text(text, str(path), path.parent)

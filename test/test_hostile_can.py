@@ -1,0 +1,194 @@
+"""The CAN surfaces under a hostile field test: two ECUs sending one parameter group, units and
+factors the mapping gets wrong, a multiplexed DBC message, duplicate mapping keys, a non-UTF-8
+mapping, garbage and cut lines in a candump log, error frames of every class in a log, and a
+bus flooded beyond what the bridge works off. Each test reproduces the fault it holds."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import can
+import pytest
+
+from linkage_monitor.can.candump import read_candump
+from linkage_monitor.can.decoder import CanDecoder, Outcome, load_databases
+from linkage_monitor.can.frames import Frame, FrameBlock, to_message
+from linkage_monitor.can.mapping import load_mapping, mapping_from_text
+from linkage_monitor.can.sources import read_log_blocks
+from linkage_monitor.can.to_bag import blocks_to_bag
+from linkage_monitor.mechanics import InputError, load_description
+from linkage_monitor.monitoring.config import MonitorConfig
+from linkage_monitor.monitoring.events import JointStateEvent
+from linkage_monitor.monitoring.findings import Code
+
+ROOT = Path(__file__).resolve().parent.parent
+DBC = ROOT / "config" / "can" / "isobus_hitch.dbc"
+MAP = ROOT / "config" / "can" / "belarus_1221.yaml"
+LOG = ROOT / "bags" / "can" / "belarus_1221_lift.log"
+STAMP = 1_767_225_600_000_000_000
+HITCH_F0, HITCH_80 = 0x0CFE45F0, 0x0CFE4580   # PGN 65093 (rear hitch status) from the TECU (0xF0) and from 0x80
+
+
+def _decoder(mapping_text: str | None = None, folder: Path = ROOT / "config" / "can") -> CanDecoder:
+    mapping = load_mapping(MAP) if mapping_text is None else mapping_from_text(mapping_text, "m.yaml", folder)
+    mech = load_description("belarus_1221")
+    return CanDecoder(load_databases(mapping.dbc), mapping, mech, MonitorConfig.default("belarus_1221", mech), "can0")
+
+
+def _hitch(ident: int, position_raw: int, k: int) -> Frame:
+    """A rear hitch status frame: position raw · 0.4 % (byte 1), the rest of the shipped log's first frame."""
+    return Frame(STAMP + k * 10_000_000, ident, True, False, False, 8,
+                 bytes([position_raw, 0x40, 0xFF, 0xFF, 0xFF, 0x3F, 0, 0]))
+
+
+def _two_ecus(n: int = 20) -> list[Frame]:
+    """Two ECUs sending PGN 65093 in turn with different positions: 50 % from 0xF0, 60 % from 0x80."""
+    return [_hitch(HITCH_F0, 125, k) if k % 2 == 0 else _hitch(HITCH_80, 150, k) for k in range(n)]
+
+
+# ---- 1. two sources for one input ---------------------------------------------------------------------------
+def test_two_sources_for_one_input_are_refused_and_named() -> None:
+    decoder = _decoder()
+    out = [decoder.decode(f, f.stamp_ns) for f in _two_ecus()]
+    # the first frame (one source so far) is decoded; from the second source on, neither is used
+    assert out[0].outcome is Outcome.DECODED
+    assert all(d.outcome is Outcome.REFUSED and d.events == () for d in out[1:])
+    finding = out[1].finding
+    assert finding is not None and finding.code is Code.SENSORS_DISAGREE
+    assert "0xF0" in finding.text and "0x80" in finding.text and "source_address" in finding.text
+    assert decoder.counts.two_sources == {"RearHitchStatus": [0xF0, 0x80]}
+    assert decoder.counts.refused == 19
+    assert "RearHitchStatus sent by 2 sources (0xF0, 0x80)" in decoder.counts.summary()
+
+
+def test_two_sources_in_blocks_as_frame_by_frame() -> None:
+    frames = _two_ecus()
+    one, many = _decoder(), _decoder()
+    expected = [one.decode(f, f.stamp_ns) for f in frames]
+    result = many.decode_block(FrameBlock.of(frames))
+    assert [o.outcome for o in expected] == [Outcome.DECODED] + [Outcome.REFUSED] * 19
+    assert [f.text for f in result.refusals()] == [d.finding.text for d in expected if d.finding is not None]
+    assert many.counts == one.counts
+
+
+def test_the_trusted_source_is_named_in_the_mapping() -> None:
+    text = MAP.read_text().replace("    signal: RearHitchPosition\n", "    signal: RearHitchPosition\n"
+                                   "    source_address: 0xF0\n")
+    decoder = _decoder(text)
+    out = [decoder.decode(f, f.stamp_ns) for f in _two_ecus()]
+    assert [d.outcome for d in out] == [Outcome.DECODED, Outcome.IGNORED] * 10
+    # 125 · 0.4 = 50 %: the 0xF0 frames' position, never the 60 % of 0x80
+    positions = {e.positions for d in out for e in d.events if isinstance(e, JointStateEvent)}
+    assert len(positions) == 1
+    assert decoder.counts.untrusted_ids == {HITCH_80: 10}
+    assert "10 of sources the mapping does not trust 0xCFE4580 ×10" in decoder.counts.summary()
+
+
+def test_source_address_only_for_j1939_messages(tmp_path: Path) -> None:
+    (tmp_path / "plain.dbc").write_text(PLAIN_DBC)
+    text = ("mechanism: belarus_1221\ndbc: [plain.dbc]\ninputs:\n  lift_cap_pressure: {message: Plain, signal: Cap, "
+            "unit: kPa, pressure: gauge, source_address: 0x21}\n")
+    with pytest.raises(InputError, match="inputs.lift_cap_pressure.source_address: Plain is not a J1939 message"):
+        _decoder(text, tmp_path)
+    with pytest.raises(InputError, match=r"source_address: 300: expected the J1939 source address"):
+        mapping_from_text(text.replace("0x21", "300"), "m.yaml", tmp_path)
+
+
+def test_two_sources_offline_from_a_candump_log(tmp_path: Path) -> None:
+    log = tmp_path / "two.log"
+    with can.CanutilsLogWriter(str(log), channel="can0") as writer:
+        for frame in _two_ecus():
+            writer.on_message_received(to_message(frame))
+    decoder = _decoder()
+    converted = blocks_to_bag(read_log_blocks(log), decoder, load_description("belarus_1221"), decoder.config,
+                              tmp_path / "bag")
+    assert (converted.counts.decoded, converted.counts.refused) == (1, 19)
+    assert {f.code for f in converted.refusals} == {Code.SENSORS_DISAGREE}
+
+
+# ---- 2, 3. units and factors ----------------------------------------------------------------------------------
+PRESSURE_MAP = """mechanism: belarus_1221
+dbc: [isobus_hitch.dbc]
+inputs:
+  lift_cap_pressure: {{message: ExampleLiftCylinderPressure, signal: LiftCylinderCapPressure, pressure: gauge{extra}}}
+"""
+
+
+@pytest.mark.parametrize("extra, words", [
+    # the DBC gives kPa: read as Pa (no unit) the pressure is 1000 times too small
+    ("", "the DBC gives ExampleLiftCylinderPressure.LiftCylinderCapPressure in kPa, the mapping reads it as Pa "
+         "(no 'unit' given: SI): write 'unit: kPa'"),
+    (", unit: bar", "in kPa, the mapping reads it as 'bar': write 'unit: kPa'"),
+])
+def test_a_unit_other_than_the_dbc_s_is_refused_at_load(extra: str, words: str) -> None:
+    with pytest.raises(InputError) as error:
+        _decoder(PRESSURE_MAP.format(extra=extra))
+    assert "inputs.lift_cap_pressure.unit" in str(error.value) and words in str(error.value)
+    _decoder(PRESSURE_MAP.format(extra=", unit: kPa"))
+
+
+def test_a_signal_of_another_quantity_or_an_unknown_unit_needs_a_unit_or_table(tmp_path: Path) -> None:
+    (tmp_path / "plain.dbc").write_text(PLAIN_DBC)
+    head = "mechanism: belarus_1221\ndbc: [plain.dbc]\ninputs:\n"
+    with pytest.raises(InputError, match=r"lift_arm_angle: the DBC gives Plain.Cap in kPa \(a pressure\)"):
+        _decoder(head + "  lift_arm_angle: {message: Plain, signal: Cap}\n", tmp_path)
+    with pytest.raises(InputError, match=r"lift_arm_angle.unit: the DBC gives Plain.Percent in '%'"):
+        _decoder(head + "  lift_arm_angle: {message: Plain, signal: Percent, scale: 0.01}\n", tmp_path)
+    _decoder(head + "  lift_arm_angle: {message: Plain, signal: Percent, scale: 0.01, unit: rad}\n", tmp_path)
+
+
+def test_a_factor_of_zero_is_refused_at_load(tmp_path: Path) -> None:
+    (tmp_path / "plain.dbc").write_text(PLAIN_DBC)
+    head = "mechanism: belarus_1221\ndbc: [plain.dbc]\ninputs:\n"
+    with pytest.raises(InputError, match="inputs.lift_cap_pressure.signal: Plain.Zero has factor 0 in the DBC"):
+        _decoder(head + "  lift_cap_pressure: {message: Plain, signal: Zero, unit: kPa, pressure: gauge}\n", tmp_path)
+    with pytest.raises(InputError, match="inputs.lift_cap_pressure.scale: 0 makes every value of Cap the offset"):
+        mapping_from_text(head + "  lift_cap_pressure: {message: Plain, signal: Cap, unit: kPa, scale: 0, "
+                          "pressure: gauge}\n", "m.yaml", tmp_path)
+
+
+PLAIN_DBC = """VERSION ""
+
+NS_ :
+
+BS_:
+
+BU_: ECU
+
+BO_ 513 Plain: 8 ECU
+ SG_ Cap : 0|16@1+ (1,0) [0|64255] "kPa" ECU
+ SG_ Zero : 16|16@1+ (0,0) [0|0] "kPa" ECU
+ SG_ Percent : 32|8@1+ (0.4,0) [0|100] "%" ECU
+
+BO_ 514 Muxed: 8 ECU
+ SG_ Kind M : 0|8@1+ (1,0) [0|255] "" ECU
+ SG_ Cap m1 : 8|16@1+ (1,0) [0|64255] "kPa" ECU
+ SG_ Rod m2 : 8|16@1+ (1,0) [0|64255] "kPa" ECU
+"""
+
+
+# ---- 7. multiplexed messages, duplicate keys; 6. a mapping that is not UTF-8 ---------------------------------
+def test_a_multiplexed_signal_is_decoded_where_its_multiplexer_selects_it(tmp_path: Path) -> None:
+    (tmp_path / "plain.dbc").write_text(PLAIN_DBC)
+    decoder = _decoder("mechanism: belarus_1221\ndbc: [plain.dbc]\ninputs:\n  lift_cap_pressure: {message: Muxed, "
+                       "signal: Cap, unit: kPa, pressure: absolute}\n", tmp_path)
+    cap = decoder.decode(Frame(STAMP, 514, False, False, False, 8, bytes([1, 0x10, 0x27, 0, 0, 0, 0, 0])), STAMP)
+    rod = decoder.decode(Frame(STAMP, 514, False, False, False, 8, bytes([2, 0x10, 0x27, 0, 0, 0, 0, 0])), STAMP)
+    assert cap.outcome is Outcome.DECODED and rod.outcome is Outcome.IGNORED
+    [event] = cap.events
+    assert event.fluid_pressure == 10_000e3   # 0x2710 = 10000 kPa, absolute as the monitor reads it
+
+
+def test_a_key_given_twice_in_the_mapping_is_refused(tmp_path: Path) -> None:
+    text = MAP.read_text().replace("silence_timeout: 1.0", "silence_timeout: 1.0\nsilence_timeout: 5.0")
+    with pytest.raises(InputError, match=r"mapping m.yaml: line 9: key 'silence_timeout' given twice \(lines 8 and 9\)"):
+        mapping_from_text(text, "m.yaml", ROOT)
+
+
+def test_a_mapping_that_is_not_utf8_is_one_clear_error(tmp_path: Path) -> None:
+    path = tmp_path / "latin1.yaml"
+    path.write_bytes(MAP.read_text().replace("# CAN mapping", "# CAN Zuordnung f\u00fcr").encode("latin-1"))
+    with pytest.raises(InputError, match=r"latin1.yaml: not UTF-8 text \(byte 0xFC at offset 17\): save it as UTF-8"):
+        load_mapping(path)
