@@ -33,12 +33,13 @@ export ROS_DISTRO
 all: test
 
 # Debian packages the tests and the Rerun screenshot need (a headless X server and a
-# software Vulkan driver for the real Rerun viewer). Skipped when already present.
+# software Vulkan driver for the real Rerun viewer; tmux, the real terminal `watch` is tested in).
+# Skipped when already present.
 $(SYS_STAMP): | $(DEPS_STAMP)
-	@if ! command -v xvfb-run >/dev/null 2>&1 || ! ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1; then \
-	  echo ">> installing Debian packages: xvfb mesa-vulkan-drivers xauth"; \
+	@if ! command -v xvfb-run >/dev/null 2>&1 || ! command -v tmux >/dev/null 2>&1 || ! ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1; then \
+	  echo ">> installing Debian packages: xvfb mesa-vulkan-drivers xauth tmux"; \
 	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
-	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq xvfb xauth mesa-vulkan-drivers >/dev/null; \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq xvfb xauth mesa-vulkan-drivers tmux >/dev/null; \
 	fi
 	@touch $@
 
