@@ -20,12 +20,16 @@ from __future__ import annotations
 
 import functools
 import importlib
+import io
 import logging
 import math
 import os
+import re
 import sqlite3
 import struct
 from collections.abc import Collection, Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -35,8 +39,8 @@ import yaml
 from mcap.exceptions import McapError
 from mcap._message_queue import make_message_queue
 from mcap.data_stream import ReadDataStream
-from mcap.reader import NonSeekingReader, SeekingReader
-from mcap.records import Chunk, ChunkIndex, Message
+from mcap.reader import SeekingReader
+from mcap.records import Channel, Chunk, ChunkIndex, Message, Schema
 from mcap.opcode import Opcode
 from mcap.stream_reader import CRCValidationError, breakup_chunk, get_chunk_data_stream
 from rclpy.serialization import deserialize_message
@@ -83,30 +87,145 @@ class PressureColumns:
     variance: np.ndarray
 
 
+@dataclass(frozen=True)
+class ReadFault:
+    """Part of a bag that could not be read as recorded, named: ``file``, ``kind`` ('cut_off': the file
+    ends in an incomplete record; 'chunk_skipped': a chunk fails its CRC or does not read;
+    'unlisted_file': a storage file metadata.yaml does not list; 'no_channel': messages whose channel
+    is not defined), ``offset`` (byte in the file where it starts, None when it is a whole file),
+    ``messages`` (messages read before a cut, or lost in a chunk; None when not known) and ``text``,
+    the sentence that says it and what follows from it."""
+
+    file: str
+    kind: str
+    offset: int | None
+    messages: int | None
+    text: str
+
+    def __str__(self) -> str:
+        return self.text
+
+
+_COLLECTED: ContextVar[list[ReadFault] | None] = ContextVar("linkage_monitor_bag_read_faults", default=None)
+
+
+@contextmanager
+def read_faults() -> Iterator[list[ReadFault]]:
+    """Collect the ``ReadFault``s of every bag read in this context (each once, in the order found;
+    a bag read several times names its faults once). Each is also logged as a warning when first found."""
+    found: list[ReadFault] = []
+    token = _COLLECTED.set(found)
+    try:
+        yield found
+    finally:
+        _COLLECTED.reset(token)
+
+
+def _report(fault: ReadFault) -> None:
+    """Log ``fault`` as a warning and add it to the ``read_faults`` being collected (once)."""
+    found = _COLLECTED.get()
+    if found is not None:
+        if fault in found:
+            return
+        found.append(fault)
+    _log.warning("%s", fault.text)
+
+
 # libyaml's safe loader where PyYAML was built with it (4x faster on a rosbag2 metadata.yaml), else PyYAML's
 _SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
 def storage_files(path: str | os.PathLike[str]) -> list[Path]:
-    """Return the storage files of a bag, in reading order: a rosbag2 directory (metadata.yaml
-    order, else every `*.mcap` / `*.db3` in name order) or a single `.mcap` / `.db3` file. Raises
-    BagError saying what is wrong (a ROS 1 bag: the command that converts it)."""
+    """Return the storage files of a bag, in reading order: a rosbag2 directory or a single `.mcap` /
+    `.db3` file. A directory's files in metadata.yaml's order; without metadata.yaml, or with storage
+    files it does not list, every storage file by its first message's log time (ties and files without
+    messages by the split index `_N` of their names, numerically: `_2` before `_10`). Raises BagError
+    saying what is wrong (a ROS 1 bag: the command that converts it)."""
     path = Path(path)
     if not path.exists():
         raise BagError(f"bag {path} does not exist: give a bag directory, an .mcap or a .db3 file")
-    if path.is_dir():
-        files = _files_from_metadata(path) or sorted(f for f in path.iterdir() if f.suffix in STORAGE_SUFFIXES)
-        if not files:
-            ros1 = sorted(path.glob("*.bag"))
-            raise BagError(_ros1_advice(ros1[0]) if ros1 else
-                           f"bag directory {path} holds no .mcap or .db3 file: give a rosbag2 bag")
-    else:
-        files = [path]
-    for file in files:
+    if not path.is_dir():
+        _storage_of(path)
+        return [path]
+    listed = _files_from_metadata(path)
+    for file in listed or []:
         if not file.is_file():
             raise BagError(f"bag file {file} listed in {path / 'metadata.yaml'} is missing")
+    on_disk = [f for f in path.iterdir() if f.suffix in STORAGE_SUFFIXES and f.is_file()]
+    for file in on_disk:
         _storage_of(file)
+    files = _directory_order(path, listed, on_disk)
+    if not files:
+        ros1 = sorted(path.glob("*.bag"))
+        raise BagError(_ros1_advice(ros1[0]) if ros1 else
+                       f"bag directory {path} holds no .mcap or .db3 file: give a rosbag2 bag")
     return files
+
+
+def _directory_order(directory: Path, listed: list[Path] | None, on_disk: list[Path]) -> list[Path]:
+    """The reading order of a bag directory's storage files (``storage_files``).
+
+    A storage file metadata.yaml does not list is read, not skipped: rosbag2 rewrites metadata.yaml
+    only when a file is closed, so such a file is most often the last one of a recorder that was
+    killed, or one copied in afterwards; its messages are the recording's and leaving them out would
+    lose them without a word. It is read in the order of its messages' log times, with every other
+    file, and named in a ``ReadFault`` (a file of another recording shows up there: remove it)."""
+    if listed is not None:
+        unlisted = sorted(set(on_disk) - set(listed), key=_split_order)
+        for file in unlisted:
+            _report(ReadFault(str(file), "unlisted_file", None, None,
+                              f"{file} is in bag {directory} but not listed in its metadata.yaml: read in the "
+                              "order of its log times with the listed files (remove it if it is not this "
+                              "recording's)"))
+        if not unlisted:
+            return listed
+        on_disk = listed + unlisted
+    starts = {file: _first_log_time(file) for file in on_disk}
+    return sorted(on_disk, key=lambda f: (starts[f] is None, starts[f] or 0, _split_order(f)))
+
+
+_SPLIT_NAME = re.compile(r"^(?P<stem>.+)_(?P<index>[0-9]+)$")   # rosbag2's `<bag>_<N>.<storage>`
+
+
+def _split_order(file: Path) -> tuple[str, int, str]:
+    """A storage file's place by its name: the stem, then rosbag2's split index `_N` as a number."""
+    match = _SPLIT_NAME.match(file.stem)
+    return (match["stem"], int(match["index"]), file.name) if match else (file.stem, -1, file.name)
+
+
+def is_split_bag(directory: Path) -> bool:
+    """Whether ``directory`` is one bag: it has metadata.yaml, or its storage files are named as the
+    files of one rosbag2 bag, `<stem>_<N>.mcap` / `.db3` with one stem (a split bag without metadata)."""
+    if (directory / "metadata.yaml").is_file():
+        return True
+    names = [_SPLIT_NAME.match(f.stem) for f in directory.iterdir() if f.suffix in STORAGE_SUFFIXES]
+    return bool(names) and all(names) and len({m["stem"] for m in names if m}) == 1
+
+
+def _first_log_time(file: Path) -> int | None:
+    """The log time (ns since the epoch) of a storage file's first message; None when it holds none or
+    that cannot be read."""
+    if _storage_of(file) == "sqlite3":
+        try:
+            connection = sqlite3.connect(f"{file.resolve().as_uri()}?mode=ro", uri=True)
+            try:
+                first = connection.execute("SELECT MIN(timestamp) FROM messages").fetchone()[0]
+            finally:
+                connection.close()
+        except sqlite3.Error:
+            return None
+        return int(first) if first is not None else None
+    with open(file, "rb") as stream:
+        try:
+            summary = SeekingReader(stream).get_summary()
+        except (McapError, OSError, struct.error, ValueError):
+            summary = None
+        if summary is not None and summary.chunk_indexes:
+            return min(index.message_start_time for index in summary.chunk_indexes)
+        try:
+            return next((r.message.log_time for r in _scanned_messages(file, stream, None)), None)
+        except BagError:
+            return None
 
 
 def _storage_of(file: Path) -> str:
@@ -213,10 +332,11 @@ def _message_class(type_name: str) -> type:
                        ) from exc
 
 
-def _files_from_metadata(directory: Path) -> list[Path]:
+def _files_from_metadata(directory: Path) -> list[Path] | None:
+    """The files metadata.yaml lists, in its order; None when the directory has no metadata.yaml."""
     metadata = directory / "metadata.yaml"
     if not metadata.is_file():
-        return []
+        return None
     try:
         info = yaml.load(metadata.read_text(encoding="utf-8"), Loader=_SAFE_LOADER)["rosbag2_bagfile_information"]
         return [directory / Path(p).name for p in info["relative_file_paths"]]
@@ -397,31 +517,146 @@ def _sqlite3_messages(file: Path, topics: Collection[str] | None) -> Iterator[tu
 
 
 def _mcap_messages(file: Path, topics: Collection[str] | None) -> Iterator[tuple[Any, Any, Any]]:
-    """(schema, channel, message) records of one MCAP file: indexed when it has a summary,
-    else by a linear scan that stops at a truncated last record."""
+    """(schema, channel, message) records of one MCAP file: indexed when it has a summary, else by a
+    scan of its records in file order (``_scanned_messages``) that keeps every whole record before a cut."""
     topic_list = list(topics) if topics is not None else None
     with open(file, "rb") as stream:
         try:
-            reader: SeekingReader | NonSeekingReader = SeekingReader(stream)
-            indexed = reader.get_summary() is not None
-        except (McapError, OSError, struct.error, ValueError):   # no footer or summary (killed writer)
-            indexed = False
-        if not indexed:  # stream order = write order (log-time order for BagWriter bags)
-            stream.seek(0)
-            reader = NonSeekingReader(stream, validate_crcs=True)
+            summary = SeekingReader(stream).get_summary()
+        except (McapError, OSError, struct.error, ValueError):   # no footer or summary (killed writer, cut copy)
+            summary = None
+        if summary is None:
+            yield from _scanned_messages(file, stream, topic_list)
+            return
         count = 0
         try:
-            records = (_indexed_messages(file, stream, reader.get_summary(), topic_list)
-                       if isinstance(reader, SeekingReader) else reader.iter_messages(topics=topic_list))
-            for record in records:
+            for record in _indexed_messages(file, stream, summary, topic_list):
                 count += 1
                 yield record
-        except (McapError, struct.error, EOFError) as exc:  # a record cut off by a killed writer
-            _log.warning("%s ends in an incomplete record (%s): read up to there", file, type(exc).__name__)
-        except Exception as exc:  # noqa: BLE001 - damaged data: decompression, CRC, lengths
+        except Exception as exc:  # noqa: BLE001 - damaged data: decompression, lengths
             raise BagError(f"{file} is damaged after {count} messages ({type(exc).__name__}: "
                            f"{str(exc).splitlines()[0] if str(exc) else 'unreadable data'}): "
                            "copy what can be read with an MCAP tool or record again") from exc
+
+
+def _record_stream(body: bytes) -> ReadDataStream:
+    return ReadDataStream(io.BytesIO(body))
+
+
+@dataclass
+class _Scan:
+    """What a scan of an MCAP file has read so far: its schema and channel records by id, the messages
+    read (on any topic) and those whose channel was not defined before them."""
+
+    schemas: dict[int, Schema]
+    channels: dict[int, Channel]
+    messages: int = 0
+    orphans: int = 0
+    data_end: bool = False
+
+
+def _scanned_messages(file: Path, stream: Any, topics: list[str] | None) -> Iterator[_Record]:
+    """The records of an MCAP file without summary (a killed writer, a cut copy, a dying card), in file
+    order, each chunk's messages by log time (ties in chunk order): the writer writes chunks in log-time
+    order. A record is read only when the file holds all of it (its length from its head); the first
+    that runs past the end stops the scan with a ``ReadFault`` naming its byte and the messages read
+    before it. A chunk that fails its CRC or does not read is skipped and named; the scan goes on."""
+    size = os.fstat(stream.fileno()).st_size
+    stream.seek(len(_MCAP_MAGIC))
+    position = len(_MCAP_MAGIC)
+    scan = _Scan({}, {})
+    while True:
+        head = stream.read(_RECORD_HEAD.size)
+        opcode, length = _RECORD_HEAD.unpack(head) if len(head) == _RECORD_HEAD.size else (None, 0)
+        if opcode is None or position + _RECORD_HEAD.size + length > size:
+            _report_end(file, position, size, scan)
+            return
+        body = stream.read(length)
+        if opcode == Opcode.FOOTER:
+            break
+        if opcode == Opcode.CHUNK:
+            yield from _scanned_chunk(file, position, body, scan, topics)
+        elif opcode == Opcode.DATA_END:
+            scan.data_end = True
+        else:
+            yield from _scanned_records(file, [_top_level(file, position, opcode, length, body)], scan, topics)
+        position += _RECORD_HEAD.size + length
+    if scan.orphans:
+        _report(ReadFault(str(file), "no_channel", None, scan.orphans,
+                          f"{file}: {scan.orphans} message(s) name a channel the file does not define before "
+                          "them: left out"))
+
+
+def _top_level(file: Path, position: int, opcode: int, length: int, body: bytes) -> Any:
+    """The Schema, Channel or Message record ``body`` at byte ``position`` (None for any other record:
+    not read); BagError naming the byte when it is whole but does not read as its kind."""
+    try:
+        if opcode == Opcode.SCHEMA:
+            return Schema.read(_record_stream(body))
+        if opcode == Opcode.CHANNEL:
+            return Channel.read(_record_stream(body))
+        if opcode == Opcode.MESSAGE:
+            return Message.read(_record_stream(body), length)
+    except (McapError, struct.error, UnicodeDecodeError, ValueError) as exc:
+        raise BagError(f"{file}: the record at byte {position} is damaged ({type(exc).__name__}): "
+                       "copy what can be read with an MCAP tool or record again") from exc
+    return None
+
+
+def _scanned_chunk(file: Path, position: int, body: bytes, scan: _Scan, topics: list[str] | None
+                   ) -> Iterator[_Record]:
+    """The wanted messages of the chunk record at byte ``position`` (its records after mcap's
+    ``breakup_chunk``, CRC checked), by log time; none, with a ``ReadFault``, when it does not read."""
+    chunk = None
+    try:
+        chunk = Chunk.read(_record_stream(body))
+        records = breakup_chunk(chunk, validate_crc=True)
+    except Exception as exc:  # noqa: BLE001 - a CRC mismatch, data that does not decompress, a broken record
+        _report_chunk(file, position, chunk, exc)
+        return
+    messages = sorted((r for r in records if isinstance(r, Message)), key=lambda m: m.log_time)
+    yield from _scanned_records(file, [r for r in records if not isinstance(r, Message)] + messages, scan, topics)
+
+
+def _scanned_records(file: Path, records: list[Any], scan: _Scan, topics: list[str] | None) -> Iterator[_Record]:
+    """Schema and channel records kept in ``scan``; messages on ``topics`` yielded with theirs."""
+    for record in records:
+        if isinstance(record, Schema):
+            scan.schemas[record.id] = record
+        elif isinstance(record, Channel):
+            scan.channels[record.id] = record
+        elif isinstance(record, Message):
+            scan.messages += 1
+            channel = scan.channels.get(record.channel_id)
+            if channel is None:
+                scan.orphans += 1
+            elif topics is None or channel.topic in topics:
+                yield _Record(scan.schemas.get(channel.schema_id), channel, record)
+
+
+def _report_end(file: Path, position: int, size: int, scan: _Scan) -> None:
+    """The ``ReadFault`` of an MCAP file that ends at byte ``position`` without its footer."""
+    if position == size:
+        text = (f"{file} ends at byte {size} without its summary (the writer stopped): "
+                f"{scan.messages} messages read, all it holds")
+    else:
+        text = (f"{file} is cut off at byte {position} of {size} (an incomplete record: an interrupted copy "
+                f"or a failing medium): {scan.messages} messages read before it"
+                + (", none lost (only the summary after the data is cut)" if scan.data_end else
+                   ", what followed is lost"))
+    _report(ReadFault(str(file), "cut_off", position, scan.messages, text))
+
+
+def _report_chunk(file: Path, offset: int, chunk: Any, exc: Exception,
+                  index: ChunkIndex | None = None) -> None:
+    """The ``ReadFault`` of a chunk at byte ``offset`` that fails its CRC or does not read: skipped."""
+    what = ("fails its CRC" if isinstance(exc, CRCValidationError) else
+            f"is unreadable ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'damaged'})")
+    count = _message_count(chunk)
+    times = (f", log times {index.message_start_time} to {index.message_end_time} ns" if index is not None else
+             f", log times {chunk.message_start_time} to {chunk.message_end_time} ns" if chunk is not None else "")
+    _report(ReadFault(str(file), "chunk_skipped", offset, int(count) if count.isdigit() else None,
+                      f"{file}: the chunk at byte {offset} ({count} messages{times}) {what}: skipped, not decoded"))
 
 
 def _indexed_messages(file: Path, stream: Any, summary: Any, topics: list[str] | None
@@ -483,11 +718,7 @@ def _chunk_records(file: Path, stream: Any, chunk_index: ChunkIndex, summary: An
         chunk = Chunk.read(ReadDataStream(stream))
         records = _chunk_messages(chunk, channel_ids, _indexed_offsets(stream, chunk_index, channel_ids))
     except Exception as exc:  # noqa: BLE001 - a CRC mismatch, data that does not decompress, a broken record
-        what = ("fails its CRC" if isinstance(exc, CRCValidationError) else
-                f"is unreadable ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'damaged'})")
-        _log.warning("%s: the chunk at byte %d (%s messages, log times %d to %d ns) %s: skipped, not decoded",
-                     file, chunk_index.chunk_start_offset, _message_count(chunk), chunk_index.message_start_time,
-                     chunk_index.message_end_time, what)
+        _report_chunk(file, chunk_index.chunk_start_offset, chunk, exc, chunk_index)
         return []
     schemas = summary.schemas
     return [_Record(schemas[channels[m.channel_id].schema_id] if channels[m.channel_id].schema_id else None,

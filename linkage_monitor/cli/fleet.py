@@ -62,5 +62,6 @@ def run_fleet_command(args: argparse.Namespace) -> int:
     plot_fleet(fleet.rows, args.slope, args.out / "fleet.png")
     print(worst_table(fleet))
     failed = sum(1 for r in fleet.rows if r["error"] is not None)
-    print(f"\n{len(fleet.rows)} bags, {failed} failed; written: {bags_file}, {spectra_file}, {args.out / 'fleet.png'}")
+    in_part = sum(1 for r in fleet.rows if r.get("warning") is not None)
+    print(f"\n{len(fleet.rows)} bags, {failed} failed, {in_part} read in part; written: {bags_file}, {spectra_file}, {args.out / 'fleet.png'}")
     return 0

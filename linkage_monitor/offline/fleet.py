@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, TextIO
 
-from linkage_monitor.bag.reader import STORAGE_SUFFIXES
+from linkage_monitor.bag.reader import STORAGE_SUFFIXES, ReadFault, is_split_bag, read_faults
 from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.monitoring.findings import Code
 
@@ -39,10 +39,12 @@ class BagAnalysis:
 
 def find_bags(paths: Iterable[Path]) -> list[Path]:
     """The bags under ``paths``: a file is a bag (.mcap or .db3), a directory with metadata.yaml is
-    a bag (one storage file or a split bag), any other directory is searched (sorted) for bags."""
+    a bag (one storage file or a split bag), so is a directory whose storage files are the files of
+    one split bag without it (``is_split_bag``: `<stem>_<N>.mcap`, one stem); any other directory is
+    searched (sorted) for bags."""
     found: list[Path] = []
     for path in paths:
-        if path.is_dir() and not (path / "metadata.yaml").exists():
+        if path.is_dir() and not is_split_bag(path):
             found += find_bags(sorted(p for p in path.iterdir() if p.is_dir() or p.suffix in STORAGE_SUFFIXES))
         else:
             found.append(path)
@@ -51,16 +53,20 @@ def find_bags(paths: Iterable[Path]) -> list[Path]:
 
 def analyse_bag(bag: Path, mech: Mechanism | None = None, slope: float = DEFAULT_SLOPE,
                 bin_width: float = DEFAULT_BIN_N) -> BagAnalysis:
-    """Replay ``bag`` and reduce it (one Dask task). Never raises: an error becomes the row's ``error``."""
-    try:
-        replayed = replay(bag, mech, progress=None)
-    except Exception as exc:  # noqa: BLE001 - a task boundary: the bag's own row says what failed
-        text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        return BagAnalysis({"bag": str(bag), "error": text})
+    """Replay ``bag`` and reduce it (one Dask task). Never raises: an error becomes the row's ``error``;
+    what of the bag could not be read (a cut-off file, a skipped chunk, a file metadata.yaml does not
+    list: the reader's ``ReadFault``s) the row's ``warning``, its messages counted there."""
+    with read_faults() as faults:
+        try:
+            replayed = replay(bag, mech, progress=None)
+        except Exception as exc:  # noqa: BLE001 - a task boundary: the bag's own row says what failed
+            text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            return BagAnalysis({"bag": str(bag), "error": text, "warning": _warning(faults)})
     summary, history = replayed.summary, LoadHistory.from_run(replayed.run)
     steps = max(len(replayed.steps), 1)
     row: dict[str, Any] = {
-        "bag": str(bag), "error": None, "mechanism": replayed.run.segments[0].mechanism.name
+        "bag": str(bag), "error": None, "warning": _warning(faults),
+        "mechanism": replayed.run.segments[0].mechanism.name
         if replayed.run.segments else None,
         "duration_s": history.duration_s, "inputs": summary.inputs, "solved": summary.solved,
         "min_margin": summary.min_margin[0] if summary.min_margin else math.nan,
@@ -84,6 +90,11 @@ def analyse_bag(bag: Path, mech: Mechanism | None = None, slope: float = DEFAULT
             spectra.append({"bag": str(bag), "hinge": name, "range_lo_N": float(lower),
                             "range_hi_N": float(lower + bin_width), "cycles": float(count)})
     return BagAnalysis(row, spectra)
+
+
+def _warning(faults: list[ReadFault]) -> str | None:
+    """The row's ``warning``: every part of the bag that could not be read, one sentence each; None when all could."""
+    return "; ".join(fault.text for fault in faults) or None
 
 
 @dataclass
@@ -166,6 +177,9 @@ def worst_table(fleet: Fleet, count: int = 10) -> str:
     for r in fleet.rows:
         if r["error"] is not None:
             lines.append(f"{_short(r['bag'], 44):<44} failed: {r['error']}")
+    for r in fleet.rows:
+        if r.get("warning") is not None:
+            lines.append(f"{_short(r['bag'], 44):<44} read in part: {r['warning']}")
     return "\n".join(lines)
 
 

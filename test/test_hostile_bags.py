@@ -1,0 +1,169 @@
+"""Bags as the field delivers them: cut mid-record (an interrupted copy, a dying SD card), split bags
+whose metadata.yaml is missing or does not list every file, chunks that fail their CRC. Every
+complete record is read, what could not be is named (file, byte, messages), nothing is skipped
+without a word. Oracles: mcap's StreamReader (the records of a file in order, as far as they read)
+and rosbags' AnyReader (a split bag with its metadata, as rosbag2 reads it)."""
+
+from __future__ import annotations
+
+import shutil
+import struct
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+from mcap.records import Message
+from mcap.stream_reader import StreamReader
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import Stores, get_typestore
+
+from linkage_monitor.bag.reader import read_bag_raw, read_faults, storage_files
+from linkage_monitor.bag.writer import BagWriter
+from linkage_monitor.offline.fleet import analyse_bag, find_bags
+
+BAGS = Path(__file__).resolve().parents[1] / "bags"
+DAMPING = BAGS / "damping_hitch_lift" / "damping_hitch_lift_0.mcap"
+INPUTS = ("/linkage_monitor/mechanism", "/linkage_monitor/config", "/joint_states", "/pressure/lift_cap_pressure")
+
+
+def _stream_reader_messages(file: Path) -> list[tuple[int, bytes]]:
+    """(log time, data) of every message mcap's StreamReader reads (CRCs checked) before the file stops reading."""
+    read = []
+    with open(file, "rb") as stream:
+        try:
+            for record in StreamReader(stream, validate_crcs=True).records:
+                if isinstance(record, Message):
+                    read.append((record.log_time, record.data))
+        except Exception:  # noqa: BLE001 - the oracle stops where the file does not read on
+            pass
+    return read
+
+
+def _cut(source: Path, target: Path, fraction: float) -> Path:
+    data = source.read_bytes()
+    target.write_bytes(data[:int(len(data) * fraction)])
+    return target
+
+
+@pytest.mark.parametrize("fraction", [0.999, 0.6])
+def test_a_cut_mcap_file_keeps_every_complete_record_and_names_the_cut(tmp_path, fraction):
+    """`head -c 99.9 %` (only the summary lost) and `head -c 60 %` (a chunk cut in two) of a bundled bag:
+    every message mcap's StreamReader reads before the cut is read (0 before), and one ReadFault names
+    the byte where the incomplete record starts (its head says it runs past the end) and the count."""
+    cut = _cut(DAMPING, tmp_path / "cut.mcap", fraction)
+    expected = _stream_reader_messages(cut)
+    assert len(expected) > 1000   # the bundled bag holds 5036 messages; a cut at 60 % keeps about 3000
+    with read_faults() as faults:
+        read = [(m.log_time_ns, m.data) for m in read_bag_raw(cut)]
+    assert sorted(read) == sorted(expected)
+    assert [f.kind for f in faults] == ["cut_off"]
+    fault, data = faults[0], cut.read_bytes()
+    _, length = struct.unpack_from("<BQ", data, fault.offset)
+    assert fault.offset + 9 + length > len(data) and fault.messages == len(expected)
+    assert str(cut) in fault.text and f"byte {fault.offset}" in fault.text and f"{len(expected)} messages" in fault.text
+    assert ("none lost" in fault.text) == (fraction > 0.99)
+
+
+def test_a_cut_file_is_named_once_however_often_the_bag_is_read(tmp_path):
+    cut = _cut(DAMPING, tmp_path / "cut.mcap", 0.6)
+    with read_faults() as faults:
+        for _ in range(3):
+            sum(1 for _ in read_bag_raw(cut))
+    assert len(faults) == 1
+
+
+def _source_messages() -> list[tuple[str, str, int, bytes]]:
+    """(topic, type, log time ns, CDR) of a bundled bag's inputs, read by rosbags."""
+    with AnyReader([BAGS / "belarus_1221_lift_transport"], default_typestore=get_typestore(Stores.EMPTY)) as reader:
+        wanted = [c for c in reader.connections if c.topic in INPUTS]
+        return [(c.topic, c.msgtype, t, bytes(raw)) for c, t, raw in reader.messages(connections=wanted)]
+
+
+@pytest.fixture(scope="module")
+def split_bag(tmp_path_factory) -> Path:
+    """The bundled lift's inputs in a bag split by duration into 12 files (`_0` .. `_11`)."""
+    messages = _source_messages()
+    span_s = (messages[-1][2] - messages[0][2]) / 1e9
+    bag = tmp_path_factory.mktemp("split") / "lift"
+    with BagWriter(bag, chunk_size=16 * 1024, max_bag_duration_s=span_s / 11.5) as writer:
+        for topic, type_name, stamp, data in messages:
+            writer.write(topic, data, stamp, type_name=type_name, log_time_ns=stamp)
+    assert len(list(bag.glob("*.mcap"))) == 12
+    return bag
+
+
+def _rosbags_order(bag: Path) -> list[tuple[str, int]]:
+    with AnyReader([bag], default_typestore=get_typestore(Stores.EMPTY)) as reader:
+        return [(c.topic, t) for c, t, _ in reader.messages()]
+
+
+def _copy(bag: Path, target: Path) -> Path:
+    shutil.copytree(bag, target)
+    return target
+
+
+def test_a_split_bag_without_metadata_reads_in_the_order_of_its_files_stamps(split_bag, tmp_path):
+    """metadata.yaml removed: `_10` and `_11` are read after `_9` (by their first log times), not after `_1`:
+    the same messages in the same order as rosbags reads the bag with its metadata."""
+    bag = _copy(split_bag, tmp_path / "lift")
+    (bag / "metadata.yaml").unlink()
+    assert [f.name for f in storage_files(bag)] == [f"lift_{i}.mcap" for i in range(12)]
+    assert [(m.topic, m.log_time_ns) for m in read_bag_raw(bag)] == _rosbags_order(split_bag)
+
+
+def test_a_file_metadata_does_not_list_is_read_in_stamp_order_and_named(split_bag, tmp_path):
+    """lift_5.mcap left out of metadata.yaml (a recorder killed before it rewrote it): read where its
+    log times put it, and named once as not listed."""
+    bag = _copy(split_bag, tmp_path / "lift")
+    metadata = bag / "metadata.yaml"
+    metadata.write_text("\n".join(line for line in metadata.read_text().splitlines() if "- lift_5.mcap" not in line))
+    with read_faults() as faults:
+        read = [(m.topic, m.log_time_ns) for m in read_bag_raw(bag)]
+    assert read == _rosbags_order(split_bag)
+    assert [(f.kind, Path(f.file).name) for f in faults] == [("unlisted_file", "lift_5.mcap")]
+    assert "not listed in its metadata.yaml" in faults[0].text
+
+
+def test_a_split_bag_whose_last_file_is_cut_reads_every_complete_record(split_bag, tmp_path):
+    bag = _copy(split_bag, tmp_path / "lift")
+    _cut(split_bag / "lift_11.mcap", bag / "lift_11.mcap", 0.5)
+    expected = sum(1 for _ in read_bag_raw(split_bag)) - sum(1 for _ in read_bag_raw(split_bag / "lift_11.mcap")) \
+        + len(_stream_reader_messages(bag / "lift_11.mcap"))
+    with read_faults() as faults:
+        assert sum(1 for _ in read_bag_raw(bag)) == expected
+    assert [(f.kind, Path(f.file).name) for f in faults] == [("cut_off", "lift_11.mcap")]
+
+
+def test_fleet_takes_a_split_bag_without_metadata_for_one_bag(split_bag, tmp_path):
+    root = tmp_path / "fleet"
+    bag = _copy(split_bag, root / "lift")
+    (bag / "metadata.yaml").unlink()
+    _cut(DAMPING, root / "loose_0.mcap", 1.0)
+    _cut(DAMPING, root / "other_0.mcap", 1.0)
+    assert find_bags([root]) == [bag, root / "loose_0.mcap", root / "other_0.mcap"]
+
+
+def _crc_damaged(tmp_path: Path) -> tuple[Path, int]:
+    """The bundled damping bag with a byte of its middle chunk flipped; the chunk's byte offset."""
+    bag = tmp_path / "damaged.mcap"
+    data = bytearray(DAMPING.read_bytes())
+    with open(DAMPING, "rb") as stream:
+        chunks = sorted(make_reader(stream).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)
+    victim = chunks[len(chunks) // 2]
+    data[victim.chunk_start_offset + victim.chunk_length // 2] ^= 0xFF
+    bag.write_bytes(bytes(data))
+    return bag, victim.chunk_start_offset
+
+
+@pytest.mark.slow
+def test_a_fleet_row_names_a_skipped_chunk_and_a_cut(tmp_path):
+    """A bag with a chunk that fails its CRC, and one cut at 99.9 %: replayed (error null), and the row's
+    warning names the chunk (its byte and lost messages) or the cut (its byte and messages read)."""
+    damaged, offset = _crc_damaged(tmp_path)
+    row = analyse_bag(damaged).row
+    assert row["error"] is None and row["inputs"] > 0
+    assert f"the chunk at byte {offset}" in row["warning"] and "skipped" in row["warning"], row["warning"]
+    cut = analyse_bag(_cut(DAMPING, tmp_path / "cut.mcap", 0.999)).row
+    assert cut["error"] is None and cut["inputs"] > 0 and "is cut off at byte" in cut["warning"], cut
+    whole = analyse_bag(DAMPING).row
+    assert whole["warning"] is None and whole["inputs"] == cut["inputs"]
