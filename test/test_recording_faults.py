@@ -13,7 +13,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 from std_msgs.msg import String
 
-from linkage_monitor.bag.writer import BagError, BagWriter
+from linkage_monitor.bag.writer import MIN_SPLIT_SIZE, BagError, BagWriter
 
 T0 = 1_700_000_000_000_000_000  # ns, an arbitrary recording start
 
@@ -30,11 +30,11 @@ def _count_readable(bag: Path) -> tuple[int, int]:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("split", [0, 48 * 1024], ids=["one file", "split by size"])
+@pytest.mark.parametrize("split", [0, MIN_SPLIT_SIZE], ids=["one file", "split by size"])
 def test_full_disk_is_reported_and_the_bag_stays_readable(tmpfs, split):
     """Split by size, the disk fills while the fourth or so file is written: the files before are
     finished, the last one cut back to its last complete chunk; all of them read as one bag."""
-    disk = tmpfs("size=256k")
+    disk = tmpfs("size=512k")
     writer = BagWriter(disk / "run", chunk_size=16 * 1024, flush_period_s=0.05, max_bag_size=split)
     payload = "x" * 2000   # incompressible enough: 2 kB per message
     written = 0
