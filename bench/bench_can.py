@@ -98,23 +98,23 @@ def bench_log_to_bag(n: int, per_frame: bool = False) -> None:
         # untimed: one conversion of the shipped log and one python-can reading of it, so that imports, rclpy's
         # type support and the message layouts (once per process) are not counted as the frames' time
         sum(1 for _ in read_log(LOG))
-        blocks_to_bag(read_log_blocks(LOG), CanDecoder(db, mapping, mech, config, "warm"), mech, config,
+        blocks_to_bag(read_log_blocks(LOG, []), CanDecoder(db, mapping, mech, config, "warm"), mech, config,
                       Path(tmp) / "warm")
         timed: dict[str, float] = {}
         t0 = time.perf_counter()
         read = sum(1 for _ in read_log(log))
         timed["python-can candump reader alone (baseline)"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        read_blocks = sum(len(block) for block in read_log_blocks(log))
+        read_blocks = sum(len(block) for block in read_log_blocks(log, []))
         timed["block reader alone"] = time.perf_counter() - t0
         decoder = CanDecoder(db, mapping, mech, config, "bench")
         t0 = time.perf_counter()
-        for block in read_log_blocks(log):
+        for block in read_log_blocks(log, []):
             decoder.decode_block(block)
         timed["block reader + decoder"] = time.perf_counter() - t0
         decoder = CanDecoder(db, mapping, mech, config, "bench")
         t0 = time.perf_counter()
-        converted = blocks_to_bag(read_log_blocks(log), decoder, mech, config, Path(tmp) / "bag")
+        converted = blocks_to_bag(read_log_blocks(log, []), decoder, mech, config, Path(tmp) / "bag")
         timed["log -> bag (can-to-bag)"] = time.perf_counter() - t0
         if per_frame:
             decoder = CanDecoder(db, mapping, mech, config, "bench")

@@ -19,8 +19,8 @@ from mcap.writer import CompressionType
 from rosbags.rosbag2 import Reader
 
 from linkage_monitor.bag.step_recorder import StepRecorder
-from linkage_monitor.bag.writer import BagWriter, MessageRows
-from linkage_monitor.can.candump import parse_candump, read_candump
+from linkage_monitor.bag.writer import MIN_SPLIT_SIZE, BagWriter, MessageRows
+from linkage_monitor.can.candump import RefusedLine, parse_candump, read_candump
 from linkage_monitor.can.decoder import OUTCOMES, CanDecoder, load_databases
 from linkage_monitor.can.frame_msg import FRAME_TYPE, frames_cdr, from_cdr, to_cdr
 from linkage_monitor.can.frames import Frame, FrameBlock, to_message
@@ -41,7 +41,8 @@ LOG = ROOT / "bags" / "can" / "belarus_1221_lift.log"
 MAP = ROOT / "config" / "can" / "belarus_1221.yaml"
 T0 = 1_767_225_600_000_000_000   # ns
 
-# every kind of line python-can's candump reader reads, and how it reads them
+# every kind of line python-can's candump reader reads, and how it reads them (error frames of other
+# classes than bus errors, which python-can reads as data frames: test_hostile_can.py)
 SPECIAL_LINES = """\
 (1767225600.000000) can0 0CFE45F0#2A40FFFFFF3F0000 R
 (1767225600.000500) can0 123#DEAD T
@@ -53,7 +54,6 @@ SPECIAL_LINES = """\
 (1767225600.000900) can0 123##1000102030405060708090A0B0C0D0E0F
 (1767225600.000950) can0 18FF2021##3000102030405060708090A0B0C0D0E0F101112131415161718191A1B1C1D1E1F
 (1767225600.001000) can0 20000080#0000000000000000
-(1767225600.001100) can0 20000040#0000000000000000
 (0.0) vcan0 001#8d00100100820100
 (1.5) vcan0 001#8d
    (1767225600.001200) can0 123#0102
@@ -78,8 +78,11 @@ def _python_can_frames(path: Path) -> list[Frame]:
 
 
 def _block_frames(path: Path, piece_bytes: int | None = None) -> list[Frame]:
-    blocks = read_candump(path) if piece_bytes is None else read_candump(path, piece_bytes)
-    return [frame for block in blocks for frame in block.frames()]
+    refused: list[RefusedLine] = []
+    blocks = read_candump(path, refused) if piece_bytes is None else read_candump(path, refused, piece_bytes)
+    frames = [frame for block in blocks for frame in block.frames()]
+    assert refused == []
+    return frames
 
 
 def _special_log(tmp_path: Path) -> Path:
@@ -126,9 +129,9 @@ def test_most_lines_take_the_fast_path_and_the_rest_python_can() -> None:
     original = candump.python_can_line
     try:
         candump.python_can_line = lambda line: calls.append(line) or original(line)   # type: ignore[assignment]
-        list(read_candump(LOG))
+        list(read_candump(LOG, []))
         assert calls == []
-        parse_candump(SPECIAL_LINES.encode())
+        parse_candump(SPECIAL_LINES.encode(), [])
     finally:
         candump.python_can_line = original   # type: ignore[assignment]
     assert b"(1767225600.000700) vcan1 7FF#R" in calls and b"(1767225600.000000) can0 0CFE45F0#2A40FFFFFF3F0000 R" \
@@ -138,12 +141,15 @@ def test_most_lines_take_the_fast_path_and_the_rest_python_can() -> None:
 @pytest.mark.parametrize("line", ["(1767225600.000000) can0 123#01 X", "(1767225600.000000) can0", "garbage",
                                   "(1767225600.000000) can0 XYZ#01", "(abc) can0 123#01"])
 def test_a_line_python_can_refuses_is_refused(tmp_path: Path, line: str) -> None:
+    """python-can's reader gives up on the whole log; the block reader refuses the line alone, by number."""
     path = tmp_path / "bad.log"
-    path.write_text(f"(1767225600.000000) can0 123#01\n{line}\n")
+    path.write_text(f"(1767225600.000000) can0 123#01\n{line}\n(1767225600.000100) can0 124#02\n")
     with pytest.raises(InputError, match="unreadable"):
         list(read_log(path))
-    with pytest.raises(InputError, match="unreadable"):
-        list(read_log_blocks(path))
+    refused: list[RefusedLine] = []
+    frames = [f for block in read_log_blocks(path, refused) for f in block.frames()]
+    assert [f.arbitration_id for f in frames] == [0x123, 0x124]
+    assert [r.number for r in refused] == [2] and "not a CAN frame python-can reads" in refused[0].reason
 
 
 # ---- signals, tables, J1939 ranges ---------------------------------------------------------------------------
@@ -472,8 +478,8 @@ def test_rows_of_sizes_that_do_not_cut_their_bytes_are_refused(tmp_path: Path) -
 
 
 def test_rows_split_by_size_and_every_file_reads_alone(tmp_path: Path) -> None:
-    with BagWriter(tmp_path / "bag", chunk_size=4096, max_bag_size=20_000) as writer:
-        for seed in range(3):
+    with BagWriter(tmp_path / "bag", chunk_size=4096, max_bag_size=MIN_SPLIT_SIZE) as writer:
+        for seed in range(12):
             writer.write_rows(_parts(800, seed))
     files = sorted((tmp_path / "bag").glob("*.mcap"))
     assert len(files) >= 4
@@ -483,7 +489,7 @@ def test_rows_split_by_size_and_every_file_reads_alone(tmp_path: Path) -> None:
             reader = make_reader(f)
             counts.append(sum(1 for _ in reader.iter_messages()))
             assert reader.get_summary() is not None
-    assert sum(counts) == sum(len(p.position) for seed in range(3) for p in _parts(800, seed)) and min(counts) > 0
+    assert sum(counts) == sum(len(p.position) for seed in range(12) for p in _parts(800, seed)) and min(counts) > 0
 
 
 def test_rows_leave_a_readable_file_before_close(tmp_path: Path) -> None:
@@ -541,7 +547,7 @@ def test_can_to_bag_in_blocks_records_what_the_bridge_records(tmp_path: Path, ca
             writer.on_message_received(to_message(frame))
     frames = _python_can_frames(log)   # as the log holds them (python-can's reading)
     decoder = _decoder(text, tmp_path)
-    converted = blocks_to_bag(read_log_blocks(log), decoder, load_description("belarus_1221"), decoder.config,
+    converted = blocks_to_bag(read_log_blocks(log, []), decoder, load_description("belarus_1221"), decoder.config,
                               tmp_path / "blocks")
     reference = _decoder(text, tmp_path)
     _per_frame_bag(frames, reference, tmp_path / "frames")

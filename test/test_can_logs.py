@@ -105,10 +105,10 @@ def test_replay_decodes_the_raw_frames_again(tmp_path: Path) -> None:
     assert again.returncode == 0, again.stderr
     assert "decoded again with" in again.stdout and "3024 frames: 2520 decoded" in again.stdout
     assert same.stdout.split("replayed")[1].split("\n", 1)[1] == again.stdout.split("replayed")[1].split("\n", 1)[1]
-    # another mapping (the pressure read in bar instead of kPa: 100x larger, ~1 GPa, beyond the cylinder's
-    # plausibility limit) changes what is computed: every pressure refused, no pose solved
-    wrong = tmp_path / "bar.yaml"
-    wrong.write_text(MAP.read_text().replace("unit: kPa", "unit: bar").replace("dbc: [isobus_hitch.dbc]",
+    # another mapping (the pressure scaled 100x: ~1 GPa, beyond the cylinder's plausibility limit) changes
+    # what is computed: every pressure refused, no pose solved
+    wrong = tmp_path / "scaled.yaml"
+    wrong.write_text(MAP.read_text().replace("unit: kPa", "unit: kPa\n    scale: 100").replace("dbc: [isobus_hitch.dbc]",
                                                                              f"dbc: [{MAP.parent / 'isobus_hitch.dbc'}]"))
     changed = _cli("replay", str(tmp_path / "bag"), "--map", str(wrong), "--quiet")
     assert changed.returncode == 1 and "ERROR   1260  out_of_range" in changed.stdout

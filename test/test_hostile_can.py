@@ -102,7 +102,7 @@ def test_two_sources_offline_from_a_candump_log(tmp_path: Path) -> None:
         for frame in _two_ecus():
             writer.on_message_received(to_message(frame))
     decoder = _decoder()
-    converted = blocks_to_bag(read_log_blocks(log), decoder, load_description("belarus_1221"), decoder.config,
+    converted = blocks_to_bag(read_log_blocks(log, []), decoder, load_description("belarus_1221"), decoder.config,
                               tmp_path / "bag")
     assert (converted.counts.decoded, converted.counts.refused) == (1, 19)
     assert {f.code for f in converted.refusals} == {Code.SENSORS_DISAGREE}
@@ -192,3 +192,87 @@ def test_a_mapping_that_is_not_utf8_is_one_clear_error(tmp_path: Path) -> None:
     path.write_bytes(MAP.read_text().replace("# CAN mapping", "# CAN Zuordnung f\u00fcr").encode("latin-1"))
     with pytest.raises(InputError, match=r"latin1.yaml: not UTF-8 text \(byte 0xFC at offset 17\): save it as UTF-8"):
         load_mapping(path)
+
+
+# ---- 4. candump logs: bad lines refused one by one, error frames of every class, refusals named -------------
+def _hostile_log(tmp_path: Path) -> Path:
+    """The shipped log's first 40 lines with garbage at line 3, error frames of classes 0x4 (controller),
+    0x40 (bus-off) and 0x100 at lines 11-13, and its 41st line cut short, with no newline, as the last."""
+    lines = LOG.read_text().splitlines()
+    body = lines[:2] + ["garbage \xff"] + lines[2:9] + [
+        "(1767225600.200000) can0 20000004#0000000000000000",
+        "(1767225600.200100) can0 20000040#0000000000000000",
+        "(1767225600.200200) can0 20000100#0000000000000000"] + lines[9:40]
+    path = tmp_path / "hostile.log"
+    path.write_bytes(("\n".join(body) + "\n" + lines[40][:17]).encode("latin-1"))
+    return path
+
+
+def test_bad_lines_are_refused_one_by_one_and_error_frames_of_every_class_read_as_error_frames(tmp_path: Path) -> None:
+    refused: list = []
+    frames = [f for block in read_log_blocks(_hostile_log(tmp_path), refused) for f in block.frames()]
+    assert [r.number for r in refused] == [3, 45]   # the garbage; the cut line after 40 + 1 + 3 lines
+    assert len(frames) == 40 + 3
+    errors = [f for f in frames if f.is_error]
+    assert [(f.arbitration_id, f.is_extended) for f in errors] == [(0x4, False), (0x40, False), (0x100, False)]
+    decoder = _decoder()
+    outcomes = [decoder.decode(f, f.stamp_ns) for f in errors]
+    assert [d.finding.code for d in outcomes if d.finding] == [Code.MALFORMED_INPUT, Code.INPUTS_LOST,
+                                                                Code.MALFORMED_INPUT]
+    # the same frames as the live bridge's: an error frame through python-can's bus is read so
+    bus = can.Bus(interface="virtual", channel="hostile-errors", receive_own_messages=True)
+    try:
+        bus.send(can.Message(arbitration_id=0x40, is_extended_id=False, is_error_frame=True, data=bytes(8)))
+        from linkage_monitor.can.frames import from_message
+        live = from_message(bus.recv(1.0))
+    finally:
+        bus.shutdown()
+    assert (live.arbitration_id, live.is_extended, live.is_error, live.data) == (0x40, False, True, bytes(8))
+
+
+def test_refused_frames_are_named_by_kind() -> None:
+    from linkage_monitor.can.to_bag import refusal_lines
+
+    decoder = _decoder()
+    frames = [_hitch(HITCH_F0, 0xFF, k) for k in range(420)]   # 'not available' positions
+    refusals = [d.finding for d in (decoder.decode(f, f.stamp_ns) for f in frames) if d.finding]
+    [line] = refusal_lines(refusals)
+    assert line.startswith("WARN      420  no_value_yet  first: CAN frame RearHitchStatus (0x0CFE45F0) on can0 "
+                           "signal RearHitchPosition reads 'not available'")
+
+
+def test_unknown_identifiers_are_counted_in_the_summary() -> None:
+    decoder = _decoder()
+    for k, ident in enumerate([0x123] * 3 + [0x18FEF100] + [0x7FF] * 2):
+        decoder.decode(Frame(STAMP + k, ident, ident > 0x7FF, False, False, 8, bytes(8)), STAMP)
+    assert "6 of unknown identifiers 0x123 ×3, 0x7FF ×2, 0x18FEF100 ×1" in decoder.counts.summary()
+
+
+def _cli(*args: str, **kw) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "linkage_monitor.cli.main", *args], text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, **kw)
+
+
+@pytest.mark.slow
+def test_can_to_bag_converts_around_bad_lines_and_names_them(tmp_path: Path) -> None:
+    run = _cli("can-to-bag", str(_hostile_log(tmp_path)), "--map", str(MAP), "--out", str(tmp_path / "bag"))
+    out, err = run.communicate(timeout=120)
+    assert run.returncode == 0, err
+    assert err.startswith("linkage-monitor: CAN log ") and "2 line(s) refused, not converted: line 3 (" in err
+    assert "line 45 (" in err and "Traceback" not in err
+    assert out.splitlines()[0].startswith("43 frames: ")
+    assert "INPUTS_LOST".lower() in out and (tmp_path / "bag" / "metadata.yaml").is_file()
+
+
+@pytest.mark.slow
+def test_can_to_bag_into_a_closed_pipe_and_a_latin1_mapping_end_quietly(tmp_path: Path) -> None:
+    run = _cli("can-to-bag", str(LOG), "--map", str(MAP), "--out", str(tmp_path / "bag"))
+    assert run.stdout is not None
+    run.stdout.close()   # `| head -0`: the reader is gone before anything is printed
+    _, err = run.communicate(timeout=120)
+    assert run.returncode == 0 and "Traceback" not in err and "BrokenPipe" not in err, err
+    latin1 = tmp_path / "latin1.yaml"
+    latin1.write_bytes(MAP.read_text().replace("# CAN mapping", "# Zuordnung f\u00fcr").encode("latin-1"))
+    run = _cli("can-to-bag", str(LOG), "--map", str(latin1), "--out", str(tmp_path / "bag2"))
+    _, err = run.communicate(timeout=120)
+    assert run.returncode == 2 and err.count("\n") == 1 and "not UTF-8 text" in err, err

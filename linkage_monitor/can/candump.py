@@ -17,11 +17,14 @@ Such lines are grouped by layout (where their fields end: few in a log) and each
 fixed-width records, every field a range of columns.
 
 Every other non-blank line — remote requests (``123#R``), CAN FD (``123##1...``), error frames (the
-identifier's CAN_ERR_FLAG bit), other stamp formats, tabs or stray spaces, anything python-can
-refuses — is handed to python-can's own reader, one line at a time, in its place: the result is
-python-can's whatever the line. Lines end at ``\\n``, ``\\r\\n`` or ``\\r`` (text mode's universal
-newlines); blank lines hold no frame. A file is read in pieces of ``PIECE_BYTES`` cut at a line end:
-one FrameBlock per piece.
+identifier's CAN_ERR_FLAG bit), other stamp formats, tabs or stray spaces — is handed to python-can's
+own reader, one line at a time, in its place: the result is python-can's, but for error frames of
+other classes than bus errors, which python-can reads as data frames of the class bits: they are the
+error frames SocketCAN gives the live bridge (``frames.error_frame``). A line python-can cannot read
+(garbage, a line cut short) is refused alone: its number and python-can's reason are kept
+(``RefusedLine``), the other lines read on. Lines end at ``\\n``, ``\\r\\n`` or ``\\r`` (text mode's
+universal newlines); blank lines hold no frame. A file is read in pieces of ``PIECE_BYTES`` cut at a
+line end: one FrameBlock per piece.
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ import can
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
 
-from .frames import CLASSIC_BYTES, US, Frame, FrameBlock, from_message
+from .frames import CAN_ERR_FLAG, CLASSIC_BYTES, US, Frame, FrameBlock, error_frame, from_message
 
 PIECE_BYTES = 4 << 20   # bytes of the file read and parsed at once (~70,000 lines of 29-bit frames)
 SECONDS_DIGITS = 10     # at most this many digits before the decimal point on the fast path
@@ -52,6 +55,13 @@ for _k, _c in enumerate(b"0123456789abcdef"):
 _DECIMAL = np.where(_HEX < 10, _HEX, 255).astype(np.uint8)   # byte -> its decimal digit's value, 255 for none
 _IS_DIRECTION = np.zeros(256, bool)
 _IS_DIRECTION[np.frombuffer(DIRECTIONS, np.uint8)] = True
+
+
+class RefusedLine(NamedTuple):
+    """A log line that holds no frame python-can can read: its number (from 1) and why."""
+
+    number: int
+    reason: str
 
 
 class Lines(NamedTuple):
@@ -86,32 +96,48 @@ class Columns(NamedTuple):
     length: np.ndarray
 
 
-def read_candump(path: str | Path, piece_bytes: int = PIECE_BYTES) -> Iterator[FrameBlock]:
-    """The frames of the candump log ``path`` in file order, a FrameBlock per piece of the file. A
-    line python-can cannot read raises its error (ValueError and the like), as python-can's reader."""
+def read_candump(path: str | Path, refused: list[RefusedLine], piece_bytes: int = PIECE_BYTES) -> Iterator[FrameBlock]:
+    """The frames of the candump log ``path`` in file order, a FrameBlock per piece of the file; each
+    line python-can cannot read is appended to ``refused``, the rest read on."""
     with open(path, "rb") as file:
-        rest = b""
+        rest, first_line = b"", 1
         while True:
             chunk = file.read(piece_bytes)
             if not chunk:
                 break
-            text = (rest + chunk).replace(b"\r", b"\n")   # \r and \r\n end lines: at most blank lines more
-            cut = text.rfind(b"\n") + 1
+            text = rest + chunk
+            # the piece ends at the last line end; a last \r may be the first half of \r\n: it waits
+            cut = max(text.rfind(b"\n"), text.rfind(b"\r", 0, len(text) - 1)) + 1
             rest = text[cut:]
             if cut:
-                yield parse_candump(text[:cut])
+                piece = _lines_with_newlines(text[:cut])
+                yield parse_candump(piece, refused, first_line)
+                first_line += piece.count(b"\n")
         if rest.strip():
-            yield parse_candump(rest + b"\n")
+            yield parse_candump(_lines_with_newlines(rest) + b"\n", refused, first_line)
 
 
-def parse_candump(piece: bytes) -> FrameBlock:
-    """The frames of whole candump lines (``piece`` ends with a newline), in order."""
+def _lines_with_newlines(text: bytes) -> bytes:
+    """``text`` with its \r\n and lone \r line ends as \n (one line end each: the lines keep their numbers)."""
+    return text.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+
+
+def parse_candump(piece: bytes, refused: list[RefusedLine], first_line: int = 1) -> FrameBlock:
+    """The frames of whole candump lines (``piece`` ends with a newline; its first line is number
+    ``first_line`` of the log), in order; the lines python-can cannot read appended to ``refused``."""
     buf = np.frombuffer(piece, np.uint8)
     lines = line_bounds(buf)
     columns = fast_columns(buf, lines, fields_of(buf, lines))
     blank = lines.start == lines.end
     slow = np.flatnonzero(~columns.ok & ~blank)
-    slow_frames = [python_can_line(piece[lines.start[k]:lines.end[k]]) for k in slow.tolist()]
+    slow_frames = []
+    for k in slow.tolist():
+        try:
+            slow_frames.append(python_can_line(piece[lines.start[k]:lines.end[k]]))
+        except (ValueError, can.CanError, IndexError, KeyError, OverflowError) as exc:
+            refused.append(RefusedLine(first_line + k, f"not a CAN frame python-can reads ({type(exc).__name__}: "
+                                       f"{str(exc).splitlines()[0] if str(exc) else 'no detail'})"))
+            slow_frames.append(None)
     per_line = columns.ok.astype(np.int64)
     per_line[slow] = [frame is not None for frame in slow_frames]
     row = np.cumsum(per_line) - per_line            # each line's row in the block
@@ -247,12 +273,17 @@ def fast_columns(buf: np.ndarray, lines: Lines, f: Fields) -> Columns:
 
 def python_can_line(line: bytes) -> Frame | None:
     """The frame python-can's candump reader reads from one line (None for a line without one); its
-    error for a line it cannot read."""
+    error for a line it cannot read. An identifier with CAN_ERR_FLAG is an error frame of its class
+    (python-can reads only bus errors as such)."""
     text = line.decode(locale.getpreferredencoding(False))
     reader = can.CanutilsLogReader(io.StringIO(text))
     try:
         for msg in reader:
-            return from_message(msg)
+            frame = from_message(msg)
+            can_id = int(text.split()[2].split("#", 1)[0], 16)
+            if can_id & CAN_ERR_FLAG and not frame.is_error:
+                return error_frame(frame.stamp_ns, can_id, frame.data)
+            return frame
         return None
     finally:
         reader.stop()

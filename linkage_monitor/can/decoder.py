@@ -41,7 +41,7 @@ from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.events import InputEvent, JointStateEvent, PressureEvent
 from linkage_monitor.monitoring.findings import Code, Finding, fmt
 
-from .frames import Frame, FrameBlock
+from .frames import CAN_ERR_MASK, Frame, FrameBlock
 from .j1939 import CAN_ERR_BUSOFF, Raw, classify, is_value, pgn
 from .mapping import UNITS, CanMapping, InputMap
 from .signals import SignalLayout, raw_values, signal_layout, words
@@ -408,7 +408,7 @@ class CanDecoder:
                     f"bus-off on {self.source}: the CAN controller left the bus after too many errors; frames "
                     "sent meanwhile are lost (check wiring, termination and bit rate)")))
             return Decoded(Outcome.REFUSED, finding=Finding(Code.MALFORMED_INPUT, (
-                f"error frame on {self.source} (error class 0x{frame.arbitration_id & 0x1FFFFFFF:X}): a frame was "
+                f"error frame on {self.source} (error class 0x{frame.arbitration_id & CAN_ERR_MASK:X}): a frame was "
                 "damaged on the wire (check wiring, termination and bit rate)")))
         route = self._route_of(frame.arbitration_id, frame.is_extended)
         if route is None:

@@ -17,6 +17,8 @@ import numpy as np
 US = 1_000
 CLASSIC_BYTES = 8   # data bytes of a classic CAN frame: a FrameBlock's data columns are at least this many
 BLOCK_FRAMES = 65_536   # frames per FrameBlock when frames are gathered into blocks
+CAN_ERR_FLAG = 0x20000000    # linux/can.h: the identifier of an error frame carries this bit
+CAN_ERR_MASK = 0x1FFFFFFF    # ... and its error class bits (linux/can/error.h) below it
 
 
 @dataclass(frozen=True, slots=True)
@@ -36,6 +38,12 @@ class Frame:
 def stamp_of(seconds: float) -> int:
     """ns since the epoch of a python-can timestamp (float s), rounded to the µs."""
     return round(seconds * 1e6) * US
+
+
+def error_frame(stamp_ns: int, can_id: int, data: bytes) -> Frame:
+    """The error frame of SocketCAN identifier ``can_id`` (CAN_ERR_FLAG set): its class bits as the
+    identifier and its data, as python-can's socketcan bus hands it to the live bridge."""
+    return Frame(stamp_ns, can_id & CAN_ERR_MASK, False, False, True, len(data), data)
 
 
 def from_message(msg: can.Message) -> Frame:

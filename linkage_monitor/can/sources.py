@@ -12,7 +12,7 @@ import can
 
 from linkage_monitor.mechanics import InputError
 
-from .candump import read_candump
+from .candump import RefusedLine, read_candump
 from .frames import Frame, FrameBlock, blocks_of, from_message
 
 RECEIVE_BUFFER = 4 << 20   # bytes asked for the bus socket's receive buffer
@@ -71,21 +71,15 @@ def _checked_log(path: str | Path) -> Path:
     return path
 
 
-def read_log_blocks(path: str | Path) -> Iterator[FrameBlock]:
+def read_log_blocks(path: str | Path, refused: list[RefusedLine]) -> Iterator[FrameBlock]:
     """The frames of a log file in file order, in blocks: a candump ``.log`` read with numpy
-    (``candump.read_candump``, python-can's reading of every line), other formats by ``read_log``.
-    InputError for a missing file or an unknown format at once, for an unreadable line when reached."""
+    (``candump.read_candump``, python-can's reading of every line; a line it cannot read appended to
+    ``refused``, the others read on), other formats by ``read_log``. InputError for a missing file or
+    an unknown format at once; for a file python-can's reader of another format gives up on, when reached."""
     path = _checked_log(path)
     if path.suffix.lower() != ".log":
         return blocks_of(read_log(path))
-    return _candump_blocks(path)
-
-
-def _candump_blocks(path: Path) -> Iterator[FrameBlock]:
-    try:
-        yield from read_candump(path)
-    except (ValueError, can.CanError, IndexError, KeyError, OverflowError) as exc:
-        raise InputError(f"CAN log {path}: unreadable ({type(exc).__name__}: {exc})") from None
+    return read_candump(path, refused)
 
 
 def read_log(path: str | Path) -> Iterator[Frame]:

@@ -15,7 +15,7 @@ inputs it gave, as one frame at a time would record them.
 
 from __future__ import annotations
 
-from collections import defaultdict
+from collections import Counter, defaultdict
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, NamedTuple
@@ -27,7 +27,7 @@ from linkage_monitor.bag.writer import BagWriter, MessageRows
 from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.events import InputEvent, JointStateEvent, PressureEvent
-from linkage_monitor.monitoring.findings import Finding
+from linkage_monitor.monitoring.findings import Code, Finding
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE
 
 from .decoder import BlockDecoded, CanDecoder, FrameCounts
@@ -60,6 +60,18 @@ class Converted:
 
     counts: FrameCounts
     refusals: list[Finding]
+
+
+def refusal_lines(refusals: list[Finding]) -> list[str]:
+    """The refused frames by kind, one line each: level, count, code and the first one's finding (which
+    names the frame, its signal and the reason), e.g. ``WARN      420  no_value_yet  CAN frame ...``."""
+    first: dict[Code, Finding] = {}
+    count: Counter = Counter()
+    for finding in refusals:
+        first.setdefault(finding.code, finding)
+        count[finding.code] += 1
+    return [f"{first[code].level.name:<6} {count[code]:6d}  {code.ident}  {'first: ' if count[code] > 1 else ''}"
+            f"{first[code].text}" for code in sorted(first, key=lambda c: c.ident)]
 
 
 def can_to_bag(frames: Iterable[Frame], decoder: CanDecoder, description: Mechanism, config: MonitorConfig,

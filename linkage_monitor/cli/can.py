@@ -6,6 +6,9 @@ DBC files: ``--dbc`` (repeatable) or the mapping's own ``dbc`` list; mapping: do
 from __future__ import annotations
 
 import argparse
+import os
+import shutil
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -100,26 +103,51 @@ def run_can(args: argparse.Namespace) -> int:
                      make_node=lambda: CanBridgeNode(source, parameter_overrides=overrides))
 
 
-def run_can_to_bag(args: argparse.Namespace) -> int:
-    """A CAN log -> a bag; prints the frame counts and the refusals by reason."""
-    from collections import Counter
+SHOWN_LINES = 10   # refused log lines named one by one on stderr
 
+
+def run_can_to_bag(args: argparse.Namespace) -> int:
+    """A CAN log -> a bag; prints the frame counts and the refusals by reason, the refused log lines on
+    stderr. A log that gives no bag leaves none behind."""
+    from linkage_monitor.can.candump import RefusedLine
     from linkage_monitor.can.decoder import CanDecoder, load_databases
     from linkage_monitor.can.sources import read_log_blocks
-    from linkage_monitor.can.to_bag import blocks_to_bag
+    from linkage_monitor.can.to_bag import blocks_to_bag, refusal_lines
 
     mapping, mech, dbc = _setup(args)
     config = MonitorConfig.default(_mechanism_spec(args, mapping), mech)
     decoder = CanDecoder(load_databases(dbc), mapping, mech, config, Path(args.log).name)
-    converted = blocks_to_bag(read_log_blocks(args.log), decoder, mech, config, args.out)
-    counts = converted.counts
-    if counts.received == 0:
-        raise InputError(f"CAN log {args.log}: no frame")
-    print(counts.summary())
-    for (code, level), n in sorted(Counter((f.code.ident, f.level.name) for f in converted.refusals).items()):
-        print(f"{level:<6} {n:6d}  {code}")
-    print(f"bag written to {args.out}: `linkage-monitor replay {args.out}` gives the monitor's outputs")
+    refused: list[RefusedLine] = []
+    try:
+        converted = blocks_to_bag(read_log_blocks(args.log, refused), decoder, mech, config, args.out)
+        if converted.counts.received == 0:
+            raise InputError(f"CAN log {args.log}: no frame{_refused_text(refused)}")
+    except BaseException:
+        shutil.rmtree(args.out, ignore_errors=True)
+        raise
+    if refused:
+        print(f"linkage-monitor: CAN log {args.log}: {len(refused)} line(s) refused, not converted"
+              f"{_refused_text(refused)}", file=sys.stderr)
+    _print_quietly([converted.counts.summary(), *refusal_lines(converted.refusals),
+                    f"bag written to {args.out}: `linkage-monitor replay {args.out}` gives the monitor's outputs"])
     return 0
+
+
+def _refused_text(refused: list[Any]) -> str:
+    """``: line 4 (reason); line 3025 (reason)`` for the first SHOWN_LINES refused lines, then how many more."""
+    named = "; ".join(f"line {r.number} ({r.reason})" for r in refused[:SHOWN_LINES])
+    more = f"; and {len(refused) - SHOWN_LINES} more" if len(refused) > SHOWN_LINES else ""
+    return f": {named}{more}" if refused else ""
+
+
+def _print_quietly(lines: list[str]) -> None:
+    """Print ``lines``; a reader that stopped reading (``| head``) ends the output quietly, as Unix tools do."""
+    try:
+        for line in lines:
+            print(line)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())   # the interpreter's last flush goes nowhere
 
 
 def run_can_calibrate(args: argparse.Namespace) -> int:
@@ -181,7 +209,7 @@ def redecoded(args: argparse.Namespace, work: Path) -> Path:
     from linkage_monitor.can.decoder import CanDecoder, load_databases
     from linkage_monitor.can.mapping import load_mapping
     from linkage_monitor.can.sources import read_bag_frames
-    from linkage_monitor.can.to_bag import can_to_bag
+    from linkage_monitor.can.to_bag import can_to_bag, refusal_lines
     from linkage_monitor.offline.replay import recording_in_bag
 
     mapping = load_mapping(args.map)
@@ -194,7 +222,7 @@ def redecoded(args: argparse.Namespace, work: Path) -> Path:
                          args.raw_topic)
     bag = work / "redecoded"
     converted = can_to_bag(read_bag_frames(args.bag, args.raw_topic), decoder, mech, config, bag, args.raw_topic)
-    print(f"decoded again with {args.map}: {converted.counts.summary()}")
+    _print_quietly([f"decoded again with {args.map}: {converted.counts.summary()}", *refusal_lines(converted.refusals)])
     return bag
 
 
