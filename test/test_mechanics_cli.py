@@ -10,6 +10,12 @@ from pathlib import Path
 import pytest
 
 from linkage_monitor.cli.main import main
+from linkage_monitor.mechanics import load_preset
+from linkage_monitor.mechanics.capacity import stroke_mechanism
+from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
+from linkage_monitor.monitoring.config import MonitorConfig
+from linkage_monitor.monitoring.core import Monitor
+from linkage_monitor.monitoring.events import JointStateEvent, PressureEvent
 from test_mechanics_oracles import FIXTURES
 
 HITCH = str(FIXTURES / "hitch.yaml")
@@ -40,7 +46,6 @@ def test_set_and_pressure_options(capsys) -> None:
 
 @pytest.mark.parametrize("argv, words", [
     (["solve", "--mechanism", HITCH, "--stroke", "lift_cylinder=abc"], ["lift_cylinder", "not a number"]),
-    (["solve", "--mechanism", HITCH, "--stroke", "lift_cylinder=0.9"], ["lift_cylinder", "mm"]),
     (["solve", "--mechanism", HITCH, "--stroke", "lift_cyl=0.5"], ["lift_cyl", "unknown"]),
     (["solve", "--mechanism", HITCH, "--set", "implement.mass=-3"], ["implement.mass", ">= 0"]),
     (["solve", "--mechanism", "nope.yaml"], ["nope.yaml", "cannot read"]),
@@ -65,3 +70,76 @@ def test_subprocess_presets_and_solve() -> None:
     help_text = subprocess.run([PYTHON, "-m", "linkage_monitor.cli", "solve", "--help"], capture_output=True,
                                text=True, timeout=60).stdout
     assert "--pressure" in help_text and "CYL=CAP_PA[:ROD_PA]" in help_text
+
+
+# ---- one verdict: the CLI says what the node's monitor says ------------------------------------------------
+NODE_STAMP = 1_700_000_000_000_000_000   # ns; any stamp, the node's receive time equal to it
+
+
+def _node_findings(preset: str, overrides: dict, cylinders: dict, angles: dict, pressures: dict,
+                   monitor: Monitor | None = None) -> list[dict]:
+    """The findings of the node's monitor on one pose: its default configuration with ``overrides`` as
+    runtime parameters give them (``MonitorConfig.overrides``), the pressures as FluidPressure (absolute
+    Pa) on their default topics, then one JointState (``monitor``: one that has seen the poses before)."""
+    if monitor is None:
+        mech = load_preset(preset)
+        monitor = Monitor(mech, MonitorConfig.default(preset, mech).with_overrides(overrides))
+    config = monitor.config
+    topic = {sensor: t for t, sensor in config.pressure_topics.items()}
+    for name, gauge in pressures.items():
+        monitor.step(PressureEvent(topic[name], gauge + ATMOSPHERIC_PRESSURE, NODE_STAMP, NODE_STAMP))
+    joints = {**cylinders, **angles}
+    step = monitor.step(JointStateEvent("/joint_states", list(joints), list(joints.values()), [], NODE_STAMP,
+                                        NODE_STAMP))
+    return [{"level": f.level.name, "code": f.code.ident, "message": f.text} for f in step.findings]
+
+
+BELARUS_REFERENCE = {"cylinders": {"lift_cylinder": 0.535}, "angles": {"lift_arm_angle": -2.7747},
+                     "pressures": {"lift_cap_pressure": 10.132e6}}   # the preset's reference_inputs
+
+
+@pytest.mark.parametrize("options, overrides, pose, level", [
+    ([], {}, {}, "OK"),
+    # a 1 kg tractor with 10 t of front ballast: the rear axle lifts off (rear axle load < 0)
+    (["--set", "tractor.mass=1", "--set", "tractor.front_ballast.mass=10000"],
+     {"tractor.mass": 1.0, "tractor.front_ballast.mass": 10000.0}, {}, "ERROR"),
+    # 16 MPa in the lift cylinder: an implement load above the lift capacity at its cg, steerability low
+    (["--pressure", "lift_cylinder=1.6e7"], {}, {"pressures": {"lift_cap_pressure": 1.6e7}}, "WARN"),
+    # stroke and angle 0.37 rad apart: no closed linkage fits both
+    (["--stroke", "lift_cylinder=0.6", "--angle", "lift_arm_angle=-2.9"], {},
+     {"cylinders": {"lift_cylinder": 0.6}, "angles": {"lift_arm_angle": -2.9}}, "ERROR"),
+])
+def test_solve_says_what_the_node_says(capsys, options, overrides, pose, level) -> None:
+    code = main(["solve", "--preset", "belarus_1221", *options, "--json"])
+    out = json.loads(capsys.readouterr().out)
+    inputs = {**BELARUS_REFERENCE, **pose}
+    node = _node_findings("belarus_1221", overrides, inputs["cylinders"], inputs["angles"], inputs["pressures"])
+    assert out["findings"] == node and out["level"] == level
+    assert code == (1 if level == "ERROR" else 0)   # exit 1: the monitor's verdict is ERROR (--help's epilog)
+    assert level == "OK" or node
+
+
+def test_axle_lift_off_is_printed_and_exits_1(capsys) -> None:
+    assert main(["solve", "--preset", "belarus_1221", "--set", "tractor.mass=1",
+                 "--set", "tractor.front_ballast.mass=10000"]) == 1
+    out = capsys.readouterr().out
+    assert "verdict ERROR" in out and "ERROR axle_lift_off: rear axle load -" in out and "status ok" not in out
+
+
+def test_out_of_range_stroke_is_the_nodes_refusal(capsys) -> None:
+    assert main(["solve", "--mechanism", HITCH, "--stroke", "lift_cylinder=0.9", "--json"]) == 1
+    findings = json.loads(capsys.readouterr().out)["findings"]
+    assert [f["code"] for f in findings] == ["out_of_range"] and "lift_cylinder" in findings[0]["message"]
+
+
+def test_capacity_says_what_the_node_says_at_every_length(capsys) -> None:
+    """The sweep's poses judged by the CLI (batched, as the replay) equal the node's live steps, pose by pose;
+    0.45 m is below the stroke's plausible range (0.4828 m, from the geometry): out_of_range, exit 1."""
+    code = main(["capacity", "--preset", "belarus_1221", "--stroke", "0.45", "0.52", "--points", "8", "--json"])
+    curve = json.loads(capsys.readouterr().out)
+    sweep = stroke_mechanism(load_preset("belarus_1221"))
+    monitor = Monitor(sweep, MonitorConfig.default("belarus_1221", sweep))
+    node = [_node_findings("belarus_1221", {}, {"lift_cylinder": s}, {}, {}, monitor) for s in curve["length"]]
+    assert curve["findings"] == node
+    assert curve["findings"][0][0]["code"] == "out_of_range" and curve["verdict"] == "ERROR" and code == 1
+    assert any(level == "WARN" for level in curve["level"])   # lift_reserve_low low on the stroke

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from linkage_monitor.cli.arguments import add_mechanism_group, mechanism_from_args, output_file
+from linkage_monitor.cli.commands import COMMANDS
 from linkage_monitor.mechanics import InputError, LinkageError, Mechanism
 from linkage_monitor.mechanics.calibration import UNITS, FitResult, calibrate, fitted_yaml
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
@@ -25,7 +26,7 @@ from linkage_monitor.monitoring.name_value import name_value, number
 def add_calibrate_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Add the ``calibrate`` subcommand to ``subparsers``; returns its parser."""
     p = subparsers.add_parser(
-        "calibrate", help="fit geometry parameters (pivots, cg, bore, mass) to measured kinematics and pressures",
+        "calibrate", help=COMMANDS["calibrate"].help,
         description="Bounded nonlinear least squares of the --free parameters of the start mechanism to the "
                     "data; reports the residual per column, each parameter's uncertainty and the parameters "
                     "the data cannot determine (docs/calibration.md).")

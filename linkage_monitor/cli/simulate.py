@@ -12,6 +12,7 @@ import sys
 from typing import Sequence
 
 from linkage_monitor.cli.arguments import add_mechanism_group, bounded, mechanism_from_args
+from linkage_monitor.cli.commands import COMMANDS
 from linkage_monitor.mechanics import LinkageError
 from linkage_monitor.sim.telemetry import SCENARIOS, Noise
 
@@ -48,7 +49,7 @@ def add_simulate_arguments(parser: argparse.ArgumentParser) -> None:
 
 def add_simulate_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register the ``simulate`` subcommand on ``subparsers``; returns its parser."""
-    sub = subparsers.add_parser("simulate", help="publish simulated JointState + FluidPressure telemetry",
+    sub = subparsers.add_parser("simulate", help=COMMANDS["simulate"].help,
                                 description=__doc__.splitlines()[0])
     add_simulate_arguments(sub)
     return sub

@@ -1,0 +1,26 @@
+"""``linkage-monitor presets``: the bundled mechanisms with their one-line description (reads their
+YAML files only: no solver, no compiled kernels)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from linkage_monitor.cli.commands import COMMANDS
+from linkage_monitor.mechanics.presets import preset_description, preset_names
+
+
+def add_presets_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Add the ``presets`` subcommand to ``subparsers``; returns its parser."""
+    return subparsers.add_parser("presets", help=COMMANDS["presets"].help)
+
+
+def run_presets(args: argparse.Namespace) -> int:
+    """Print one line per preset: its name and description."""
+    try:
+        for name in preset_names():
+            print(f"{name:<24} {preset_description(name)}")
+    except BrokenPipeError:   # `linkage-monitor presets | head -1`
+        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - the interpreter closes it at exit
+    return 0
