@@ -49,6 +49,9 @@ def test_full_disk_is_reported_and_the_bag_stays_readable(tmpfs, split):
     assert writer.error is not None and "No space left" in writer.error and str(disk) in writer.error
     assert writer.unwritten > 0
     writer.close()   # never raises
+    # the line the node logs at its end: the recording failed, and where the partial bag is (not "bag written")
+    assert writer.outcome.startswith("recording failed: ") and "bag written" not in writer.outcome
+    assert f"{writer.unwritten} message(s) not recorded" in writer.outcome and str(disk / "run") in writer.outcome
     by_mcap, by_rosbags = _count_readable(disk / "run")
     assert 0 < by_mcap == by_rosbags <= written
     assert len(list((disk / "run").glob("*.mcap"))) == (1 if not split else len(writer.paths)) and \
@@ -80,3 +83,31 @@ def test_stamps_mcap_cannot_store_are_written_as_zero(tmp_path):
     assert times[0] == (0, T0) and times[1] == (0, T0 + 1)
     assert times[2][0] == T0 and times[2][1] >= T0 + 1   # receive time: now, never before the last
     assert _count_readable(tmp_path / "run") == (3, 3)
+
+
+def test_a_finished_recording_says_bag_written(tmp_path):
+    with BagWriter(tmp_path / "run") as writer:
+        writer.write("/a", String(data="x"), T0, log_time_ns=T0)
+    assert writer.outcome == f"bag written: {tmp_path / 'run'} (1 message(s))"
+
+
+@pytest.mark.parametrize("environment, expected", [("", "jazzy"), ("rolling", "rolling")])
+def test_ros_distro_is_the_installed_one_when_ros_distro_is_unset(tmp_path, monkeypatch, environment, expected):
+    """metadata.yaml's ros_distro: ROS_DISTRO when set, else the distribution of the installed rclpy (this
+    venv: the `ros-jazzy-rclpy` wheel, rclpy 7.x), never a default of another distribution."""
+    from importlib.metadata import version
+
+    import yaml
+
+    from linkage_monitor.bag.writer import ros_distro
+
+    assert version("rclpy").startswith("7.")   # the venv is Jazzy's (make setup)
+    monkeypatch.setenv("ROS_DISTRO", environment)
+    ros_distro.cache_clear()
+    try:
+        with BagWriter(tmp_path / "run"):
+            pass
+    finally:
+        ros_distro.cache_clear()
+    info = yaml.safe_load((tmp_path / "run" / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["ros_distro"] == expected

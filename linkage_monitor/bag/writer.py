@@ -36,6 +36,7 @@ one would give them; the crash-safe tail, the splitting and the cut-back on a fu
 from __future__ import annotations
 
 import functools
+import importlib.metadata
 import os
 import struct
 import threading
@@ -498,6 +499,27 @@ def _message_index_records(channel: np.ndarray, log_time: np.ndarray, offset: np
     return out
 
 
+# rclpy's release series of each ROS 2 distribution (ros2/rclpy: humble 3.3, iron 5.x, jazzy 7.x, kilted 9.x)
+_RCLPY_SERIES = {3: "humble", 5: "iron", 7: "jazzy", 9: "kilted"}
+
+
+@functools.lru_cache(maxsize=1)
+def ros_distro() -> str:
+    """The ROS 2 distribution this process runs on, for metadata.yaml's ``ros_distro``: ROS_DISTRO when
+    set (a sourced ROS install), else the distribution in the name of the installed rclpy wheel
+    (`ros-<distro>-rclpy`), else the one of rclpy's version (its release series); 'unknown' when none says."""
+    if os.environ.get("ROS_DISTRO"):
+        return os.environ["ROS_DISTRO"]
+    for distribution in importlib.metadata.distributions():
+        name = (distribution.metadata["Name"] or "").lower().replace("_", "-")
+        if name.startswith("ros-") and name.endswith("-rclpy") and name.count("-") == 2:
+            return name.split("-")[1]
+    try:
+        return _RCLPY_SERIES.get(int(importlib.metadata.version("rclpy").split(".")[0]), "unknown")
+    except (importlib.metadata.PackageNotFoundError, ValueError):
+        return "unknown"
+
+
 class BagError(RuntimeError):
     """A bag cannot be written or read: says which path and what is wrong."""
 
@@ -815,6 +837,17 @@ class BagWriter:
                 self.error = self.error or f"{self.directory}: {exc.strerror or exc}"
         self._flusher.join()
 
+    @property
+    def outcome(self) -> str:
+        """What became of the recording, one line for the console at its end: 'bag written: DIR (N
+        messages)', or, after a fault (``error``), that the recording failed, why, how many messages
+        were not recorded and where the partial bag is (readable up to its last complete chunk)."""
+        written = sum(t.count for t in self._topics.values())
+        if self.error is None:
+            return f"bag written: {self.directory} ({written} message(s))"
+        return (f"recording failed: {self.error}; {self.unwritten} message(s) not recorded; the partial bag "
+                f"({written} message(s), readable up to its last complete chunk) is {self.directory}")
+
     def _fail(self, exc: OSError) -> None:
         """Enter the error state (under the lock): no more writing, the file stays readable."""
         if self.error is None:
@@ -856,7 +889,7 @@ class BagWriter:
             "relative_file_paths": [name for name, _ in files],
             "files": [{"path": name, **span.information()} for name, span in files],
             "custom_data": None,
-            "ros_distro": os.environ.get("ROS_DISTRO", "kilted"),
+            "ros_distro": ros_distro(),
         }
 
     def _write_metadata_yaml(self) -> None:
