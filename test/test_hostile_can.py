@@ -6,6 +6,7 @@ bus flooded beyond what the bridge works off. Each test reproduces the fault it 
 from __future__ import annotations
 
 import subprocess
+import time
 import sys
 from pathlib import Path
 
@@ -276,3 +277,38 @@ def test_can_to_bag_into_a_closed_pipe_and_a_latin1_mapping_end_quietly(tmp_path
     run = _cli("can-to-bag", str(LOG), "--map", str(latin1), "--out", str(tmp_path / "bag2"))
     _, err = run.communicate(timeout=120)
     assert run.returncode == 2 and err.count("\n") == 1 and "not UTF-8 text" in err, err
+
+
+# ---- 5. a flood: frames the socket drops are counted -----------------------------------------------------------
+def test_frames_dropped_at_the_socket_are_counted_and_reported() -> None:
+    """A receiver that does not read while 3000 frames arrive into a 4 kB receive buffer: the kernel drops
+    most of them. The frames read and the frames counted as dropped are every frame sent."""
+    import random
+
+    from linkage_monitor.can.sources import DropCount, open_bus, receive_buffer
+
+    chance = random.SystemRandom()
+    group = f"239.74.{chance.randint(0, 255)}.{chance.randint(1, 254)}"
+    port = chance.randint(20_000, 60_000)
+    receiver = open_bus(f"udp_multicast:{group}", port=port)
+    sender = can.Bus(interface="udp_multicast", channel=group, port=port)
+    try:
+        receive_buffer(receiver, 4096)
+        drops = DropCount(receiver)
+        assert drops.known
+        sent = 3000
+        for k in range(sent):
+            sender.send(can.Message(arbitration_id=HITCH_F0, data=bytes([125, 0x40, 0xFF, 0xFF, 0xFF, 0x3F, 0, k % 256])))
+        time.sleep(0.2)
+        read = 0
+        while receiver.recv(0.05) is not None:
+            read += 1
+        dropped = drops.new()
+    finally:
+        sender.shutdown()
+        receiver.shutdown()
+    assert dropped > 0 and read + dropped == sent
+    decoder = _decoder()
+    finding = decoder.counts.lose(dropped, f"udp_multicast:{group}")
+    assert finding.code is Code.INPUTS_LOST and f"{dropped} CAN frame(s) lost on udp_multicast:{group}" in finding.text
+    assert f"{dropped} lost before the bridge read them" in decoder.counts.summary()

@@ -83,6 +83,7 @@ class FrameCounts:
     decoded: int = 0
     ignored: int = 0
     refused: int = 0
+    lost: int = 0   # frames dropped before the bridge read them (the socket's receive buffer was full)
     unknown_ids: Counter = field(default_factory=Counter)
     untrusted_ids: Counter = field(default_factory=Counter)   # J1939 frames of a source the mapping does not name
     two_sources: dict[str, list[int]] = field(default_factory=dict)   # message -> the source addresses sending it
@@ -94,10 +95,19 @@ class FrameCounts:
             ("unknown identifiers", self.unknown_ids), ("sources the mapping does not trust", self.untrusted_ids)) if ids]
         text = (f"{self.received} frames: {self.decoded} decoded, {self.ignored} ignored"
                 f"{' (' + '; '.join(ignored) + ')' if ignored else ''}, {self.refused} refused")
+        if self.lost:
+            text += f"; {self.lost} lost before the bridge read them (receive buffer full)"
         for message, sources in self.two_sources.items():
             text += (f"; {message} sent by {len(sources)} sources ({', '.join(f'0x{a:02X}' for a in sources)}): "
                      "not used, name the one to trust (source_address)")
         return text
+
+    def lose(self, dropped: int, source: str) -> Finding:
+        """Count ``dropped`` frames lost at the bus's socket before the bridge read them; the finding."""
+        self.lost += dropped
+        return Finding(Code.INPUTS_LOST, (
+            f"{dropped} CAN frame(s) lost on {source} ({self.lost} in all): the socket's receive buffer overflowed "
+            "before the bridge read them (more frames per second than it decodes and solves); none of them is used"))
 
 
 SHOWN_IDS = 10   # identifiers a summary lists with their counts

@@ -30,7 +30,7 @@ from .decoder import CanDecoder, load_databases
 from .frame_msg import FRAME_TYPE, from_cdr, to_cdr
 from .frames import Frame, from_message
 from .mapping import CanMapping
-from .sources import open_bus
+from .sources import DropCount, open_bus
 from .to_bag import RAW_TOPIC, input_record
 
 # s, the node's thread reads the bus this often, everything waiting each time. Not a reader thread:
@@ -73,6 +73,9 @@ class CanBridgeNode(LinkageMonitorNode):
         self.bus: can.BusABC | None = None
         if source.bus is not None:
             self.bus = open_bus(source.bus)
+            self.drops = DropCount(self.bus)
+            if not self.drops.known:
+                self.get_logger().warning(f"{source.bus}: the frames the bus drops cannot be counted here")
             self.create_timer(POLL_PERIOD_S, self._poll_bus)
         else:
             self._subscribe(FrameMsg, self.source_name, self._on_frame_message)
@@ -83,6 +86,10 @@ class CanBridgeNode(LinkageMonitorNode):
     def _poll_bus(self) -> None:
         """Work off the frames waiting on the bus (at most POLL_LIMIT); a receive error is a finding."""
         assert self.bus is not None
+        dropped = self.drops.new()
+        if dropped:
+            now = self._now()
+            self._publish(Step(now, self.source_name, (self.decoder.counts.lose(dropped, self.source_name),)), now)
         for _ in range(POLL_LIMIT):
             try:
                 msg = self.bus.recv(0.0)

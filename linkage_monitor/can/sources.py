@@ -5,6 +5,7 @@ reads candump logs with numpy (``candump``) in blocks of frames, the other forma
 from __future__ import annotations
 
 import socket
+import struct
 from pathlib import Path
 from typing import Iterator
 
@@ -50,14 +51,56 @@ def receive_buffer(bus: can.BusABC, size: int = RECEIVE_BUFFER) -> int | None:
     None for a bus without a socket. The frames wait there while the node solves: 212 kB (Linux's
     default) held ~0.1 s of a saturated bus's datagrams on udp_multicast, and the bridge lost 0.35 %
     of the frames at 8k frames/s (bench/bench_can.py)."""
-    sock = getattr(bus, "socket", None) or getattr(getattr(bus, "_multicast", None), "_socket", None)
-    if not isinstance(sock, socket.socket):
+    sock = _socket_of(bus)
+    if sock is None:
         return None
     try:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, size)
     except OSError:
         pass   # the default buffer stays
     return int(sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF))
+
+
+def _socket_of(bus: can.BusABC) -> socket.socket | None:
+    """The socket a bus receives on (socketcan: ``bus.socket``; udp_multicast: its multicast socket), None
+    for a bus without one."""
+    sock = getattr(bus, "socket", None) or getattr(getattr(bus, "_multicast", None), "_socket", None)
+    return sock if isinstance(sock, socket.socket) else None
+
+
+SO_MEMINFO = 55        # linux/socket.h (Linux >= 4.6): a socket's memory counters, u32 each ...
+SK_MEMINFO_DROPS = 8   # ... of which this one counts what the kernel dropped at it (receive buffer full)
+
+
+class DropCount:
+    """The frames the kernel dropped at a bus's socket because its receive buffer was full (the bridge
+    did not read fast enough): SO_MEMINFO's drop count, for every kind of socket (a raw CAN socket, the
+    UDP socket of udp_multicast: one frame a datagram). ``known`` is False for a bus without a socket
+    (python-can's virtual bus queues without limit) or a kernel without SO_MEMINFO."""
+
+    def __init__(self, bus: can.BusABC) -> None:
+        self._socket = _socket_of(bus)
+        start = self._read()
+        self.known = start is not None
+        self._seen = start or 0
+
+    def _read(self) -> int | None:
+        if self._socket is None:
+            return None
+        try:
+            counters = self._socket.getsockopt(socket.SOL_SOCKET, SO_MEMINFO, 4 * (SK_MEMINFO_DROPS + 1))
+        except OSError:
+            return None
+        return int(struct.unpack_from(f"{SK_MEMINFO_DROPS + 1}I", counters)[SK_MEMINFO_DROPS])
+
+    def new(self) -> int:
+        """The frames dropped since the last call (since the bus opened at the first), 0 if not known."""
+        now = self._read()
+        if now is None:
+            return 0
+        dropped = (now - self._seen) % (1 << 32)   # the kernel's counter is 32 bits and wraps
+        self._seen = now
+        return dropped
 
 
 def _checked_log(path: str | Path) -> Path:
