@@ -167,3 +167,47 @@ def test_a_fleet_row_names_a_skipped_chunk_and_a_cut(tmp_path):
     assert cut["error"] is None and cut["inputs"] > 0 and "is cut off at byte" in cut["warning"], cut
     whole = analyse_bag(DAMPING).row
     assert whole["warning"] is None and whole["inputs"] == cut["inputs"]
+
+
+def _db3(path: Path, declared: dict[str, str]) -> Path:
+    """The damping bag's inputs in a rosbag2 sqlite3 bag written by rosbags, a topic's type column set to
+    ``declared[topic]`` where given (the bytes stay what they are)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    with AnyReader([DAMPING.parent], default_typestore=get_typestore(Stores.EMPTY)) as reader:
+        store = reader.typestore
+        wanted = [c for c in reader.connections if c.topic in INPUTS]
+        messages = [(c.topic, c.msgtype, t, bytes(raw)) for c, t, raw in reader.messages(connections=wanted)]
+    with Writer(path, version=9, storage_plugin=StoragePlugin.SQLITE3) as writer:
+        connections = {}
+        for topic, msgtype, stamp, data in messages:
+            if topic not in connections:
+                connections[topic] = writer.add_connection(topic, declared.get(topic, msgtype), typestore=store)
+            writer.write(connections[topic], stamp, data)
+    return path
+
+
+def test_a_db3_whose_topics_table_lies_about_a_type_names_the_topic_once(tmp_path):
+    """/joint_states declared sensor_msgs/msg/FluidPressure in the topics table: its messages read as
+    pressures of 3e-313 Pa before (1,629 no_value_yet findings in a replay, no cause). rosbags refuses to
+    decode them as that type (the oracle); the reader leaves the topic out with one ReadFault naming the
+    topic, the declared type and why, and reads the other topics as before."""
+    from rosbags.serde import SerdeError
+
+    lying = _db3(tmp_path / "lying", {"/joint_states": "sensor_msgs/msg/FluidPressure"})
+    honest = _db3(tmp_path / "honest", {})
+    joint_states = [m for m in read_bag_raw(honest) if m.topic == "/joint_states"]
+    store = get_typestore(Stores.LATEST)
+    with pytest.raises(SerdeError):
+        store.deserialize_cdr(joint_states[0].data, "sensor_msgs/msg/FluidPressure")
+    with read_faults() as faults:
+        read = list(read_bag_raw(lying))
+        read_again = list(read_bag_raw(lying))
+    assert [(f.kind, f.messages) for f in faults] == [("type_mismatch", len(joint_states))]
+    assert "/joint_states" in faults[0].text and "sensor_msgs/msg/FluidPressure" in faults[0].text \
+        and "left over" in faults[0].text, faults[0].text
+    assert [(m.topic, m.data) for m in read] == [(m.topic, m.data) for m in read_bag_raw(honest)
+                                                 if m.topic != "/joint_states"] == [(m.topic, m.data) for m in read_again]
+    with read_faults() as faults:
+        assert len(list(read_bag_raw(honest))) > len(read)
+    assert faults == []

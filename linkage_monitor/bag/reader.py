@@ -48,8 +48,8 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosidl_parser.definition import AbstractNestedType, BasicType, NamespacedType
 
 from linkage_monitor.bag.writer import BagError
-from linkage_monitor.wire.cdr import stamp_ns
-from linkage_monitor.wire.definitions import MessageDefinitionError, message_definition
+from linkage_monitor.wire.cdr import is_xcdr1, stamp_ns
+from linkage_monitor.wire.definitions import MessageDefinitionError, exact_cdr, message_definition
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE
 
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -91,7 +91,8 @@ class PressureColumns:
 class ReadFault:
     """Part of a bag that could not be read as recorded, named: ``file``, ``kind`` ('cut_off': the file
     ends in an incomplete record; 'chunk_skipped': a chunk fails its CRC or does not read;
-    'unlisted_file': a storage file metadata.yaml does not list; 'no_channel': messages whose channel
+    'unlisted_file': a storage file metadata.yaml does not list; 'type_mismatch': a topic whose messages
+    are not its declared type (sqlite3); 'no_channel': messages whose channel
     is not defined), ``offset`` (byte in the file where it starts, None when it is a whole file),
     ``messages`` (messages read before a cut, or lost in a chunk; None when not known) and ``text``,
     the sentence that says it and what follows from it."""
@@ -494,7 +495,9 @@ def _raw_messages(file: Path, topics: Collection[str] | None) -> Iterator[tuple[
 def _sqlite3_messages(file: Path, topics: Collection[str] | None) -> Iterator[tuple[Any, Any, Any]]:
     """The records of one rosbag2 sqlite3 file (tables `topics` and `messages`, as rosbag2's
     sqlite3 storage plugin writes them), in receive-time order (then insertion order). The
-    storage keeps one time per message, the receive time: it stands for the publish time too."""
+    storage keeps one time per message, the receive time: it stands for the publish time too.
+    The file holds no definitions, only each topic's type name: a topic whose messages are not its
+    declared type (``_declared_type_fails``) is left out, named once in a ``ReadFault``."""
     query = ("SELECT topics.name, topics.type, topics.serialization_format, messages.timestamp, messages.data "
              "FROM messages JOIN topics ON messages.topic_id = topics.id")
     wanted = list(topics) if topics is not None else None
@@ -504,16 +507,62 @@ def _sqlite3_messages(file: Path, topics: Collection[str] | None) -> Iterator[tu
     try:
         connection = sqlite3.connect(f"{file.resolve().as_uri()}?mode=ro", uri=True)
     except sqlite3.Error as exc:
-        raise BagError(f"{file} cannot be opened as a sqlite3 bag ({exc})") from exc
+        raise BagError(f"{file} is not a readable rosbag2 sqlite3 file ({exc}): "
+                       "copy what can be read with `ros2 bag convert` or record again") from exc
     try:
+        refused = _mistyped_topics(file, connection, wanted)
         rows = connection.execute(query, wanted or [])
         for topic, type_name, encoding, timestamp, data in rows:
-            yield _Schema(type_name), _Channel(topic, encoding), _Message(timestamp, timestamp, bytes(data))
+            if topic not in refused:
+                yield _Schema(type_name), _Channel(topic, encoding), _Message(timestamp, timestamp, bytes(data))
     except sqlite3.Error as exc:
         raise BagError(f"{file} is not a readable rosbag2 sqlite3 file ({exc}): "
                        "copy what can be read with `ros2 bag convert` or record again") from exc
     finally:
         connection.close()
+
+
+TYPE_PROBES = 8   # first messages of a topic tried against its declared type: one that decodes clears it
+_CDR_PADDING = 3   # bytes a rosbag2 CDR payload may hold after its message (alignment to 4)
+
+
+def _mistyped_topics(file: Path, connection: sqlite3.Connection, wanted: list[str] | None) -> set[str]:
+    """The topics of a sqlite3 file (on ``wanted``) whose declared type (the `topics` table's `type`)
+    their messages are not: none of their first TYPE_PROBES messages decodes as it; each named once in a
+    ``ReadFault`` (topic, declared type, why). One that decodes clears the topic: a damaged message
+    alone is the replay's to report, as the node does."""
+    refused = set()
+    for topic_id, topic, type_name in connection.execute("SELECT id, name, type FROM topics"):
+        if wanted is not None and topic not in wanted:
+            continue
+        probes = connection.execute("SELECT data FROM messages WHERE topic_id = ? ORDER BY timestamp, id LIMIT ?",
+                                    (topic_id, TYPE_PROBES)).fetchall()
+        reasons = [_declared_type_fails(type_name, bytes(data)) for (data,) in probes]
+        if reasons and all(reasons):
+            refused.add(topic)
+            count = connection.execute("SELECT COUNT(*) FROM messages WHERE topic_id = ?", (topic_id,)).fetchone()[0]
+            _report(ReadFault(str(file), "type_mismatch", None, count,
+                              f"{file}: the messages on {topic} are not its declared type {type_name} (the "
+                              f"first: {reasons[0]}): the file's topics table names a wrong type; its {count} "
+                              "messages are left out (convert the bag with the right type)"))
+    return refused
+
+
+def _declared_type_fails(type_name: str, data: bytes) -> str | None:
+    """Why the CDR payload ``data`` is not a ``type_name`` message (it does not decode as it, or bytes are
+    left over beyond CDR's padding); None when it is, or cannot be told (a type whose definition is not
+    installed, an encoding other than XCDR1)."""
+    if not is_xcdr1(data):
+        return None
+    try:
+        used = len(exact_cdr(type_name, data))
+    except MessageDefinitionError:
+        return None
+    except ValueError as exc:
+        return str(exc).split(": ")[-1] if str(exc) else "does not decode"
+    if len(data) - used > _CDR_PADDING:
+        return f"{len(data)} bytes, of which the type reads {used}: {len(data) - used} left over"
+    return None
 
 
 def _mcap_messages(file: Path, topics: Collection[str] | None) -> Iterator[tuple[Any, Any, Any]]:
