@@ -312,3 +312,43 @@ def test_frames_dropped_at_the_socket_are_counted_and_reported() -> None:
     finding = decoder.counts.lose(dropped, f"udp_multicast:{group}")
     assert finding.code is Code.INPUTS_LOST and f"{dropped} CAN frame(s) lost on udp_multicast:{group}" in finding.text
     assert f"{dropped} lost before the bridge read them" in decoder.counts.summary()
+
+
+# ---- 1, live: the bridge on a bus where two ECUs send the rear hitch status ----------------------------------
+@pytest.mark.slow
+@pytest.mark.ros
+def test_live_bridge_refuses_two_sources(tmp_path: Path, ros: None, monkeypatch: pytest.MonkeyPatch) -> None:
+    import json
+    import random
+
+    from support.ros_harness import node_bag, stop
+    from test_can_bridge import _cli as bridge_cli
+    from test_can_bridge import _messages, _wait_for, _wait_for_count
+
+    log = tmp_path / "two.log"
+    with can.CanutilsLogWriter(str(log), channel="can0") as writer:
+        for frame in _two_ecus():
+            writer.on_message_received(to_message(frame))
+    chance = random.SystemRandom()
+    group = f"239.74.{chance.randint(0, 255)}.{chance.randint(1, 254)}"
+    monkeypatch.setenv("CAN_CONFIG", json.dumps({"port": chance.randint(20000, 60000)}))
+    bridge_log = tmp_path / "bridge.log"
+    bridge = subprocess.Popen(bridge_cli("can", "--map", str(MAP), "--bus", f"udp_multicast:{group}", "--ros-args",
+                                         "-p", f"record_dir:={tmp_path / 'bags'}"),
+                              stdout=bridge_log.open("w"), stderr=subprocess.STDOUT)
+    try:
+        _wait_for(bridge_log, "CAN frames from", bridge)
+        sent = subprocess.run([sys.executable, str(ROOT / "test" / "support" / "can_sender.py"), "bus",
+                               f"udp_multicast:{group}", str(log), "100"], capture_output=True, text=True, timeout=60)
+        assert sent.returncode == 0, sent.stderr
+        # the 20 frames of the two ECUs, then the sender's error frame, bus-off and 'not available' position
+        status = _wait_for_count(23)
+    finally:
+        code = stop(bridge)
+    assert code == 0, bridge_log.read_text()
+    assert status.startswith("23 frames: 1 decoded, 0 ignored, 22 refused; RearHitchStatus sent by 2 sources (0xF0, "
+                             "0x80)"), status
+    bag = node_bag(tmp_path / "bags")
+    findings = [s.message for m in _messages(bag, "/diagnostics") for s in m.status]
+    assert any("0xF0 and 0x80 both send PGN 65093" in text for text in findings)
+    assert len(_messages(bag, "/joint_states")) == 1   # the first frame's, before the second source was heard
