@@ -5,15 +5,14 @@ runs it. Only the module of the subcommand being run is imported (``cli.main``):
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 EXIT_CODES = ("exit codes: 0 done (the monitor's verdict OK or WARN); 1 the monitor's verdict is ERROR "
               "(solve: on the pose; capacity: on a pose of the sweep) or replay solved no pose; 2 a bad "
               "option or input file (one line on stderr)")
 
 
-@dataclass(frozen=True)
-class Command:
+class Command(NamedTuple):   # not a dataclass: importing dataclasses costs more than the whole --help
     """A subcommand. ``add``: the function of ``module`` that registers its parser on the subparsers
     (the CAN subcommands share one, which registers all three); ``run``: the function that runs it
     (Namespace -> exit code); ``threads``: large batches run on every core (``kernels.allow_threads``)."""

@@ -1,0 +1,53 @@
+"""`linkage-monitor --help` and `presets` answer at once: the argparse set-up and the preset list load
+neither numba, scipy, the compiled kernels nor the bag writer (each subcommand imports its own modules
+when it runs; timings: bench/bench_cli_start.py)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+
+import pytest
+
+from linkage_monitor.cli.commands import COMMANDS
+from linkage_monitor.cli.main import build_parser
+
+HEAVY = ("numba", "scipy", "numpy", "linkage_monitor.bag", "linkage_monitor.mechanics.kernels",
+         "linkage_monitor.mechanics.solver", "linkage_monitor.monitoring.core")
+LOADED = """
+import contextlib, io, json, sys
+from linkage_monitor.cli.main import main
+with contextlib.redirect_stdout(io.StringIO()):
+    try:
+        code = main(sys.argv[1:])
+    except SystemExit as exit:   # --help
+        code = exit.code
+print(json.dumps({"code": code, "modules": sorted(sys.modules)}))
+"""
+
+
+def _loaded(*argv: str) -> tuple[int, list[str]]:
+    """The exit code of ``linkage-monitor ARGV`` in a fresh interpreter and the modules it loaded."""
+    run = subprocess.run([sys.executable, "-c", LOADED, *argv], capture_output=True, text=True, timeout=60, check=True)
+    out = json.loads(run.stdout)
+    return out["code"], out["modules"]
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["presets"], ["solve", "--help"]])
+def test_the_answer_loads_no_heavy_module(argv) -> None:
+    code, modules = _loaded(*argv)
+    heavy = [m for m in modules if any(m == h or m.startswith(h + ".") for h in HEAVY)]
+    if argv == ["solve", "--help"]:   # the subcommand's own options load its modules: the contrast
+        assert code == 0 and "linkage_monitor.monitoring.core" in heavy
+    else:
+        assert code == 0 and heavy == [], heavy
+
+
+def test_the_listing_is_each_subcommands_own_help() -> None:
+    """The one-line helps `--help` shows without importing the subcommands (cli.commands) are the ones
+    their own modules register (all imported here)."""
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    registered = {action.dest: action.help for action in sub._choices_actions}
+    assert registered == {name: command.help for name, command in COMMANDS.items()}
