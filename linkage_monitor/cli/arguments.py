@@ -8,9 +8,10 @@ import argparse
 import math
 import os
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
-from linkage_monitor.mechanics import Mechanism, load_mechanism, load_preset
+if TYPE_CHECKING:   # the mechanics (numba: seconds) are loaded by the commands that read a mechanism
+    from linkage_monitor.mechanics import Mechanism
 
 
 def bounded(lo: float, hi: float, unit: str = "", integer: bool = False, lo_open: bool = False
@@ -61,6 +62,8 @@ def add_mechanism_group(parser: argparse.ArgumentParser, required: bool = True, 
 
 def mechanism_from_args(args: argparse.Namespace) -> Mechanism | None:
     """The mechanism the ``--preset/--mechanism`` group names (None when neither was given)."""
+    from linkage_monitor.mechanics import load_mechanism, load_preset
+
     if getattr(args, "preset", None):
         return load_preset(args.preset)
     if getattr(args, "mechanism", None):

@@ -1,0 +1,168 @@
+"""The subscriber side of ``linkage-monitor watch``: the monitor node's output topics taken in, the
+latest values kept as a ``viz.terminal_view.WatchRecord``.
+
+Topics as the node names them (``ros/node.py``): ``hinge_reactions``, ``hitch_state``,
+``steerability`` relative to the namespace (the watch node is created in the monitor's namespace,
+so ``--ros-args -r`` remappings apply to both alike) and ``/diagnostics``. /diagnostics is shared
+by every node of the ROS domain: a status is taken only when its name is ``<node>: ...`` for the
+node that publishes the watched ``hinge_reactions`` (rclpy's message info carries no publisher
+gid to tell two nodes apart); the others are counted by name (``OutputWatch.foreign``), not shown.
+When nodes of that name in more than one namespace publish /diagnostics, their statuses cannot be
+told apart: the record says so in a WARN status of the watch itself.
+
+Forces N, angles rad, times s (monotonic clock of this process).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+from linkage_monitor.monitoring.findings import Level
+from linkage_monitor.msg import HingeReactions, HitchState, Steerability
+from linkage_monitor.viz.terminal_view import HingeLoad, StatusLine, TopicRate, WatchRecord
+
+HINGE_REACTIONS, HITCH_STATE, STEERABILITY = "hinge_reactions", "hitch_state", "steerability"  # as the node names them
+DIAGNOSTICS = "/diagnostics"
+# reliable, as the node publishes its outputs (ros/node.py OUTPUT_QOS): every solve is seen, so the peaks are
+# the peaks; keep-last, so a watch that falls behind never holds the node up
+WATCH_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+GRAPH_PERIOD_S = 1.0   # s, the ROS graph is asked at most this often which node publishes the outputs
+RATE_WINDOW_S = 2.0   # s, the received rates are counted over this window
+CODES_KEY = "findings"   # wire.diagnostics.CODES_KEY (importing wire loads the compiled kernels: seconds)
+INPUTS_STATUS = ": inputs"   # the node's input-stream status (<node>: inputs): its losses
+REFERENCES = {Steerability.REFERENCE_UNIT: "unit", Steerability.REFERENCE_TRACTOR: "tractor"}
+
+
+@dataclass
+class _Arrivals:
+    """Receive times of one topic (monotonic s) within the rate window, and the count in all."""
+
+    times: deque[float] = field(default_factory=deque)
+    count: int = 0
+
+    def arrived(self, now: float) -> None:
+        self.times.append(now)
+        self.count += 1
+
+    def rate(self, now: float, since: float) -> float:
+        """Messages per second over the last RATE_WINDOW_S (or since ``since`` when that is shorter)."""
+        while self.times and self.times[0] < now - RATE_WINDOW_S:
+            self.times.popleft()
+        return len(self.times) / max(min(RATE_WINDOW_S, now - since), 1e-3)
+
+
+class OutputWatch:
+    """Subscribes ``node`` to the monitor's outputs and keeps their latest values, each hinge's
+    peak since the watch started, the latest status of each name on /diagnostics and the rates.
+
+    ``stale_after_s``: the record says STALE when no output arrived for longer (s)."""
+
+    def __init__(self, node: Node, stale_after_s: float) -> None:
+        self.node, self.stale_after_s = node, stale_after_s
+        self.started = time.monotonic()
+        self.topics = {name: node.resolve_topic_name(name) for name in (HINGE_REACTIONS, HITCH_STATE, STEERABILITY,
+                                                                        DIAGNOSTICS)}
+        self._arrivals = {topic: _Arrivals() for topic in self.topics.values()}
+        self._hinges: HingeReactions | None = None
+        self._hitch: HitchState | None = None
+        self._steer: Steerability | None = None
+        self._peaks: dict[str, float] = {}
+        self._last_output: float | None = None
+        self._statuses: dict[str, StatusLine] = {}
+        self._monitors: set[str] = set()
+        self._graph_asked, self._ambiguous = -GRAPH_PERIOD_S, ""
+        self.foreign: dict[str, int] = {}   # status name -> statuses on /diagnostics from other nodes, ignored
+        for name, msg_type in ((HINGE_REACTIONS, HingeReactions), (HITCH_STATE, HitchState),
+                               (STEERABILITY, Steerability)):
+            node.create_subscription(msg_type, name, self._output_callback(name), WATCH_QOS)
+        node.create_subscription(DiagnosticArray, DIAGNOSTICS, self._on_diagnostics, WATCH_QOS)
+
+    def _output_callback(self, name: str) -> Any:
+        def callback(msg: Any) -> None:
+            now = time.monotonic()
+            self._arrivals[self.topics[name]].arrived(now)
+            self._last_output = now
+            if name == HINGE_REACTIONS:
+                self._on_hinges(msg)
+            elif name == HITCH_STATE:
+                self._hitch = msg
+            else:
+                self._steer = msg
+        return callback
+
+    def _on_hinges(self, msg: HingeReactions) -> None:
+        self._hinges = msg
+        for h in msg.hinges:
+            if math.isfinite(h.magnitude):
+                self._peaks[h.name] = max(self._peaks.get(h.name, 0.0), h.magnitude)
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        self._arrivals[self.topics[DIAGNOSTICS]].arrived(time.monotonic())
+        monitors = self._monitor_names()
+        for status in msg.status:
+            if status.name.partition(": ")[0] not in monitors:
+                self.foreign[status.name] = self.foreign.get(status.name, 0) + 1
+                continue
+            codes = next((kv.value for kv in status.values if kv.key == CODES_KEY), "")
+            self._statuses[status.name] = StatusLine(status.name, _level_name(status.level), status.message, codes)
+
+    def _monitor_names(self) -> set[str]:
+        """The names of the nodes that publish the watched ``hinge_reactions`` (the graph asked at most
+        once a second)."""
+        now = time.monotonic()
+        if now - self._graph_asked >= GRAPH_PERIOD_S:
+            self._graph_asked = now
+            self._monitors = {p.node_name for p in self.node.get_publishers_info_by_topic(self.topics[HINGE_REACTIONS])}
+            namespaces = sorted({p.node_namespace for p in self.node.get_publishers_info_by_topic(DIAGNOSTICS)
+                                 if p.node_name in self._monitors})
+            self._ambiguous = "" if len(namespaces) <= 1 else (
+                f"nodes named {', '.join(sorted(self._monitors))} in {len(namespaces)} namespaces "
+                f"({', '.join(namespaces)}) publish /diagnostics: the statuses shown may be another monitor's; "
+                "give each monitor its own node name (--ros-args -r __node:=NAME)")
+        return self._monitors
+
+    def missing(self) -> list[str]:
+        """The watched topics on which nothing has arrived yet (for /diagnostics: no status of the monitor)."""
+        missing = [self.topics[name] for name, msg in ((HINGE_REACTIONS, self._hinges), (HITCH_STATE, self._hitch),
+                                                        (STEERABILITY, self._steer)) if msg is None]
+        return missing + ([] if self._statuses else [DIAGNOSTICS])
+
+    def record(self) -> WatchRecord:
+        """What the watch knows now."""
+        now = time.monotonic()
+        hinges, hitch, steer = self._hinges, self._hitch, self._steer
+        loss = next((s for name, s in self._statuses.items() if name.endswith(INPUTS_STATUS)), None)
+        return WatchRecord(
+            namespace=self.node.get_namespace(), topics=tuple(self.topics.values()),
+            mechanism=hinges.mechanism if hinges is not None else "",
+            hinges=tuple(HingeLoad(h.name, h.magnitude, self._peaks.get(h.name, math.nan))
+                         for h in (hinges.hinges if hinges is not None else ())),
+            ratio=steer.ratio if steer is not None else math.nan,
+            ratio_min=steer.ratio_min if steer is not None else math.nan,
+            margin=steer.margin if steer is not None else math.nan,
+            ratio_reference=REFERENCES.get(steer.reference, "") if steer is not None else "",
+            lift_reserve=hitch.lift_reserve if hitch is not None else math.nan,
+            implement_load_n=hitch.implement_load if hitch is not None else math.nan,
+            min_transmission_angle_rad=hitch.min_transmission_angle if hitch is not None else math.nan,
+            statuses=tuple(s for s in self._statuses.values() if s is not loss) + (
+                (StatusLine("watch", "WARN", self._ambiguous),) if self._ambiguous else ()), loss=loss,
+            rates=tuple(TopicRate(topic, arrivals.rate(now, self.started), arrivals.count)
+                        for topic, arrivals in self._arrivals.items()),
+            output_age_s=None if self._last_output is None else now - self._last_output,
+            stale_after_s=self.stale_after_s)
+
+
+
+def _level_name(level: bytes | int) -> str:
+    """A DiagnosticStatus level (rclpy gives its ``byte`` field as bytes) as its name: OK, WARN, ERROR,
+    STALE, or ``level N`` for a value diagnostic_msgs does not define."""
+    number = level[0] if isinstance(level, bytes) else int(level)
+    return Level(number).name if number in set(Level) else f"level {number}"

@@ -1,0 +1,226 @@
+"""`linkage-monitor watch`: the terminal view of a record filled by hand (every figure on an 80x24
+screen, with its unit), and the command against a real node fed by `linkage-monitor simulate`:
+`--once` prints what the node published, the live view in a real tmux terminal shows the node's
+last output within 1 s of its publication.
+
+Expected figures: the hand-filled record's numbers written out in the view's units (kN with two
+decimals, deg with one, ratios with three), and for the live node the messages a test subscriber
+received from it.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import rclpy
+from rich.console import Console
+
+from linkage_monitor.monitoring.loss import LossCounter
+from linkage_monitor.msg import HingeReactions
+from linkage_monitor.viz.terminal_view import (HingeLoad, StatusLine, TopicRate, WatchRecord, snapshot_lines,
+                                               view)
+from support.ros_harness import RELIABLE, MonitorClient, start_node, start_simulator, stop
+
+WATCH = [sys.executable, "-m", "linkage_monitor.cli.watch"]
+TOPICS = ("/hinge_reactions", "/hitch_state", "/steerability", "/diagnostics")
+BELARUS_HINGES = ("P03", "P34", "P45", "P05", "P56", "P07", "P67")   # the preset's hinges, in its order
+
+
+def _loss_message() -> str:
+    """The node's input-loss sentence (ros/node.py ``_report_losses``) around the real counter's summary."""
+    counter = LossCounter()
+    for seq in (1, 2, 6):   # 3 and 4 and 5 never arrive: a gap of 3
+        counter.on_message("/joint_states", "pub", seq)
+    counter.on_message("/pressure/lift_cap_pressure", "pub", 1)
+    return (f"{counter.new_since_report()} input message(s) lost in the last 1 s (the monitor did not see them): "
+            f"{counter.summary()}")
+
+
+def _record(hinge_count: int = len(BELARUS_HINGES), output_age_s: float | None = 0.1) -> WatchRecord:
+    names = BELARUS_HINGES if hinge_count == len(BELARUS_HINGES) else tuple(f"H{k}" for k in range(hinge_count))
+    return WatchRecord(
+        namespace="/", topics=TOPICS, mechanism="belarus_1221",
+        hinges=tuple(HingeLoad(name, 10_000.0 * (k + 1) + 1_234.0, 100_000.0 + 567.0 * k)
+                     for k, name in enumerate(names)),
+        ratio=0.2561, ratio_min=0.2, margin=0.0561, ratio_reference="unit", lift_reserve=1.5349,
+        implement_load_n=14_993.0, min_transmission_angle_rad=math.radians(26.94),
+        statuses=(StatusLine("linkage_monitor: belarus_1221", "WARN", "lift reserve 0.93 below 1", "lift_reserve"),),
+        loss=StatusLine("linkage_monitor: inputs", "WARN", _loss_message()),
+        rates=tuple(TopicRate(topic, rate, 100) for topic, rate in zip(TOPICS, (50.0, 50.0, 50.0, 1.0))),
+        output_age_s=output_age_s)
+
+
+# every figure of _record() as the view writes it, with its unit
+FIGURES = ["11.23 kN", "71.23 kN", "peak 100.57 kN", "peak 103.40 kN", "0.256 [-]", "0.200 [-]", "+0.056 [-]",
+           "1.535 [-]", "14.99 kN", "26.9 deg", "50.0 msg/s", "1.0 msg/s", "WARN", "lift reserve 0.93 below 1",
+           "/joint_states: 3 lost of 3 received", "/pressure/lift_cap_pressure: 0 lost of 1 received"]
+
+
+def _screen(record: WatchRecord, width: int, height: int) -> list[str]:
+    console = Console(record=True, width=width, height=height, color_system=None)
+    console.print(view(record, width, height))
+    return console.export_text().splitlines()
+
+
+@pytest.mark.parametrize("width,height", [(80, 24), (120, 40)])
+def test_view_shows_every_figure_within_the_terminal(width, height):
+    lines = _screen(_record(), width, height)
+    text = "\n".join(lines)
+    for figure in FIGURES:
+        assert figure in text, f"{figure!r} not on the {width}x{height} screen:\n{text}"
+    for name in BELARUS_HINGES:
+        assert re.search(rf"^\W*{name} ", text, re.M), f"hinge {name} not on the screen:\n{text}"
+    assert len(lines) <= height
+    assert max(len(line) for line in lines) <= width
+    assert "LIVE" in lines[0]
+
+
+def test_view_of_many_hinges_fits_80x24():
+    """damping_hitch has 11 hinges: each is on the screen with its force, and the screen is 80x24."""
+    lines = _screen(_record(hinge_count=11), 80, 24)
+    text = "\n".join(lines)
+    for k in range(11):
+        assert f"H{k} " in text and f"{(10_000.0 * (k + 1) + 1_234.0) / 1e3:.2f} kN" in text, text
+    assert len(lines) <= 24 and max(len(line) for line in lines) <= 80
+
+
+def test_stale_and_waiting_said_plainly():
+    assert "STALE: no output for 3.5 s" in _screen(_record(output_age_s=3.5), 80, 24)[0]
+    waiting = _screen(_record(output_age_s=None), 120, 40)[0]
+    assert "WAITING: no output yet on /hinge_reactions" in waiting
+
+
+def test_snapshot_has_one_figure_per_line():
+    lines = snapshot_lines(_record())
+    assert "hinge P03 |F| 11.23 kN (peak 100.00 kN)" in lines
+    assert "steerability margin +0.056 [-]" in lines
+    assert "min transmission angle 26.9 deg" in lines
+    assert "received /diagnostics 1.0 msg/s" in lines
+    assert "  /joint_states: 3 lost of 3 received (sequence gaps 3, middleware 0)" in lines
+
+
+# ---- against a real node fed by the simulator -------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def monitor(ros, tmp_path_factory):
+    """A belarus_1221 node (not recording) fed by `linkage-monitor simulate --loop`, and a test
+    subscriber of its outputs in this process: yields (client, tmp directory, simulator process)."""
+    tmp = tmp_path_factory.mktemp("watch")
+    proc = start_node({"mechanism": "belarus_1221", "record": False}, tmp / "node.log")
+    client = MonitorClient()
+    sim = None
+    try:
+        client.wait_for_node()
+        sim = start_simulator(["--preset", "belarus_1221", "--loop"], tmp / "sim.log")
+        assert client.spin_until(lambda: bool(client.received["hinge_reactions"]), 30), (tmp / "sim.log").read_text()
+        yield client, tmp, sim
+    finally:
+        if sim is not None:
+            stop(sim)
+        client.close()
+        code = stop(proc)
+        assert code == 0, (tmp / "node.log").read_text()
+
+
+def _hinge_figures(client: MonitorClient) -> dict[str, set[str]]:
+    """Each hinge's |F| in every HingeReactions the client received, as the view writes it (kN)."""
+    figures: dict[str, set[str]] = {}
+    for msg in client.received["hinge_reactions"]:
+        for h in msg.hinges:
+            figures.setdefault(h.name, set()).add(f"{h.magnitude / 1e3:.2f} kN")
+    return figures
+
+
+@pytest.mark.slow
+def test_once_prints_what_the_node_published(monitor):
+    client, _, _ = monitor
+    from linkage_monitor.ros.watch import CODES_KEY
+    from linkage_monitor.wire.diagnostics import CODES_KEY as NODE_CODES_KEY
+
+    assert CODES_KEY == NODE_CODES_KEY
+    watch = subprocess.run([*WATCH, "--once", "--timeout", "20"], capture_output=True, text=True, timeout=40)
+    client.spin_until(lambda: False, 0.5)   # the last outputs the watch may have seen
+    assert watch.returncode == 0, watch.stderr
+    lines = watch.stdout.splitlines()
+    figures = _hinge_figures(client)
+    for name in BELARUS_HINGES:
+        line = next(line for line in lines if line.startswith(f"hinge {name} "))
+        value = re.search(r"\|F\| (\S+ kN)", line)
+        assert value and value.group(1) in figures[name], f"{line!r}: not a |F| the node published"
+    ratio_min = {f"{m.ratio_min:.3f} [-]" for m in client.received["steerability"]}
+    assert next(line for line in lines if line.startswith("ratio min ")).removeprefix("ratio min ") in ratio_min
+    assert any(re.match(r"diagnostics (OK|WARN|ERROR|STALE) linkage_monitor: belarus_1221: .", line)
+               for line in lines), watch.stdout
+
+
+@pytest.mark.slow
+def test_once_without_a_monitor_names_the_topics_and_exits_1():
+    watch = subprocess.run([*WATCH, "--once", "--timeout", "1", "--namespace", "/no_tractor"], capture_output=True,
+                           text=True, timeout=30)
+    assert watch.returncode == 1 and watch.stdout == ""
+    assert len(watch.stderr.splitlines()) == 1
+    for topic in ("/no_tractor/hinge_reactions", "/no_tractor/hitch_state", "/no_tractor/steerability", "/diagnostics"):
+        assert topic in watch.stderr
+
+
+def _tmux(*args: str) -> str:
+    return subprocess.run(["tmux", "-L", "linkage_monitor_watch_test", *args], check=True, capture_output=True,
+                          text=True).stdout
+
+
+def _screen_forces(screen: str) -> tuple[str, ...] | None:
+    """Each hinge's |F| on a captured screen, as written there (None if one is missing)."""
+    found = [re.search(rf"{name} +(\d+\.\d\d kN)", screen) for name in BELARUS_HINGES]
+    return tuple(m.group(1) for m in found if m) if all(found) else None
+
+
+def _forces(msg: HingeReactions) -> tuple[str, ...]:
+    return tuple(f"{h.magnitude / 1e3:.2f} kN" for h in msg.hinges)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux is not installed (Debian package tmux)")
+def test_live_view_in_tmux_shows_outputs_within_1_s(monitor):
+    """While the simulator runs, every screen captured shows the forces of a HingeReactions that
+    arrived here (DDS receive time) no earlier than the newest one that had arrived 1 s before the
+    capture; once the simulator has stopped, the screen shows the node's last outputs."""
+    client, tmp, sim = monitor
+    arrivals: list[tuple[int, HingeReactions]] = []   # (receive time ns, message)
+    client.node.create_subscription(HingeReactions, "hinge_reactions",
+                                    lambda msg, info: arrivals.append((info["received_timestamp"], msg)), RELIABLE)
+    _tmux("new-session", "-d", "-s", "watch", "-x", "80", "-y", "24", " ".join(WATCH) + f" 2> {tmp / 'watch.err'}")
+    captures: list[tuple[int, str]] = []   # (capture time ns, screen)
+    try:
+        end = time.monotonic() + 5
+        while time.monotonic() < end:
+            client.spin_until(lambda: False, 0.2)
+            captures.append((time.time_ns(), _tmux("capture-pane", "-p", "-t", "watch")))
+        assert stop(sim) == 0, (tmp / "sim.log").read_text()
+        client.spin_until(lambda: False, 1.0)   # the last outputs arrive here and on the screen
+        final = _tmux("capture-pane", "-p", "-t", "watch")
+    finally:
+        _tmux("kill-server")
+    print(final)   # what the user sees (pytest -s)
+    live = [(at, screen) for at, screen in captures if "LIVE" in screen.splitlines()[0]]
+    assert len(live) >= 3, "the view said LIVE in fewer than 3 captures:\n" + "\n".join(s for _, s in captures)
+    for at, screen in live:
+        shown = _screen_forces(screen)
+        received = [t for t, msg in arrivals if t <= at and _forces(msg) == shown]
+        due = [t for t, _ in arrivals if t <= at - 1_000_000_000]   # arrived 1 s or more before the capture
+        assert received and (not due or max(received) >= max(due)), (
+            f"the screen shows forces {shown} received {(at - max(received, default=0)) / 1e9:.2f} s before the "
+            f"capture, a newer output {(at - max(due)) / 1e9:.2f} s before it:\n{screen}")
+    lines = final.splitlines()
+    assert len(lines) <= 24 and max(len(line) for line in lines) <= 80
+    assert _screen_forces(final) == _forces(client.received["hinge_reactions"][-1]), final
+    last_steer, last_hitch = client.received["steerability"][-1], client.received["hitch_state"][-1]
+    assert f"{last_steer.ratio:.3f} [-]" in final and f"{last_steer.margin:+.3f} [-]" in final, final
+    assert f"{last_hitch.lift_reserve:.3f} [-]" in final, final
+    assert f"{math.degrees(last_hitch.min_transmission_angle):.1f} deg" in final, final
