@@ -56,7 +56,10 @@ def test_launch_file_starts_node_with_params_and_descriptors(preset, tmp_path):
                                            ("reliable_queue_depth:=0", "reliable_queue_depth out of range"),
                                            ("dead_centre_transmission_deg:=50.0",
                                             "dead_centre_transmission_deg out of range"),
-                                           ("stamp_tolerance:=1000000", "of type 'INTEGER', expecting type 'DOUBLE'"),
+                                           ("dead_centre_transmission_deg:=45.0000001",   # rclpy's range lets it pass
+                                            "dead_centre_transmission_deg = 45.0000001: outside its range [0, 45] "
+                                            "degrees"),
+                                           ("stamp_tolerance:=2000000", "stamp_tolerance out of range"),   # an integer
                                            ("tractor_mass:=-0.5", "tractor_mass = -0.5: a value must be >= 0")])
 def test_bad_parameter_exits_2_with_one_line_on_stderr(param, expect):
     proc = subprocess.run([sys.executable, "-m", "linkage_monitor.ros.node", "--ros-args", "-p", "record:=false",

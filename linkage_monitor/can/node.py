@@ -153,6 +153,10 @@ class CanBridgeNode(LinkageMonitorNode):
                 "no solve until frames come again; check the bus connection, its bit rate and the tractor's ECUs")),)),
                 now)
 
+    def input_sources(self) -> list[str]:
+        """The bus (INTERFACE:CHANNEL) or the frames' topic: what the STALE status names."""
+        return [self.source_name]
+
     # ---- frame counts with the heartbeat, at shutdown ----------------------------------------------------
     def on_heartbeat(self) -> None:
         super().on_heartbeat()

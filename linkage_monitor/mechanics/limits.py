@@ -10,9 +10,15 @@ must not reach the solver). Limits come from the file (``measurements.limits``, 
 - joint angle, rad: the angle's span over that sweep (or over a sweep of the angle itself when
   no cylinder drives the linkage), widened by ANGLE_MARGIN; compared modulo 2π, so a sensor
   reporting in [−π, π) or [0, 2π) reads inside the same range;
-- chamber pressure, Pa absolute: from MIN_ABSOLUTE_PRESSURE (a hydraulic transducer reading
-  below it is dead or disconnected) to RELIEF_FACTOR × the cylinder's relief pressure (gauge)
-  + 1 atm, or DEFAULT_MAX_PRESSURE without one.
+- chamber pressure, Pa absolute: up to RELIEF_FACTOR × the cylinder's relief pressure (gauge)
+  + 1 atm, or DEFAULT_MAX_PRESSURE without one; from UNIT_SLIP × that upper limit with a relief
+  pressure, else from MIN_ABSOLUTE_PRESSURE (a hydraulic transducer reading below it is dead or
+  disconnected). The lower limit with a relief pressure is where every pressure the circuit can
+  hold lands when its kPa are sent as Pa (9.2 MPa read as 9.2 kPa: a plausible-looking load near
+  zero otherwise); a chamber that low (−72 kPa gauge for belarus_1221's 19.4 MPa relief) is oil
+  under deep suction, releasing its air, not a chamber holding a load. (The pressure that holds
+  the linkage's own weight is no lower limit: the presets' links are massless, it is 0 gauge, and
+  a lowered implement in float reads about that, noise either side.)
 Units SI; frame x forward, z up, origin at the rear wheels' ground contact.
 """
 
@@ -35,6 +41,7 @@ from .solver import Solver
 CYLINDER_MARGIN = 0.05     # share of the assemblable length interval added on each side
 ANGLE_MARGIN = 0.2         # rad added on each side of the swept angle span
 MIN_ABSOLUTE_PRESSURE = 1e3  # Pa absolute
+UNIT_SLIP = 1e-3           # a pressure read in kPa and sent as Pa: this × the true value
 RELIEF_FACTOR = 1.5        # × relief pressure (gauge): above it the reading is not a pressure the circuit can hold
 DEFAULT_MAX_PRESSURE = 100e6  # Pa absolute, without a relief pressure in the file
 SWEEP_POINTS = 141
@@ -67,8 +74,12 @@ class Limit:
         if self.lo <= v <= self.hi:
             return None
         what = {"cylinder": "cylinder length", "angle": "angle", "pressure": "absolute pressure"}[self.kind]
+        cause = "sensor fault?"
+        if self.kind == "pressure" and self.lo <= v / UNIT_SLIP <= self.hi:
+            cause = (f"looks like kPa sent as Pa? ({v / UNIT_SLIP:.6g} Pa would be inside; check the sensor's unit "
+                     "scaling), or a sensor fault")
         return (f"{what} '{self.name}' = {value:.6g} {self.unit} is outside its plausible range "
-                f"[{self.lo:.6g}, {self.hi:.6g}] {self.unit} (from the {self.source}): sensor fault?")
+                f"[{self.lo:.6g}, {self.hi:.6g}] {self.unit} (from the {self.source}): {cause}")
 
 
 def input_limits(mech: Mechanism) -> dict[str, Limit]:
@@ -88,8 +99,8 @@ def input_limits(mech: Mechanism) -> dict[str, Limit]:
     for p in mech.measurements.pressures:
         relief = mech.cylinder(p.cylinder).relief_pressure
         hi = RELIEF_FACTOR * relief + ATMOSPHERIC_PRESSURE if relief else DEFAULT_MAX_PRESSURE
-        out[p.name] = Limit(p.name, "pressure", MIN_ABSOLUTE_PRESSURE, hi, "Pa",
-                            "relief pressure" if relief else "default")
+        lo = max(MIN_ABSOLUTE_PRESSURE, UNIT_SLIP * hi) if relief else MIN_ABSOLUTE_PRESSURE
+        out[p.name] = Limit(p.name, "pressure", lo, hi, "Pa", "relief pressure" if relief else "default")
     for name, (lo, hi) in mech.measurements.limits.items():
         out[name] = Limit(name, out[name].kind, lo, hi, out[name].unit, "file")
     return out

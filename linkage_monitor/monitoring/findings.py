@@ -18,6 +18,7 @@ class Level(IntEnum):
     OK = 0
     WARN = 1
     ERROR = 2
+    STALE = 3   # the monitor has solved nothing for its staleness limit (``monitoring.freshness``)
 
 
 class Code(Enum):
@@ -45,6 +46,7 @@ class Code(Enum):
     LIFT_RESERVE_LOW = ("lift_reserve_low", Level.WARN)     # lift reserve < 1
     # the monitor itself
     INTERNAL_ERROR = ("internal_error", Level.ERROR)        # a bug: reported, the monitor goes on
+    NOT_SOLVING = ("not_solving", Level.STALE)             # no input solved for the staleness limit (live node)
     INPUTS_LOST = ("inputs_lost", Level.WARN)               # inputs dropped before the monitor saw them (a WARN
                                                             # on /diagnostics, as the node reports lost inputs)
 

@@ -72,6 +72,7 @@ class InputTracker:
         self._joint_to_input = {name: name for name in measured}
         self._joint_to_input.update(config.joint_map)
         self.readings: dict[str, Reading] = {}
+        self.unknown_joints: tuple[str, ...] = ()   # names of the last accepted JointState that map to nothing
         # names of every input a solve needs (angles, cylinder lengths, mapped pressures), and in name order
         self.required = measured | self.pressure_names
         self._required_order = tuple(sorted(self.required))
@@ -116,9 +117,11 @@ class InputTracker:
             seen.add(name)
         self.check_stamp(what, stamp_ns, now_ns)
         updates: dict[str, Reading] = {}
+        unknown: list[str] = []
         for k, name in enumerate(names):
             target = self._joint_to_input.get(name)
             if target is None:
+                unknown.append(name)
                 continue
             value = float(positions[k])
             rate = float(velocities[k]) if velocities else math.nan
@@ -139,6 +142,18 @@ class InputTracker:
             raise Refused(Finding(Code.UNKNOWN_INPUT, f"{what} joint name(s) {shown or '(none)'} are unknown: "
                                   f"expected {expected} (map others with the joint_map parameter)"))
         self.readings.update(updates)
+        self.unknown_joints = tuple(unknown)
+
+    def unknown_joints_finding(self) -> Finding | None:
+        """The joint names of the last accepted JointState that map to no measurement, named, or None.
+        A JointState may carry joints the mechanism does not measure; they are named where a solve is
+        missing an input (a misspelt name is then the likely cause)."""
+        if not self.unknown_joints:
+            return None
+        shown = ", ".join(f"'{n}'" for n in self.unknown_joints[:5]) + (", ..." if len(self.unknown_joints) > 5 else "")
+        return Finding(Code.UNKNOWN_INPUT, f"unknown joint {shown} in {self.config.topics.joint_states}; expected one "
+                                           f"of {', '.join(sorted(self._joint_to_input))} (map others with the "
+                                           "joint_map parameter)")
 
     def accept_pressure(self, topic: str, fluid_pressure: float, stamp_ns: int, now_ns: int) -> None:
         """Accept a FluidPressure (Pa, absolute or gauge per config) or raise Refused; stores gauge Pa."""

@@ -20,7 +20,7 @@ import signal
 import sys
 import threading
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -48,6 +48,7 @@ from linkage_monitor.mechanics.warm import compiled_kernels
 from linkage_monitor.monitoring.config import OVERRIDE_KEYS, MonitorConfig, Topics
 from linkage_monitor.monitoring.core import Monitor, Step
 from linkage_monitor.monitoring.findings import Level
+from linkage_monitor.monitoring.freshness import Freshness
 from linkage_monitor.monitoring.inputs import InputTracker
 from linkage_monitor.monitoring.loss import LossCounter
 from linkage_monitor.monitoring.name_value import name_value
@@ -144,15 +145,35 @@ RERUN_MODES = ("off", "save", "connect")
 
 
 def _descriptor(name: str) -> ParameterDescriptor:
-    default, text, read_only, bounds = PARAMETERS[name]
-    desc = ParameterDescriptor(name=name, description=text, read_only=read_only)
-    if bounds is not None and isinstance(default, int):
-        desc.integer_range = [IntegerRange(from_value=int(bounds[0]), to_value=int(bounds[1]), step=1)]
-    elif bounds is not None:
-        desc.floating_point_range = [FloatingPointRange(from_value=bounds[0], to_value=bounds[1], step=0.0)]
-    if isinstance(default, list):
+    d = PARAMETERS[name]
+    text = f"{d.unit}, {d.description}" if d.unit else d.description
+    desc = ParameterDescriptor(name=name, description=text, read_only=d.read_only)
+    if d.bounds is not None and isinstance(d.default, int):
+        desc.integer_range = [IntegerRange(from_value=int(d.bounds[0]), to_value=int(d.bounds[1]), step=1)]
+    elif d.bounds is not None:
+        desc.floating_point_range = [FloatingPointRange(from_value=d.bounds[0], to_value=d.bounds[1], step=0.0)]
+    if isinstance(d.default, list):
         desc.type = ParameterType.PARAMETER_STRING_ARRAY
     return desc
+
+
+def check_bounds(name: str, value: Any) -> None:
+    """ValueError naming parameter ``name`` if ``value`` is outside its declared range. rclpy's own
+    range check lets a double within a relative 1e-6 of an end pass (``45.0000001`` for 0 to 45):
+    the range is the documented one, exactly."""
+    d = PARAMETERS.get(name)
+    if d is None or d.bounds is None or isinstance(value, bool) or not isinstance(value, (int, float)):
+        return
+    lo, hi = d.bounds
+    if not lo <= value <= hi:   # NaN too
+        raise ValueError(f"parameter {name} = {value!r}: outside its range [{lo:g}, {hi:g}]{' ' + d.unit if d.unit else ''}; "
+                         "give a value inside it")
+
+
+def is_double(name: str) -> bool:
+    """Whether parameter ``name`` is a double (an integer given for it is taken as that double)."""
+    d = PARAMETERS.get(name)
+    return d is not None and isinstance(d.default, float)
 
 
 def _pairs(items: list[str], what: str) -> dict[str, str]:
@@ -214,10 +235,13 @@ class LinkageMonitorNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        for name, (default, *_rest) in PARAMETERS.items():
-            self.declare_parameter(name, default, _descriptor(name))
+        self._doubles_as_declared()
+        for name, declaration in PARAMETERS.items():
+            self.declare_parameter(name, declaration.default, _descriptor(name))
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
         # everything is validated before anything is created
+        for name, value in p.items():
+            check_bounds(name, value)
         _check_choices(p)
         description = load_description(p["mechanism"])
         config = monitor_config(p, description, self.resolve_topic_name)
@@ -234,6 +258,8 @@ class LinkageMonitorNode(Node):
         self.messenger = StepMessenger(description, f"{NODE_NAME}: {description.name}", float(p["marker_rate"]))
         self.loss = LossCounter()
         self._reported: Step | None = None   # the last step the gate let through: what the heartbeat repeats
+        self.freshness = Freshness()   # STALE on /diagnostics when nothing was solved for staleness_limit
+        self._stale = True   # the last status the heartbeat sent was STALE: the next step is reported
         self._last_heartbeat = 0.0
         self._started, self._name_checked = time.monotonic(), False   # the duplicate-name check (_check_name)
         self._recording_reported = False
@@ -275,7 +301,10 @@ class LinkageMonitorNode(Node):
             for topic in config.pressure_topics:
                 self._subscribe(FluidPressure, topic, self._input_callback(topic, FLUID_PRESSURE))
         # on the steady clock: losses and the heartbeat are reported with use_sim_time and /clock stopped too
-        self.create_timer(HEARTBEAT_S, self.on_heartbeat, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(HEARTBEAT_S, self.on_heartbeat, clock=steady)
+        # once, as soon as spinning starts (a subclass has set up its own inputs by then): STALE until a solve
+        self._start_status = self.create_timer(0.0, self._report_start, clock=steady)
         self.add_pre_set_parameters_callback(self.as_declared_types)
         self.add_on_set_parameters_callback(self.validate_parameters)
         self.add_post_set_parameters_callback(self.apply_parameters)
@@ -368,12 +397,33 @@ class LinkageMonitorNode(Node):
             self._publish_status("internal", Level.ERROR, f"internal error while publishing the results of "
                                  f"{topic}: {type(exc).__name__}: {exc}", now)
 
+    def input_sources(self) -> list[str]:
+        """Where the node takes its inputs from: the topics of its input subscriptions."""
+        return [sub.topic_name for sub, _ in self._inputs]
+
+    def _report_start(self) -> None:
+        self._start_status.cancel()
+        self._report_stale(self._now())
+
+    def _report_stale(self, now: int) -> bool:
+        """The monitor's status STALE (``monitoring.freshness``) if nothing was solved within the
+        staleness limit: stamped ``now``, published, not recorded (the replay solves what the bag
+        holds, whenever); whether it was."""
+        finding = self.freshness.stale(time.monotonic(), self.monitor.config.staleness_limit_s, self.input_sources())
+        self._stale = finding is not None
+        if finding is not None:
+            self._send_diagnostic(self.messenger.diagnostic(Step(now, ", ".join(self.input_sources()), (finding,)),
+                                                            now))
+        return self._stale
+
     def on_heartbeat(self) -> None:
-        """Repeat the last diagnostic at least every HEARTBEAT_S, with the input-stream and
-        recording statuses (diagnostic_updater style)."""
+        """STALE when nothing was solved within the staleness limit; else repeat the last diagnostic
+        at least every HEARTBEAT_S; with the input-stream and recording statuses (diagnostic_updater
+        style)."""
         try:
             now = self._now()
-            if self._reported is not None and time.monotonic() - self._last_heartbeat >= HEARTBEAT_S:
+            stale = self._report_stale(now)
+            if not stale and self._reported is not None and time.monotonic() - self._last_heartbeat >= HEARTBEAT_S:
                 # the last reported status again (diagnostic_updater style); the bag holds it once already
                 self._send_diagnostic(self.messenger.diagnostic(self._reported, now))
             self._take_input_events(now)
@@ -442,15 +492,25 @@ class LinkageMonitorNode(Node):
                 config = replace(config, dead_centre_transmission_deg=float(param.value))
         return replace(config, overrides=overrides)
 
-    def as_declared_types(self, params: list[Parameter]) -> list[Parameter]:
+    @staticmethod
+    def as_declared_types(params: list[Parameter]) -> list[Parameter]:
         """An integer given for a double parameter taken as that double (``implement_mass 2000``)."""
         return [Parameter(p.name, Parameter.Type.DOUBLE, float(p.value))
-                if p.type_ == Parameter.Type.INTEGER and isinstance(PARAMETERS.get(p.name, (None,))[0], float)
-                else p for p in params]
+                if p.type_ == Parameter.Type.INTEGER and is_double(p.name) else p for p in params]
+
+    def _doubles_as_declared(self) -> None:
+        """At start too (``-p implement_mass:=1500``, a parameter file's ``1500``), as at run time
+        (``as_declared_types``): rclpy declares a parameter with the override's value as given, and
+        an integer for a double is refused there, before any callback runs."""
+        overrides = self._parameter_overrides   # rclpy's: the command line's and the parameter files' values
+        for param in self.as_declared_types(list(overrides.values())):
+            overrides[param.name] = param
 
     def validate_parameters(self, params: list[Parameter]) -> SetParametersResult:
         """Accept a change only if the mechanism with it is valid (nothing is applied here)."""
         try:
+            for param in params:
+                check_bounds(param.name, param.value)
             config = self._config_with(params)
             mech = apply_overrides(self.monitor.description, dict(config.overrides))
             InputTracker(mech, config)
@@ -481,9 +541,15 @@ class LinkageMonitorNode(Node):
             self.pub_steer.publish(out.steerability)
         if messages.markers is not None:
             self.pub_markers.publish(messages.markers)
+        if step.pose is not None:
+            self.freshness.solved(time.monotonic())
         if messages.diagnostic is not None:
             self._reported = step
             self._send_diagnostic(messages.diagnostic)
+        elif self._stale:   # the STALE the heartbeat sent is replaced at once (not recorded: the gate did not pass it)
+            self._reported = step
+            self._send_diagnostic(self.messenger.diagnostic(step, now))
+        self._stale = False
         if self.recorder is not None:
             self.recorder.step(messages, now)
         if self.rerun is not None:
@@ -567,7 +633,8 @@ class LinkageMonitorNode(Node):
             self.get_logger().error(f"final loss report failed: {type(exc).__name__}: {exc}")
         if self.recorder is not None:
             self.recorder.writer.close()
-            self.get_logger().info(f"bag written: {self.recorder.writer.directory}")
+            writer = self.recorder.writer
+            (self.get_logger().info if writer.error is None else self.get_logger().error)(writer.outcome)
         if self.rerun is not None:
             try:
                 self.rerun.close()
@@ -581,6 +648,19 @@ def _publisher_id(info: dict) -> object:
     return tuple(gid["data"]) if isinstance(gid, dict) and "data" in gid else None
 
 
+def usage() -> str:
+    """``linkage_monitor_node --help``: how to run the node and its parameters (name, default, unit,
+    description: PARAMETERS, what the node declares)."""
+    rows = [("name", "default", "unit", "description")]
+    rows += [(name, repr(d.default), d.unit or "-", d.description + ("" if d.read_only else " (settable at run time)"))
+             for name, d in PARAMETERS.items()]
+    widths = [max(len(row[k]) for row in rows) for k in range(3)]
+    table = "\n".join("  " + "  ".join(cell.ljust(w) for cell, w in zip(row, widths)) + "  " + row[3] for row in rows)
+    return ("usage: linkage_monitor_node [-h] [--ros-args -p NAME:=VALUE ... | --params-file FILE ...]\n\n"
+            "The live linkage monitor: sensor_msgs/JointState and FluidPressure in; hinge reactions, hitch state,\n"
+            "steerability and /diagnostics out (ros/node.py's docstring has the topics). Parameters:\n\n" + table)
+
+
 def main(argv: list[str] | None = None, make_node: Callable[[], LinkageMonitorNode] = LinkageMonitorNode) -> int:
     """Console script `linkage_monitor_node`: run until Ctrl-C / SIGTERM / shutdown. ``make_node``
     builds the node (the CAN bridge passes its own; errors of its inputs end the start as the
@@ -590,7 +670,12 @@ def main(argv: list[str] | None = None, make_node: Callable[[], LinkageMonitorNo
     exception in the middle of a callback, e.g. half-way through writing a message into the bag's
     chunk, so the bag is always finished whole.
     """
-    rclpy.init(args=argv if argv is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
+    args = argv if argv is not None else sys.argv
+    own = args[1:args.index("--ros-args")] if "--ros-args" in args else args[1:]   # before ROS's arguments
+    if "--help" in own or "-h" in own:
+        print(usage())
+        return 0
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stopping = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stopping.set())
