@@ -211,3 +211,49 @@ def test_a_db3_whose_topics_table_lies_about_a_type_names_the_topic_once(tmp_pat
     with read_faults() as faults:
         assert len(list(read_bag_raw(honest))) > len(read)
     assert faults == []
+
+
+CAN_LOG = BAGS / "can" / "belarus_1221_lift.log"
+CAN_MAP = Path(__file__).resolve().parents[1] / "config" / "can" / "belarus_1221.yaml"
+
+
+@pytest.mark.parametrize("seconds", ["2767225600", "17672256000"], ids=["after 2038", "11 digits"])
+def test_can_log_stamps_no_header_stamp_holds_are_refused_by_name(tmp_path, capsys, seconds):
+    """candump lines stamped after 2038-01-19 or with 11 digits of seconds: a 27-line traceback before
+    (struct.error packing the int32 sec, OverflowError filling int64 ns). rosbags' serializer cannot write
+    such a builtin_interfaces/Time (the oracle); each line is refused naming its stamp and the reason, the
+    other lines are converted; a log of such lines only is one error line, exit 2."""
+    from linkage_monitor.cli.main import main
+
+    store = get_typestore(Stores.LATEST)
+    with pytest.raises(struct.error):
+        store.serialize_cdr(store.types["builtin_interfaces/msg/Time"](sec=int(seconds), nanosec=0),
+                            "builtin_interfaces/msg/Time")
+    lines = CAN_LOG.read_text().splitlines()[:40]
+    bad = [f"({seconds}.{line.split(')')[0].split('.')[1]}){line.split(')', 1)[1]}" for line in lines[:10]]
+    mixed = tmp_path / "mixed.log"
+    mixed.write_text("\n".join(bad + lines[10:]) + "\n")
+    assert main(["can-to-bag", str(mixed), "--map", str(CAN_MAP), "--out", str(tmp_path / "mixed")]) == 0
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "10 line(s) refused" in err and f"a stamp of {seconds} s since the epoch" in err
+    assert "int32 seconds" in err
+    only_bad = tmp_path / "bad.log"
+    only_bad.write_text("\n".join(bad) + "\n")
+    assert main(["can-to-bag", str(only_bad), "--map", str(CAN_MAP), "--out", str(tmp_path / "bad")]) == 2
+    err_lines = capsys.readouterr().err.strip().splitlines()
+    assert len(err_lines) == 1 and f"{seconds} s since the epoch" in err_lines[0], err_lines
+
+
+def test_a_header_stamp_beyond_int32_seconds_is_a_named_input_error():
+    """Wherever a header stamp is packed (wire.cdr.time_bytes, the output templates): a named InputError
+    (the stamp, the reason), still the struct.error struct.pack gives."""
+    import struct as struct_module
+
+    from linkage_monitor.mechanics import InputError
+    from linkage_monitor.wire.cdr import StampRangeError, time_bytes
+
+    assert time_bytes((2**31 - 1) * 10**9) == struct_module.pack("<iI", 2**31 - 1, 0)
+    for beyond in (2**31 * 10**9, -2**31 * 10**9 - 1):
+        with pytest.raises(StampRangeError, match=f"{beyond // 10**9} s since the epoch") as err:
+            time_bytes(beyond)
+        assert isinstance(err.value, InputError) and isinstance(err.value, struct_module.error)

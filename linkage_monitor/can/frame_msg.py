@@ -19,6 +19,7 @@ import numpy as np
 from can_msgs.msg import Frame as FrameMsg
 from rclpy.serialization import deserialize_message
 
+from linkage_monitor.wire.cdr import check_stamp
 from linkage_monitor.wire.compose import STAMP, Composer, Flag
 from linkage_monitor.wire.layout import PRIMITIVES, layout
 
@@ -101,7 +102,10 @@ def frame_layout() -> FixedLayout:
 
 def put_stamps(rows: np.ndarray, offset: int, stamp_ns: np.ndarray) -> None:
     """builtin_interfaces/Time of each ``stamp_ns`` (ns since the epoch; sec rounds down) at byte ``offset``
-    of each row; struct.error beyond int32 seconds, as struct.pack."""
+    of each row; StampRangeError (a struct.error) beyond int32 seconds, naming the stamp."""
+    if len(stamp_ns):
+        check_stamp(int(np.min(stamp_ns)), "a frame's stamp")
+        check_stamp(int(np.max(stamp_ns)), "a frame's stamp")
     sec, nanosec = np.divmod(np.asarray(stamp_ns, np.int64), NS)
     put(rows, FieldSlot(offset, "int32", 1), sec)
     put(rows, FieldSlot(offset + 4, "uint32", 1), nanosec)

@@ -14,6 +14,8 @@ from typing import Iterable, Iterator, Sequence
 import can
 import numpy as np
 
+from linkage_monitor.wire.cdr import check_stamp
+
 US = 1_000
 CLASSIC_BYTES = 8   # data bytes of a classic CAN frame: a FrameBlock's data columns are at least this many
 BLOCK_FRAMES = 65_536   # frames per FrameBlock when frames are gathered into blocks
@@ -36,8 +38,9 @@ class Frame:
 
 
 def stamp_of(seconds: float) -> int:
-    """ns since the epoch of a python-can timestamp (float s), rounded to the µs."""
-    return round(seconds * 1e6) * US
+    """ns since the epoch of a python-can timestamp (float s), rounded to the µs; StampRangeError (a
+    ValueError: the log line is refused) beyond what a ROS header stamp holds."""
+    return check_stamp(round(seconds * 1e6) * US, "a stamp")
 
 
 def error_frame(stamp_ns: int, can_id: int, data: bytes) -> Frame:

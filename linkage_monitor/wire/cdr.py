@@ -17,6 +17,8 @@ import functools
 import struct
 from typing import Any
 
+from linkage_monitor.mechanics.errors import InputError
+
 ENCAPSULATION = b"\x00\x01\x00\x00"   # CDR little endian, no options
 _U32, _F64, _STAMP = struct.Struct("<I"), struct.Struct("<d"), struct.Struct("<iI")
 _BIG_ENDIAN = struct.Struct(">I"), struct.Struct(">iI"), struct.Struct(">d")
@@ -46,6 +48,24 @@ class Writer:
 
 class CdrError(ValueError):
     """A payload that is not the CDR of the expected message: says what is wrong and where."""
+
+
+TIME_SECONDS = (-2**31, 2**31 - 1)   # s, what builtin_interfaces/Time's int32 sec holds: 1901-12-13 to 2038-01-19
+
+
+class StampRangeError(InputError, struct.error):
+    """A stamp that no builtin_interfaces/Time holds (int32 seconds, TIME_SECONDS): names the stamp and
+    the reason; a struct.error too, as struct.pack gives for the int32 it does not fit."""
+
+
+def check_stamp(stamp_ns: int, what: str = "a stamp") -> int:
+    """``stamp_ns`` (ns since the epoch) when a builtin_interfaces/Time holds it; StampRangeError else."""
+    seconds = stamp_ns // _NS
+    if not TIME_SECONDS[0] <= seconds <= TIME_SECONDS[1]:
+        raise StampRangeError(
+            f"{what} of {seconds} s since the epoch is outside a ROS header stamp's int32 seconds (1901-12-13 "
+            "to 2038-01-19 03:14:07 UTC): correct the clock or the stamps")
+    return stamp_ns
 
 
 def is_xcdr1(data: bytes) -> bool:
@@ -130,7 +150,7 @@ class Reader:
 
 
 def time_bytes(stamp_ns: int) -> bytes:
-    """The 8 bytes of a builtin_interfaces/Time of ``stamp_ns`` ns (struct.error beyond int32 seconds)."""
+    """The 8 bytes of a builtin_interfaces/Time of ``stamp_ns`` ns (StampRangeError beyond int32 seconds)."""
     return _STAMP.pack(*stamp_fields(stamp_ns))
 
 
@@ -142,7 +162,9 @@ def string_bytes(text: str) -> bytes:
 
 
 def stamp_fields(stamp_ns: int) -> tuple[int, int]:
-    """builtin_interfaces/Time (sec, nanosec) of a stamp in ns since the epoch (sec rounds down)."""
+    """builtin_interfaces/Time (sec, nanosec) of a stamp in ns since the epoch (sec rounds down);
+    StampRangeError beyond its int32 seconds."""
+    check_stamp(stamp_ns)
     return stamp_ns // _NS, stamp_ns % _NS
 
 

@@ -16,7 +16,7 @@ from typing import Callable
 
 import numpy as np
 
-from .cdr import ENCAPSULATION, stamp_fields
+from .cdr import ENCAPSULATION, check_stamp, stamp_fields
 from .compose import Composer
 
 _STAMP = struct.Struct("<iI")
@@ -76,9 +76,9 @@ class Template:
         rows = np.empty((n, size), dtype=np.uint8)
         rows[:] = np.frombuffer(self.data, dtype=np.uint8)
         sec, nanosec = np.divmod(np.asarray(stamps_ns, dtype=np.int64), _NS)   # floor, as stamp_fields
-        if n and not (-2**31 <= sec.min() and sec.max() < 2**31):
-            raise struct.error(f"a header stamp of {sec.min() if sec.min() < -2**31 else sec.max()} s is beyond "
-                               "int32 seconds")
+        if n:
+            check_stamp(int(np.min(stamps_ns)), "a header stamp")
+            check_stamp(int(np.max(stamps_ns)), "a header stamp")
         base = len(ENCAPSULATION)
         rows[:, base:base + 4] = sec.astype("<i4").view(np.uint8).reshape(n, 4)
         rows[:, base + 4:base + 8] = nanosec.astype("<u4").view(np.uint8).reshape(n, 4)
