@@ -5,6 +5,8 @@ write. (That a replay equals the live node: test_replay_equals_node.py.)"""
 from __future__ import annotations
 
 import gc
+import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import NamedTuple
@@ -20,10 +22,12 @@ from rosbags.typesys import Stores, get_typestore
 
 from linkage_monitor.cli.main import main as cli_main
 from linkage_monitor.mechanics import load_preset
+from linkage_monitor.offline.history import LoadHistory
 from linkage_monitor.offline import replay as replay_module
 from linkage_monitor.mechanics.reduced import DEAD_CENTRE_TRANSMISSION_DEG
 from linkage_monitor.sim.telemetry import Noise, simulate
 
+ROOT = Path(__file__).resolve().parent.parent
 T0 = (time.time_ns() // 10**9) * 10**9  # ns, now (whole s): the node refuses stamps far from its clock
 
 
@@ -203,18 +207,18 @@ def test_replay_pauses_the_cyclic_gc_only_while_it_runs(ros2_bag: Path, tmp_path
     """A replay runs with the cyclic garbage collector paused (it only walks the Steps the replay keeps)
     and leaves it as it found it: on after a replay and after one that fails, off when it was off."""
     seen: list[bool] = []
-    original = replay_module._write_bag
+    original = replay_module._BagOutput.write
 
     def spy(*args, **kwargs):
         seen.append(gc.isenabled())
         return original(*args, **kwargs)
 
-    replay_module._write_bag = spy
+    replay_module._BagOutput.write = spy  # type: ignore[method-assign]
     try:
         replay_module.replay(ros2_bag, load_preset("belarus_1221"), out_dir=tmp_path / "out", progress=None)
     finally:
-        replay_module._write_bag = original
-    assert seen == [False] and gc.isenabled()
+        replay_module._BagOutput.write = original  # type: ignore[method-assign]
+    assert seen and not any(seen) and gc.isenabled()
     with pytest.raises(replay_module.BagError):
         replay_module.replay(tmp_path / "no_such_bag", progress=None)
     assert gc.isenabled()
@@ -224,3 +228,63 @@ def test_replay_pauses_the_cyclic_gc_only_while_it_runs(ros2_bag: Path, tmp_path
         assert not gc.isenabled()
     finally:
         gc.enable()
+
+
+def _table(summary: replay_module.Summary) -> str:
+    """The summary's table without its timing line."""
+    return "\n".join(line for line in summary.table().splitlines() if not line.startswith("replayed "))
+
+
+def test_a_replay_in_pieces_writes_the_bag_and_summary_of_a_replay_in_one_piece(ros2_bag, tmp_path, monkeypatch):
+    """The replay reads, solves, accounts and writes ENCODE_BLOCK inputs at a time, the series of a
+    configuration segment going on across the pieces: in pieces of 37 inputs (the bag holds 7 of them)
+    it writes the bag, the summary and the load history of one piece, byte for byte and number for number."""
+    mech = load_preset("belarus_1221")
+    whole = replay_module.replay(ros2_bag, mech, out_dir=tmp_path / "whole", progress=None)
+    assert len(whole.steps) < replay_module.ENCODE_BLOCK and len(whole.run.segments) == 1   # one piece
+    monkeypatch.setattr(replay_module, "ENCODE_BLOCK", 37)
+    pieces = replay_module.replay_streaming(ros2_bag, mech, out_dir=tmp_path / "pieces", progress=None, history=True)
+    assert whole.summary.inputs > 5 * 37
+    assert _recorded(tmp_path / "pieces") == _recorded(tmp_path / "whole")
+    assert _table(pieces.summary) == _table(whole.summary)
+    expected = LoadHistory.from_run(whole.run)
+    assert pieces.history is not None and pieces.history.duration_s == expected.duration_s
+    for got, want in [(pieces.history.t, expected.t), (pieces.history.margin, expected.margin),
+                      (pieces.history.reserve, expected.reserve)] + [
+                         (pieces.history.hinge[name], values) for name, values in expected.hinge.items()]:
+        np.testing.assert_array_equal(got, want)
+    assert pieces.history.hinge.keys() == expected.hinge.keys()
+
+
+# Peak RSS (ru_maxrss) of `linkage-monitor replay --out` over a bag of SHORT and of 4 * SHORT inputs
+# (bench/long_bag.py: the bundled bag's inputs repeated), each in its own process. Replaying holds one
+# piece of ENCODE_BLOCK inputs at a time, so the longer bag may take at most a few pieces' worth more
+# (the allocator's arenas, measured ~5 MB). A replay holding every input's Step, its bytes and its
+# output rows until the end took ~7 kB per input (1.0 GB at 10^5 inputs, 7.4 GB at 10^6: 7.1 kB per
+# input between them; 176 MB more here): the bound, 1 kB per extra input (24 MB), fails any such
+# growth above 1 kB per input and leaves the measured noise a four-fold margin.
+SHORT = 2 * 4096
+GROWTH_PER_INPUT_KB = 1.0
+MEASURE = """import resource, sys
+from linkage_monitor.cli.main import main
+code = main(["replay", sys.argv[1], "--out", sys.argv[2], "--quiet"])
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss if code == 0 else -code)"""
+
+
+def _peak_rss_kb(bag: Path, out: Path) -> int:
+    done = subprocess.run([sys.executable, "-c", MEASURE, str(bag), str(out)], capture_output=True, text=True,
+                          check=True)
+    return int(done.stdout.split()[-1])
+
+
+@pytest.mark.slow
+def test_the_replays_memory_does_not_grow_with_the_bags_length(tmp_path):
+    peaks = {}
+    for inputs in (SHORT, 4 * SHORT):
+        bag = tmp_path / f"long{inputs}"
+        subprocess.run([sys.executable, str(ROOT / "bench" / "long_bag.py"), str(bag), "--inputs", str(inputs)],
+                       check=True, capture_output=True)
+        peaks[inputs] = _peak_rss_kb(bag, tmp_path / f"out{inputs}")
+    assert min(peaks.values()) > 0, peaks
+    growth = peaks[4 * SHORT] - peaks[SHORT]
+    assert growth < GROWTH_PER_INPUT_KB * 3 * SHORT, f"peak RSS {peaks} kB: {growth / (3 * SHORT):.2f} kB per input"

@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import math
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
-from typing import Iterable, Sequence
+from typing import Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -218,7 +218,21 @@ class Monitor:
     def run(self, events: Iterable[Event]) -> Run:
         """One Step per input event (ConfigEvents give none), the due poses solved in batches: a
         segment's series part by part in a worker thread while the next events are accepted
-        (``_SegmentSeries``)."""
+        (``_SegmentSeries``); ``runs`` joined, one ``Segment`` per configuration segment."""
+        steps: list[Step] = []
+        segments: list[Segment] = []
+        for piece in self.runs(events):
+            segments.extend(replace(segment, steps=segment.steps + len(steps)) for segment in piece.segments)
+            steps.extend(piece.steps)
+        return Run(steps, segments)
+
+    def runs(self, events: Iterable[Event], piece_steps: int | None = None) -> Iterator[Run]:
+        """``run`` in pieces, in order: a piece ends at each configuration change and, given
+        ``piece_steps``, after every ``piece_steps`` Steps of a configuration segment (its series solved on
+        across the pieces, each pose from the one before, as ``run`` solves it). A piece's segments
+        index its own ``steps``. While the caller holds a piece the monitor is in that piece's
+        configuration (the next event is read after): what the caller lets go of a piece is freed,
+        so that a recording read piece by piece takes memory flat in its length."""
         steps: list[Step | None] = []
         segments: list[Segment] = []
         with ThreadPoolExecutor(max_workers=1, thread_name_prefix="series") as worker:
@@ -226,6 +240,9 @@ class Monitor:
             for event in events:
                 if isinstance(event, ConfigEvent):
                     self._solve_segment(segment, steps, segments)
+                    if steps:
+                        yield Run(steps, segments)  # type: ignore[arg-type]  # every None was filled by _solve_segment
+                        steps, segments = [], []
                     self.reconfigure(event.config)
                     segment = _SegmentSeries(self, worker)
                     continue
@@ -238,14 +255,21 @@ class Monitor:
                 else:
                     segment.add(len(steps), due)
                     steps.append(None)
+                if piece_steps is not None and len(steps) >= piece_steps:
+                    self._solve_segment(segment, steps, segments)
+                    yield Run(steps, segments)  # type: ignore[arg-type]  # as above
+                    steps, segments = [], []
             self._solve_segment(segment, steps, segments)
-        return Run(steps, segments)  # type: ignore[arg-type]  # every None was filled by _solve_segment
+            if steps:
+                yield Run(steps, segments)  # type: ignore[arg-type]  # as above
 
     def _solve_segment(self, segment: _SegmentSeries, steps: list[Step | None], segments: list[Segment]) -> None:
-        if not segment.dues:
+        """The Steps of the dues ``segment`` holds (solved, checked, put in their places in ``steps``)
+        and their ``Segment``; the segment is left empty, its series going on from its last pose."""
+        indexed, series = segment.take()
+        if not indexed:
             return
-        dues = [d for _, d in segment.dues]
-        series = segment.finish()
+        dues = [d for _, d in indexed]
         if series is None:   # kinetostatics (rates and accelerations): the general path
             c = {kind: _column(dues, kind) for kind in INPUT_KINDS}
             batch = self.solver.solve_batch(cylinders=c["cylinders"], angles=c["angles"], pressures=c["pressures"],
@@ -257,11 +281,11 @@ class Monitor:
             values = [row if plain else None for row, plain in zip(series.values, series.plain.tolist())]
         results, machine_results = batch.results(), machine.results()
         checks = _segment_checks(batch, machine).tolist()
-        for k, ((i, due), status, check) in enumerate(zip(segment.dues, batch.status.tolist(), checks)):
+        for k, ((i, due), status, check) in enumerate(zip(indexed, batch.status.tolist(), checks)):
             pose = Pose(results[k], machine_results[k], values[k])
             steps[i] = (self._pose_step(due, pose, check) if status < Status.INPUT
                         else self._failed(due, Status(status), batch.messages[k]))
-        segments.append(Segment(np.array([i for i, _ in segment.dues]),
+        segments.append(Segment(np.array([i for i, _ in indexed]),
                                 np.array([d.stamp_ns for d in dues], dtype=np.int64), batch, machine, self.mechanism,
                                 self.config))
 
@@ -355,10 +379,11 @@ def _column(dues: Sequence[_Due], kind: str) -> dict[str, np.ndarray]:
 
 
 class _SegmentSeries:
-    """The due poses of one configuration segment of ``Monitor.run`` (``dues``: (step index, due)),
+    """The due poses of one configuration segment of ``Monitor.runs`` (``dues``: (step index, due)),
     solved PART at a time in ``worker`` as they are accepted (``MachineModel.series``: each pose from the
     one before, as ``solve_series`` solves them all at once), unless the configuration takes
-    kinetostatics (then ``finish`` gives None and ``Monitor._solve_segment`` solves them at the end)."""
+    kinetostatics (then ``take`` gives no series and ``Monitor._solve_segment`` solves them itself).
+    ``take`` hands over the dues so far; the next ones go on from the last pose solved."""
 
     PART = 256   # poses per part: the last part, solved after the last input, is short
 
@@ -375,14 +400,18 @@ class _SegmentSeries:
         if len(self.dues) - self._sent >= self.PART:
             self._send()
 
-    def finish(self) -> MachineSeries | None:
-        """The segment's ``MachineSeries`` (every part solved); None for a kinetostatics segment."""
-        if self._series is None:
-            return None
+    def take(self) -> tuple[list[tuple[int, _Due]], MachineSeries | None]:
+        """The dues added since the last ``take`` and their ``MachineSeries`` (every part solved; None
+        for a kinetostatics segment or no dues); the segment is left empty."""
+        dues = self.dues
+        if self._series is None or not dues:
+            self.dues = []
+            return dues, None
         self._send()
         for part in self._parts:
             part.result()   # raises what the part raised
-        return self._series.finish()
+        self.dues, self._parts, self._sent = [], [], 0
+        return dues, self._series.finish()
 
     def _send(self) -> None:
         """Hand the dues not yet handed to the worker."""

@@ -31,17 +31,9 @@ class LoadHistory:
 
     @classmethod
     def from_run(cls, run: Run) -> LoadHistory:
-        stamps = [s.stamp_ns for s in run.steps]
-        start = min(stamps, default=0)
-        duration = (max(stamps, default=0) - start) * 1e-9
-        poses = [(s.stamp_ns, s.pose) for s in run.steps if s.pose is not None]
-        t = np.array([(stamp - start) * 1e-9 for stamp, _ in poses])
-        names = [name for name, _, _ in poses[0][1].result.names.hinges] if poses else []
-        magnitudes = np.array([p.result.hinge_magnitude for _, p in poses]).reshape(len(poses), len(names))
-        hinge = {name: magnitudes[:, k] for k, name in enumerate(names)}
-        margin = np.array([p.machine.value("margin") for _, p in poses])
-        reserve = np.array([p.machine.value("reserve") for _, p in poses])
-        return cls(t, hinge, margin, reserve, duration)
+        recorder = HistoryRecorder()
+        recorder.add(run)
+        return recorder.history()
 
     def time_below(self, values: np.ndarray, limit: float) -> float:
         """Seconds spent with ``values`` < limit: each solved pose holds until the next one."""
@@ -53,6 +45,49 @@ class LoadHistory:
     def spectra(self) -> dict[str, Spectrum]:
         """Rainflow spectrum of each hinge's reaction magnitude over the bag's duration."""
         return {name: rainflow_spectrum(values, self.duration_s) for name, values in self.hinge.items()}
+
+
+class HistoryRecorder:
+    """A ``LoadHistory`` gathered from the pieces of a run (``Monitor.runs``), in order: of each
+    piece only the stamps (ns) and the solved poses' numbers are kept, as arrays (``add``)."""
+
+    def __init__(self) -> None:
+        self._first_ns: int | None = None   # the smallest and largest stamp of every step
+        self._last_ns: int | None = None
+        self._names: list[str] | None = None   # the hinges, from the first solved pose
+        self._stamps: list[np.ndarray] = []
+        self._magnitudes: list[np.ndarray] = []
+        self._margin: list[np.ndarray] = []
+        self._reserve: list[np.ndarray] = []
+
+    def add(self, run: Run) -> None:
+        """The next piece of the run."""
+        stamps = [s.stamp_ns for s in run.steps]
+        if stamps:
+            first, last = min(stamps), max(stamps)
+            self._first_ns = first if self._first_ns is None else min(self._first_ns, first)
+            self._last_ns = last if self._last_ns is None else max(self._last_ns, last)
+        poses = [(s.stamp_ns, s.pose) for s in run.steps if s.pose is not None]
+        if not poses:
+            return
+        if self._names is None:
+            self._names = [name for name, _, _ in poses[0][1].result.names.hinges]
+        self._stamps.append(np.array([stamp for stamp, _ in poses], dtype=np.int64))
+        self._magnitudes.append(np.array([p.result.hinge_magnitude for _, p in poses]).reshape(len(poses),
+                                                                                          len(self._names)))
+        self._margin.append(np.array([p.machine.value("margin") for _, p in poses]))
+        self._reserve.append(np.array([p.machine.value("reserve") for _, p in poses]))
+
+    def history(self) -> LoadHistory:
+        """The ``LoadHistory`` of every piece added."""
+        start = self._first_ns or 0
+        duration = ((self._last_ns or 0) - start) * 1e-9
+        names = self._names or []
+        stamps = np.concatenate(self._stamps) if self._stamps else np.zeros(0, dtype=np.int64)
+        magnitudes = np.concatenate(self._magnitudes) if self._magnitudes else np.zeros((0, len(names)))
+        return LoadHistory((stamps - start) * 1e-9, {name: magnitudes[:, k] for k, name in enumerate(names)},
+                           np.concatenate(self._margin) if self._margin else np.zeros(0),
+                           np.concatenate(self._reserve) if self._reserve else np.zeros(0), duration)
 
 
 def spectra_table(history: LoadHistory, slope: float, bin_width: float) -> str:

@@ -21,7 +21,7 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable, Iterator, ParamSpec, TextIO, TypeVar
+from typing import TYPE_CHECKING, Callable, Iterator, ParamSpec, TextIO, TypeVar
 
 import numpy as np
 from rclpy.serialization import deserialize_message
@@ -33,13 +33,18 @@ from linkage_monitor.bag.step_recorder import RecordedInput, StepRecorder
 from linkage_monitor.bag.writer import MECHANISM_TOPIC, BagError, BagWriter
 from linkage_monitor.mechanics import Mechanism, Status, mechanism_from_text
 from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
-from linkage_monitor.monitoring.core import Monitor, Run, Step
+from linkage_monitor.monitoring.core import Monitor, Run, Segment, Step
 from linkage_monitor.monitoring.events import ConfigEvent, Event
 from linkage_monitor.monitoring.findings import Level
 from linkage_monitor.wire.outputs import OutputEncoder, per_step
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, input_event
 
-ENCODE_BLOCK = 4096   # steps whose output messages are encoded at once (held in memory until written)
+from .history import HistoryRecorder, LoadHistory
+
+if TYPE_CHECKING:
+    from linkage_monitor.viz.rerun_view import RerunView
+
+ENCODE_BLOCK = 4096   # inputs replayed at once: read, solved, accounted, encoded and written, then let go
 
 
 @dataclass
@@ -109,7 +114,8 @@ def mechanism_in_bag(path: Path) -> Mechanism:
 
 @dataclass(frozen=True)
 class Replayed:
-    """A finished replay: the summary, one Step per input event, the solved segments (arrays)."""
+    """A finished replay: the summary, one Step per input event, the solved segments (arrays; a
+    configuration segment in pieces of up to ENCODE_BLOCK inputs, the pieces the replay solved)."""
 
     summary: Summary
     run: Run
@@ -120,6 +126,16 @@ class Replayed:
         return self.run.steps
 
 
+@dataclass(frozen=True)
+class Streamed:
+    """A finished replay that kept no Steps (``replay_streaming``): the summary, the configuration
+    and, when asked for, the load history of its solved poses."""
+
+    summary: Summary
+    config: MonitorConfig
+    history: LoadHistory | None
+
+
 def _default_config(bag: Path, description: Mechanism) -> MonitorConfig:
     """The default configuration, with the default pressure topics the bag actually holds."""
     config = MonitorConfig.default(description.name, description)
@@ -128,7 +144,8 @@ def _default_config(bag: Path, description: Mechanism) -> MonitorConfig:
 
 
 def _events(path: Path, config: MonitorConfig, raw: list[RecordedInput]) -> Iterator[Event]:
-    """The bag's input and configuration events in recording order; inputs also appended to ``raw``.
+    """The bag's input and configuration events in recording order, read as they are asked for;
+    inputs also appended to ``raw`` (the caller takes them out piece by piece).
     The inputs are read from their bytes as the node reads them (``wire.sensor_messages``); bytes
     that are not their type (the node records them as they came) are an UnreadableEvent, as in the node."""
     wanted = [config.topics.joint_states, *config.pressure_topics, CONFIG_TOPIC]
@@ -183,85 +200,170 @@ def _without_cyclic_gc(run: Callable[_P, _R]) -> Callable[_P, _R]:
 def replay(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None, rrd: Path | None = None,
            rate: float | None = None, config: MonitorConfig | None = None,
            progress: TextIO | None = sys.stderr) -> Replayed:
-    """Re-run the monitor over ``bag``; write outputs to ``out_dir`` (a new bag) and/or ``rrd``.
+    """Re-run the monitor over ``bag``; write outputs to ``out_dir`` (a new bag) and/or ``rrd``; keep
+    every Step (memory grows with the bag: ``replay_streaming`` keeps none).
 
     mech / config: use these instead of what the bag recorded (the summary's notes say so);
     default: the recorded ones, else the default configuration of the mechanism.
     rate: write at this multiple of real time (None: as fast as possible).
     """
-    started = time.perf_counter()
-    recorded = recording_in_bag(bag)
-    summary = Summary()
-    description = mech or recorded.description
-    if description is None:
-        raise BagError(f"bag {bag} holds no mechanism description on {MECHANISM_TOPIC}: "
-                       "give --preset NAME or --mechanism FILE")
-    if mech is not None and recorded.description is not None:
-        summary.notes.append(f"note: mechanism '{mech.name}' given instead of the recorded "
-                             f"'{recorded.description.name}'")
-    if config is None:
-        config = recorded.config or _default_config(bag, description)
-        if recorded.config is None:
-            summary.notes.append("note: the bag holds no monitor configuration: default topics "
-                                 f"{config.topics.joint_states}, {', '.join(config.pressure_topics) or 'no pressures'}")
-    else:
-        summary.notes.append("note: configuration given instead of the recorded one")
-    monitor = Monitor(description, config)
-    raw: list[RecordedInput] = []
-    run = monitor.run(_events(bag, config, raw))
-    if not raw:
-        raise BagError(f"bag {bag} holds no {JOINT_STATE} on {config.topics.joint_states} or {FLUID_PRESSURE} on "
-                       f"{', '.join(config.pressure_topics) or '(none configured)'}: nothing to replay")
-    summary.inputs, summary.start_ns = len(raw), raw[0].stamp_ns
-    _account(summary, run)
-    if out_dir is not None:
-        _write_bag(out_dir, monitor, description, config, raw, run, rate, progress)
-    if rrd is not None:
-        _log_rerun(rrd, description, run)
-    summary.seconds = time.perf_counter() - started
-    return Replayed(summary, run, config)
+    kept = _KeptRun()
+    replayer = _Replayer(bag, mech, config, out_dir, rrd, rate, progress, [kept.add],
+                         piece_steps=None if rrd is not None else ENCODE_BLOCK)
+    summary = replayer.replay()
+    return Replayed(summary, kept.run(), replayer.config)
 
 
-def _write_bag(out_dir: Path, monitor: Monitor, description: Mechanism, config: MonitorConfig,
-               raw: list[RecordedInput], run: Run, rate: float | None, progress: TextIO | None) -> None:
-    """Inputs (their recorded bytes, unchanged), outputs and diagnostics in recording order, as the
-    node records them (``bag.step_recorder``), ENCODE_BLOCK steps at a time: their outputs encoded
-    at once (``OutputEncoder.output_rows``) and, as fast as possible, all their messages written at once
-    (``StepRecorder.steps``). With ``rate`` the messages go one by one (``StepRecorder.input``, ``step``),
-    each input's written at its receive time scaled by 1 / ``rate`` from the first: a block written at
-    once cannot keep that pace."""
-    from linkage_monitor.wire.markers import DEFAULT_RATE_HZ
-    from linkage_monitor.wire.step_messages import StepMessenger
+@_without_cyclic_gc
+def replay_streaming(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None, rrd: Path | None = None,
+                     rate: float | None = None, config: MonitorConfig | None = None,
+                     progress: TextIO | None = sys.stderr, history: bool = False) -> Streamed:
+    """``replay`` keeping no Steps: the bag is read, solved, accounted and written ENCODE_BLOCK inputs
+    at a time, each piece let go once written, so that memory stays flat in the bag's length
+    (test_replay.py holds it). history: also the ``LoadHistory`` of the solved poses (its arrays,
+    ~8 bytes per pose and series, grow with the bag). With ``rrd`` a configuration segment is
+    replayed whole (the recording's hinge plot and force scale are chosen from the segment's
+    poses): memory grows with the longest segment."""
+    recorder = HistoryRecorder() if history else None
+    replayer = _Replayer(bag, mech, config, out_dir, rrd, rate, progress, [recorder.add] if recorder else [],
+                         piece_steps=None if rrd is not None else ENCODE_BLOCK)
+    summary = replayer.replay()
+    return Streamed(summary, replayer.config, recorder.history() if recorder else None)
 
-    writer = BagWriter(out_dir)
-    try:
-        recorder = StepRecorder(writer, config.topics)
-        first = raw[0].receive_ns
-        recorder.begin(description, config, first)
-        messenger = StepMessenger(description, f"linkage_monitor: {description.name}", DEFAULT_RATE_HZ)
-        encoder = OutputEncoder()
-        pace_start = time.perf_counter()
-        with tqdm(total=len(raw), desc="replay", unit="msg", file=progress, disable=progress is None,
-                  mininterval=0.5) as bar:
-            for start in range(0, len(raw), ENCODE_BLOCK):
-                inputs, steps = raw[start:start + ENCODE_BLOCK], run.steps[start:start + ENCODE_BLOCK]
-                outputs = encoder.output_rows(monitor, steps)
-                if not rate:
-                    sent = messenger.messages_of(steps, [None] * len(steps), [r.receive_ns for r in inputs])
-                    recorder.steps(inputs, sent, outputs)
+
+class _KeptRun:
+    """The pieces of a run joined into one ``Run`` (as ``Monitor.run`` joins them)."""
+
+    def __init__(self) -> None:
+        self._steps: list[Step] = []
+        self._segments: list[Segment] = []
+
+    def add(self, piece: Run) -> None:
+        self._segments.extend(replace(s, steps=s.steps + len(self._steps)) for s in piece.segments)
+        self._steps.extend(piece.steps)
+
+    def run(self) -> Run:
+        return Run(self._steps, self._segments)
+
+
+class _Replayer:
+    """One replay of ``bag``: its events through ``Monitor.runs`` piece by piece (``piece_steps``
+    Steps, or a configuration segment when None), each piece accounted in the summary, written to
+    the output bag and the Rerun recording when asked, handed to ``consumers``, then let go."""
+
+    def __init__(self, bag: Path, mech: Mechanism | None, config: MonitorConfig | None, out_dir: Path | None,
+                 rrd: Path | None, rate: float | None, progress: TextIO | None,
+                 consumers: list[Callable[[Run], None]], piece_steps: int | None = None) -> None:
+        self.started = time.perf_counter()
+        self.bag, self.out_dir, self.rrd, self.rate, self.progress = bag, out_dir, rrd, rate, progress
+        self.consumers, self.piece_steps = consumers, piece_steps
+        self.summary = Summary()
+        recorded = recording_in_bag(bag)
+        description = mech or recorded.description
+        if description is None:
+            raise BagError(f"bag {bag} holds no mechanism description on {MECHANISM_TOPIC}: "
+                           "give --preset NAME or --mechanism FILE")
+        if mech is not None and recorded.description is not None:
+            self.summary.notes.append(f"note: mechanism '{mech.name}' given instead of the recorded "
+                                      f"'{recorded.description.name}'")
+        if config is None:
+            config = recorded.config or _default_config(bag, description)
+            if recorded.config is None:
+                self.summary.notes.append("note: the bag holds no monitor configuration: default topics "
+                                          f"{config.topics.joint_states}, "
+                                          f"{', '.join(config.pressure_topics) or 'no pressures'}")
+        else:
+            self.summary.notes.append("note: configuration given instead of the recorded one")
+        self.description, self.config = description, config
+
+    def replay(self) -> Summary:
+        """The summary of the whole replay (its outputs written)."""
+        monitor = Monitor(self.description, self.config)
+        raw: list[RecordedInput] = []
+        output: _BagOutput | None = None
+        view: _RerunOutput | None = None
+        try:
+            with tqdm(desc="replay", unit="msg", file=self.progress, disable=self.progress is None,
+                      mininterval=0.5) as bar:
+                for piece in monitor.runs(_events(self.bag, self.config, raw), self.piece_steps):
+                    inputs = raw[:len(piece.steps)]
+                    del raw[:len(piece.steps)]
+                    if not self.summary.inputs:
+                        self.summary.start_ns = inputs[0].stamp_ns
+                        output = self._bag_output(inputs[0].receive_ns)
+                        view = _RerunOutput(self.rrd, self.description) if self.rrd is not None else None
+                    self.summary.inputs += len(inputs)
+                    _account(self.summary, piece)
+                    if output is not None:
+                        output.write(monitor, inputs, piece)
+                    if view is not None:
+                        view.log(piece)
+                    for consume in self.consumers:
+                        consume(piece)
                     bar.update(len(inputs))
-                    continue
-                sent = messenger.messages_of(steps, per_step(outputs, len(steps)), [r.receive_ns for r in inputs])
-                for recorded, messages in zip(inputs, sent):
-                    receive = recorded.receive_ns
-                    delay = (receive - first) * 1e-9 / rate - (time.perf_counter() - pace_start)
-                    if delay > 0:
-                        time.sleep(delay)
-                    recorder.input(recorded.topic, recorded.type_name, recorded.data, recorded.stamp_ns, receive)
-                    recorder.step(messages, receive)
-                    bar.update()
-    finally:
-        writer.close()
+        finally:
+            if output is not None:
+                output.close()
+        if not self.summary.inputs:
+            raise BagError(f"bag {self.bag} holds no {JOINT_STATE} on {self.config.topics.joint_states} or "
+                           f"{FLUID_PRESSURE} on {', '.join(self.config.pressure_topics) or '(none configured)'}: "
+                           "nothing to replay")
+        if view is not None:
+            view.close()
+        self.summary.seconds = time.perf_counter() - self.started
+        return self.summary
+
+    def _bag_output(self, first_receive_ns: int) -> _BagOutput | None:
+        """The output bag (begun at the first input's receive time), or None when none is asked for."""
+        if self.out_dir is None:
+            return None
+        return _BagOutput(self.out_dir, self.description, self.config, first_receive_ns, self.rate)
+
+
+class _BagOutput:
+    """The output bag: inputs (their recorded bytes, unchanged), outputs and diagnostics in recording
+    order, as the node records them (``bag.step_recorder``), ENCODE_BLOCK steps at a time: their outputs
+    encoded at once (``OutputEncoder.output_rows``, with the monitor in the steps' configuration) and,
+    as fast as possible, all their messages written at once (``StepRecorder.steps``). With ``rate`` the
+    messages go one by one (``StepRecorder.input``, ``step``), each input's written at its receive time
+    scaled by 1 / ``rate`` from the first: a block written at once cannot keep that pace."""
+
+    def __init__(self, out_dir: Path, description: Mechanism, config: MonitorConfig, first_receive_ns: int,
+                 rate: float | None) -> None:
+        from linkage_monitor.wire.markers import DEFAULT_RATE_HZ
+        from linkage_monitor.wire.step_messages import StepMessenger
+
+        self.writer = BagWriter(out_dir)
+        try:
+            self.recorder = StepRecorder(self.writer, config.topics)
+            self.recorder.begin(description, config, first_receive_ns)
+        except BaseException:
+            self.writer.close()
+            raise
+        self.messenger = StepMessenger(description, f"linkage_monitor: {description.name}", DEFAULT_RATE_HZ)
+        self.encoder = OutputEncoder()
+        self.first, self.rate, self.pace_start = first_receive_ns, rate, time.perf_counter()
+
+    def write(self, monitor: Monitor, raw: list[RecordedInput], piece: Run) -> None:
+        """The messages of a piece's steps (``raw``: their inputs, in order)."""
+        for start in range(0, len(raw), ENCODE_BLOCK):
+            inputs, steps = raw[start:start + ENCODE_BLOCK], piece.steps[start:start + ENCODE_BLOCK]
+            outputs = self.encoder.output_rows(monitor, steps)
+            if not self.rate:
+                sent = self.messenger.messages_of(steps, [None] * len(steps), [r.receive_ns for r in inputs])
+                self.recorder.steps(inputs, sent, outputs)
+                continue
+            sent = self.messenger.messages_of(steps, per_step(outputs, len(steps)), [r.receive_ns for r in inputs])
+            for recorded, messages in zip(inputs, sent):
+                receive = recorded.receive_ns
+                delay = (receive - self.first) * 1e-9 / self.rate - (time.perf_counter() - self.pace_start)
+                if delay > 0:
+                    time.sleep(delay)
+                self.recorder.input(recorded.topic, recorded.type_name, recorded.data, recorded.stamp_ns, receive)
+                self.recorder.step(messages, receive)
+
+    def close(self) -> None:
+        self.writer.close()
 
 
 def _account(summary: Summary, run: Run) -> None:
@@ -296,20 +398,34 @@ def _smallest(values: np.ndarray | None, solved: np.ndarray, at: np.ndarray,
     return smallest
 
 
-def _log_rerun(path: Path, description: Mechanism, run: Run) -> None:
-    """Every solved pose as columns (one send per entity per segment); refused inputs as status text."""
-    from linkage_monitor.viz.rerun_view import RerunView, default_blueprint, largest_hinges, machine_series
+class _RerunOutput:
+    """The Rerun recording: every solved pose as columns (one send per entity per piece), refused
+    inputs as status text; opened at the first piece, its hinge plot showing the largest hinges of
+    the first piece's first segment."""
 
-    segments = run.segments
-    hinges = largest_hinges(segments[0].batch) if segments else None
-    view = RerunView.to_file(description, path, blueprint=default_blueprint(description, hinges=hinges))
-    solved_in_batch = {int(i) for seg in segments for i in seg.steps}   # log_batch reports the solver's rejections
-    for i, s in enumerate(run.steps):
-        if s.pose is None and s.level == Level.ERROR and i not in solved_in_batch:
-            view.log_status(s.stamp_ns, s.message)
-    for seg in segments:
-        m = seg.machine
-        view.log_batch(seg.stamps_ns, seg.batch, machine_series(m.steerability, m.lift_capacity,
-                                                                seg.batch.transmission_angle,
-                                                                seg.config.dead_centre_transmission_deg))
-    view.close()
+    def __init__(self, path: Path, description: Mechanism) -> None:
+        self.path, self.description = path, description
+        self.view: RerunView | None = None
+
+    def log(self, piece: Run) -> None:
+        from linkage_monitor.viz.rerun_view import RerunView, default_blueprint, largest_hinges, machine_series
+
+        segments = piece.segments
+        if self.view is None:
+            hinges = largest_hinges(segments[0].batch) if segments else None
+            self.view = RerunView.to_file(self.description, self.path,
+                                          blueprint=default_blueprint(self.description, hinges=hinges))
+        view = self.view
+        solved_in_batch = {int(i) for seg in segments for i in seg.steps}   # log_batch reports the solver's rejections
+        for i, s in enumerate(piece.steps):
+            if s.pose is None and s.level == Level.ERROR and i not in solved_in_batch:
+                view.log_status(s.stamp_ns, s.message)
+        for seg in segments:
+            m = seg.machine
+            view.log_batch(seg.stamps_ns, seg.batch, machine_series(m.steerability, m.lift_capacity,
+                                                                    seg.batch.transmission_angle,
+                                                                    seg.config.dead_centre_transmission_deg))
+
+    def close(self) -> None:
+        if self.view is not None:
+            self.view.close()
