@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -39,7 +40,6 @@ def test_set_and_pressure_options(capsys) -> None:
     assert main(["solve", "--mechanism", HITCH, "--pressure", "lift_cylinder=9e6:2e5", "--json"]) == 0
     measured = json.loads(capsys.readouterr().out)
     # schema: F = p_cap·A_cap − p_rod·A_rod with bore 0.11 m, rod 0.05 m (fixture)
-    import math
     a_cap = math.pi * 0.11**2 / 4
     assert measured["cylinders"]["lift_cylinder"]["force"] == pytest.approx(9e6 * a_cap - 2e5 * (a_cap - math.pi * 0.05**2 / 4))
 
@@ -143,3 +143,66 @@ def test_capacity_says_what_the_node_says_at_every_length(capsys) -> None:
     assert curve["findings"] == node
     assert curve["findings"][0][0]["code"] == "out_of_range" and curve["verdict"] == "ERROR" and code == 1
     assert any(level == "WARN" for level in curve["level"])   # lift_reserve_low low on the stroke
+
+
+# ---- solve from any sufficient set of measurements ----------------------------------------------------------
+# Whether one measured input alone fixes the preset's pose (its YAML's measurements): belarus_1221 is one DOF
+# measured twice (stroke and rockshaft angle), drill_coulter and ttz1080_base_change one DOF measured once,
+# damping_hitch two (lift cylinder; the element's stroke closes the sub-frame), ksu1_mower_adapter three (two
+# locked cylinders and the float lever).
+ALONE_FIXES_THE_POSE = {
+    "belarus_1221": {"lift_cylinder": True, "lift_arm_angle": True},
+    "damping_hitch": {"lift_cylinder": False, "damping_element": False},
+    "drill_coulter": {"upper_link_angle": True},
+    "ksu1_mower_adapter": {"lift_cylinder": False, "tilt_cylinder": False, "float_lever_angle": False},
+    "ttz1080_base_change": {"base_change_cylinder": True},
+}
+
+
+def _option(preset: str, name: str) -> str:
+    return "--stroke" if name in load_preset(preset).measurements.cylinders else "--angle"
+
+
+@pytest.mark.parametrize("preset, name", [(p, n) for p, names in ALONE_FIXES_THE_POSE.items() for n in names])
+def test_one_measurement_at_its_reference_value(capsys, preset, name) -> None:
+    """Alone at its reference value, a measurement that fixes the pose predicts the others' reference values
+    (the presets' reference_inputs are consistent: to 1e-4 m / rad, the precision of belarus_1221's fitted
+    angle) and the node finds nothing amiss with them; one that does not names every missing measurement."""
+    mech = load_preset(preset)
+    reference = {**mech.reference_inputs.get("cylinders", {}), **mech.reference_inputs.get("angles", {})}
+    code = main(["solve", "--preset", preset, _option(preset, name), f"{name}={reference[name]}", "--json"])
+    out, err = capsys.readouterr()
+    others = [n for n in reference if n != name]
+    if ALONE_FIXES_THE_POSE[preset][name]:
+        result = json.loads(out)
+        assert sorted(result["predicted"]) == sorted(others)
+        assert result["predicted"] == pytest.approx({n: reference[n] for n in others}, abs=1e-4)
+        assert code == 0 and result["level"] == "OK", result["findings"]
+    else:
+        assert code == 2 and err.count("\n") == 1 and name in err
+        assert all(f"{_option(preset, n)} {n}=" in err for n in others), err
+
+
+def test_the_readme_example_places_the_lift_arm(capsys) -> None:
+    """`solve --preset belarus_1221 --stroke lift_cylinder=0.6` (README): the lift-arm angle is predicted and
+    the node, given both, finds them consistent; given both at other values, it says they disagree."""
+    assert main(["solve", "--preset", "belarus_1221", "--stroke", "lift_cylinder=0.6", "--json"]) == 0
+    alone = json.loads(capsys.readouterr().out)
+    angle = alone["predicted"]["lift_arm_angle"]
+    assert alone["findings"] == [] and alone["cylinders"]["lift_cylinder"]["length"] == pytest.approx(0.6, abs=1e-9)
+    assert main(["solve", "--preset", "belarus_1221", "--stroke", "lift_cylinder=0.6", "--angle",
+                 f"lift_arm_angle={angle!r}", "--json"]) == 0
+    both = json.loads(capsys.readouterr().out)
+    magnitudes = [{n: h["magnitude"] for n, h in pose["hinges"].items()} for pose in (alone, both)]
+    assert both["predicted"] == {} and magnitudes[1] == pytest.approx(magnitudes[0], rel=1e-6)
+    # the rockshaft 2° off: a misfit above the node's 1.5 mm (checks.CONSISTENCY_WARN_M: 1° adds 1.8-2.6 mm)
+    assert main(["solve", "--preset", "belarus_1221", "--stroke", "lift_cylinder=0.6", "--angle",
+                 f"lift_arm_angle={angle + math.radians(2.0)!r}", "--json"]) == 0
+    assert [f["code"] for f in json.loads(capsys.readouterr().out)["findings"]] == ["sensors_disagree"]
+
+
+def test_a_missing_measurement_of_several_is_named(capsys) -> None:
+    assert main(["solve", "--preset", "ksu1_mower_adapter", "--stroke", "lift_cylinder=0.4763402",
+                 "--stroke", "tilt_cylinder=0.7648529"]) == 2
+    err = capsys.readouterr().err
+    assert "--angle float_lever_angle=RAD" in err and "--stroke" not in err.split("give also")[1], err
