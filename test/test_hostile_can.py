@@ -22,7 +22,7 @@ from linkage_monitor.can.to_bag import blocks_to_bag
 from linkage_monitor.mechanics import InputError, load_description
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.events import JointStateEvent
-from linkage_monitor.monitoring.findings import Code
+from linkage_monitor.monitoring.findings import Code, Level
 
 ROOT = Path(__file__).resolve().parent.parent
 DBC = ROOT / "config" / "can" / "isobus_hitch.dbc"
@@ -62,6 +62,7 @@ def test_two_sources_for_one_input_are_refused_and_named() -> None:
     assert decoder.counts.two_sources == {"RearHitchStatus": [0xF0, 0x80]}
     assert decoder.counts.refused == 19
     assert "RearHitchStatus sent by 2 sources (0xF0, 0x80)" in decoder.counts.summary()
+    assert decoder.counts.level is Level.WARN   # the bridge's frame-count status: not OK
 
 
 def test_two_sources_in_blocks_as_frame_by_frame() -> None:
@@ -312,6 +313,7 @@ def test_frames_dropped_at_the_socket_are_counted_and_reported() -> None:
     finding = decoder.counts.lose(dropped, f"udp_multicast:{group}")
     assert finding.code is Code.INPUTS_LOST and f"{dropped} CAN frame(s) lost on udp_multicast:{group}" in finding.text
     assert f"{dropped} lost before the bridge read them" in decoder.counts.summary()
+    assert decoder.counts.level is Level.WARN
 
 
 # ---- 1, live: the bridge on a bus where two ECUs send the rear hitch status ----------------------------------

@@ -39,7 +39,7 @@ from cantools.database import Database
 from linkage_monitor.mechanics import InputError, Mechanism
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.events import InputEvent, JointStateEvent, PressureEvent
-from linkage_monitor.monitoring.findings import Code, Finding, fmt
+from linkage_monitor.monitoring.findings import Code, Finding, Level, fmt
 
 from .frames import CAN_ERR_MASK, Frame, FrameBlock
 from .j1939 import CAN_ERR_BUSOFF, Raw, classify, is_value, pgn
@@ -101,6 +101,11 @@ class FrameCounts:
             text += (f"; {message} sent by {len(sources)} sources ({', '.join(f'0x{a:02X}' for a in sources)}): "
                      "not used, name the one to trust (source_address)")
         return text
+
+    @property
+    def level(self) -> Level:
+        """WARN while frames were lost or an input's parameter group has two sources (not used), else OK."""
+        return Level.WARN if self.lost or self.two_sources else Level.OK
 
     def lose(self, dropped: int, source: str) -> Finding:
         """Count ``dropped`` frames lost at the bus's socket before the bridge read them; the finding."""

@@ -164,7 +164,7 @@ class CanBridgeNode(LinkageMonitorNode):
 
     def _publish_counts(self) -> None:
         counts = self.decoder.counts
-        self._publish_status("can", Level.OK, counts.summary(), self._now())
+        self._publish_status("can", counts.level, counts.summary(), self._now())
 
     def close(self) -> None:
         try:
