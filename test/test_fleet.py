@@ -71,6 +71,7 @@ def test_fleet_rows_equal_single_bag_replays(fleet_run):
     rows = {Path(r["bag"]).name: r for r in pq.read_table(out / "bags.parquet").to_pylist()}
     assert set(rows) == {p.name for p in bags.iterdir()}
     assert "incomplete" in rows["corrupt.mcap"]["error"] or "mechanism" in rows["corrupt.mcap"]["error"]
+    assert "corrupt.mcap is cut off at byte" in rows["corrupt.mcap"]["warning"]   # where the reader stopped
     spectra = pq.read_table(out / "spectra.parquet").to_pylist()
     for bag in SAMPLE_BAGS:
         row = rows[bag.name]

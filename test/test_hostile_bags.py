@@ -139,6 +139,7 @@ def test_fleet_takes_a_split_bag_without_metadata_for_one_bag(split_bag, tmp_pat
     bag = _copy(split_bag, root / "lift")
     (bag / "metadata.yaml").unlink()
     _cut(DAMPING, root / "loose_0.mcap", 1.0)
+    assert find_bags([root]) == [bag, root / "loose_0.mcap"]   # a directory beside it: root is not a bag
     _cut(DAMPING, root / "other_0.mcap", 1.0)
     assert find_bags([root]) == [bag, root / "loose_0.mcap", root / "other_0.mcap"]
 

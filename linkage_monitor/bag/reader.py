@@ -195,12 +195,15 @@ def _split_order(file: Path) -> tuple[str, int, str]:
 
 
 def is_split_bag(directory: Path) -> bool:
-    """Whether ``directory`` is one bag: it has metadata.yaml, or its storage files are named as the
-    files of one rosbag2 bag, `<stem>_<N>.mcap` / `.db3` with one stem (a split bag without metadata)."""
+    """Whether ``directory`` is one bag: it has metadata.yaml, or it holds no directory and its storage
+    files are named as the files of one rosbag2 bag, `<stem>_<N>.mcap` / `.db3` with one stem (a split
+    bag without metadata)."""
     if (directory / "metadata.yaml").is_file():
         return True
-    names = [_SPLIT_NAME.match(f.stem) for f in directory.iterdir() if f.suffix in STORAGE_SUFFIXES]
-    return bool(names) and all(names) and len({m["stem"] for m in names if m}) == 1
+    entries = list(directory.iterdir())
+    names = [_SPLIT_NAME.match(f.stem) for f in entries if f.suffix in STORAGE_SUFFIXES]
+    return (bool(names) and all(names) and len({m["stem"] for m in names if m}) == 1
+            and not any(f.is_dir() for f in entries))
 
 
 def _first_log_time(file: Path) -> int | None:
