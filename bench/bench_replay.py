@@ -1,6 +1,7 @@
 """Replay throughput against the raw decode rate of the same bag (goal: >= 0.5x the decode rate).
 
-Run: .venv/bin/python bench/bench_replay.py [BAG]   (default: the bundled belarus_1221 bag)
+Run: .venv/bin/python bench/bench_replay.py [BAG] [--long-inputs N]   (default: the bundled belarus_1221
+bag, N = 10^5)
 Prints messages per second (each the fastest of REPEAT runs, the rows' runs interleaved) of
 - raw decode: mcap + mcap-ros2-support decoding every message of the bag (the floor of any
   reader in Python, measured in the same run),
@@ -13,10 +14,16 @@ Prints messages per second (each the fastest of REPEAT runs, the rows' runs inte
 and the ratios to the raw decode (goal >= 0.5): of every message of the bag (the bundled bag is a
 node recording: its outputs are 3/4 of it, and a reader decompresses their chunks too), and of
 the input messages the replay reads (topic filter: the same messages).
+Then the replay's memory (goal: flat in the bag's length; a 10^6-input bag under 500 MB): `linkage-monitor
+replay --out` (``replay_streaming``) over a long bag of N inputs (bench/long_bag.py: BAG's inputs repeated) in
+its own process, its peak RSS (ru_maxrss) and its rate (its summary's, with what a process pays once) against
+the replay of BAG writing its output bag above (goal >= 0.5).
 """
 
 from __future__ import annotations
 
+import argparse
+import subprocess
 import sys
 import tempfile
 import time
@@ -28,8 +35,20 @@ from mcap_ros2.decoder import DecoderFactory
 from linkage_monitor.mechanics import kernels  # noqa: E402
 from linkage_monitor.offline.replay import mechanism_in_bag, replay
 
-BAG = Path(__file__).resolve().parent.parent / "bags" / "belarus_1221_lift_transport"
+from long_bag import write_long_bag  # noqa: E402  # bench/ is the script's directory
+
+ROOT = Path(__file__).resolve().parent.parent
+BAG = ROOT / "bags" / "belarus_1221_lift_transport"
 REPEAT = 5   # each row: the fastest of this many runs, the runs of every row interleaved
+LONG_INPUTS = 100_000
+RSS_GOAL_MB = 500.0   # for 10^6 inputs
+MEASURE = """import resource, sys
+from pathlib import Path
+from linkage_monitor.mechanics import kernels
+from linkage_monitor.offline.replay import replay_streaming
+kernels.allow_threads()
+summary = replay_streaming(Path(sys.argv[1]), out_dir=Path(sys.argv[2]), progress=None).summary
+print(summary.inputs, summary.seconds, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)"""
 
 
 def raw_decode(bag: Path, topics: list[str] | None = None) -> tuple[int, float]:
@@ -47,9 +66,24 @@ def best(runs: list[tuple[int, float]]) -> tuple[int, float]:
     return min(runs, key=lambda run: run[1])
 
 
+def long_replay(bag: Path, inputs: int, work: Path) -> tuple[int, float, float]:
+    """(inputs, seconds, peak RSS in MB) of a streaming replay, output bag written, of a bag of ``inputs``
+    inputs made from ``bag``'s, in its own process."""
+    long = work / "long"
+    write_long_bag(bag, long, inputs)
+    done = subprocess.run([sys.executable, "-c", MEASURE, str(long), str(work / "long_out")], cwd=ROOT,
+                          capture_output=True, text=True, check=True)
+    n, seconds, rss_kb = done.stdout.split()[-3:]
+    return int(n), float(seconds), int(rss_kb) / 1024
+
+
 def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("bag", nargs="?", type=Path, default=BAG)
+    parser.add_argument("--long-inputs", type=int, default=LONG_INPUTS, help="inputs of the long bag (0: none)")
+    args = parser.parse_args()
     kernels.allow_threads()   # as `linkage-monitor replay` does
-    bag = Path(sys.argv[1]) if len(sys.argv) > 1 else BAG
+    bag = args.bag
     mech = mechanism_in_bag(bag)
     with tempfile.TemporaryDirectory() as tmp:
         # once per process: the compiled kernels loaded from numba's cache, the output messages'
@@ -76,6 +110,13 @@ def main() -> int:
     print(f"{'':70} {'messages':>9} {'seconds':>8} {'msg/s':>9} {'ratio':>6} {'ratio to the same messages':>27}")
     for name, n, t in rows:
         print(f"{name:70} {n:9d} {t:8.3f} {n / t:9.0f} {n / t / raw_rate:6.2f} {n / t / in_rate:27.2f}")
+    if args.long_inputs > 0:
+        n_out, t_out = best(out)
+        with tempfile.TemporaryDirectory() as tmp:
+            n, seconds, rss_mb = long_replay(bag, args.long_inputs, Path(tmp))
+        print(f"\nlong bag ({n} inputs, output bag written, own process): {seconds:.1f} s, {n / seconds:,.0f} msg/s = "
+              f"{n / seconds / (n_out / t_out):.2f}x the replay of {bag.name} writing its bag (goal >= 0.5); "
+              f"peak RSS {rss_mb:.0f} MB (goal: flat in the length, < {RSS_GOAL_MB:.0f} MB at 10^6 inputs)")
     return 0
 
 
