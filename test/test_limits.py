@@ -12,7 +12,8 @@ import pytest
 
 from linkage_monitor.mechanics import MechanismFileError, load_preset, mechanism_from_dict, preset_names
 from linkage_monitor.mechanics.capacity import stroke_mechanism
-from linkage_monitor.mechanics.limits import input_limits
+from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
+from linkage_monitor.mechanics.limits import MIN_ABSOLUTE_PRESSURE, RELIEF_FACTOR, input_limits
 from linkage_monitor.mechanics.results import angle_readings
 from linkage_monitor.mechanics import Solver
 
@@ -60,3 +61,23 @@ def test_the_files_limits_win_and_are_validated():
     raw["measurements"]["limits"] = {"rockshaft": [0.0, 1.0]}
     with pytest.raises(MechanismFileError, match="not a measurement"):
         mechanism_from_dict(raw)
+
+
+@pytest.mark.parametrize("preset", preset_names())
+def test_a_pressure_sent_in_kpa_as_pa_is_below_the_limit_of_a_cylinder_with_a_relief_pressure(preset):
+    """With a relief pressure the lower limit is 1e-3 of the upper one (RELIEF_FACTOR x relief + 1 atm):
+    every pressure the circuit can hold, its kPa sent as Pa, falls below it, and the refusal says so;
+    the reference pressure (gauge, + 1 atm) and 0 gauge stay inside."""
+    mech = load_preset(preset)
+    limits = input_limits(mech)
+    for p in mech.measurements.pressures:
+        limit, relief = limits[p.name], mech.cylinder(p.cylinder).relief_pressure
+        if not relief:
+            assert limit.lo == MIN_ABSOLUTE_PRESSURE   # without a relief pressure the circuit's range is unknown
+            continue
+        assert limit.hi == pytest.approx(RELIEF_FACTOR * relief + ATMOSPHERIC_PRESSURE, rel=1e-15)
+        assert limit.lo == pytest.approx(1e-3 * limit.hi, rel=1e-15)
+        absolute = mech.reference_inputs.get("pressures", {}).get(p.name, 0.0) + ATMOSPHERIC_PRESSURE
+        assert limit.check(absolute) is None and limit.check(ATMOSPHERIC_PRESSURE) is None
+        problem = limit.check(absolute * 1e-3)
+        assert problem is not None and "looks like kPa sent as Pa?" in problem, problem
