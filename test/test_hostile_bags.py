@@ -220,7 +220,7 @@ CAN_MAP = Path(__file__).resolve().parents[1] / "config" / "can" / "belarus_1221
 
 @pytest.mark.parametrize("seconds", ["2767225600", "17672256000"], ids=["after 2038", "11 digits"])
 def test_can_log_stamps_no_header_stamp_holds_are_refused_by_name(tmp_path, capsys, seconds):
-    """candump lines stamped after 2038-01-19 or with 11 digits of seconds: a 27-line traceback before
+    """candump lines stamped after 19 January 2038 or with 11 digits of seconds: a 27-line traceback before
     (struct.error packing the int32 sec, OverflowError filling int64 ns). rosbags' serializer cannot write
     such a builtin_interfaces/Time (the oracle); each line is refused naming its stamp and the reason, the
     other lines are converted; a log of such lines only is one error line, exit 2."""

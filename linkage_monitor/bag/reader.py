@@ -12,8 +12,11 @@ handed over as the installed class: fields of the same name copied, a float fiel
 lacks NaN (not known), any other one its default; `read_bag_raw` yields their bytes undecoded (the replay
 reads its inputs itself and reports an unreadable one as the node does); `read_inputs`
 gathers the sensor topics the solver needs (JointState, FluidPressure) into numpy columns.
-A bag whose writer was killed (no summary, possibly a truncated last record) is read up to
-its last complete record.
+A bag whose writer was killed, or a file cut mid-record (an interrupted copy, a dying card), is
+read record by record up to its last complete record. What cannot be read as recorded is a
+``ReadFault`` naming the file, the byte and the messages (a cut, a chunk that fails its CRC, a file
+metadata.yaml does not list, a sqlite3 topic that is not its declared type): logged as a warning,
+and collected by ``read_faults()`` for a caller that reports them (fleet's rows).
 """
 
 from __future__ import annotations

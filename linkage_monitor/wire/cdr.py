@@ -50,7 +50,7 @@ class CdrError(ValueError):
     """A payload that is not the CDR of the expected message: says what is wrong and where."""
 
 
-TIME_SECONDS = (-2**31, 2**31 - 1)   # s, what builtin_interfaces/Time's int32 sec holds: 1901-12-13 to 2038-01-19
+TIME_SECONDS = (-2**31, 2**31 - 1)   # s, what builtin_interfaces/Time's int32 sec holds: 13 Dec 1901 to 19 Jan 2038
 
 
 class StampRangeError(InputError, struct.error):
@@ -63,8 +63,8 @@ def check_stamp(stamp_ns: int, what: str = "a stamp") -> int:
     seconds = stamp_ns // _NS
     if not TIME_SECONDS[0] <= seconds <= TIME_SECONDS[1]:
         raise StampRangeError(
-            f"{what} of {seconds} s since the epoch is outside a ROS header stamp's int32 seconds (1901-12-13 "
-            "to 2038-01-19 03:14:07 UTC): correct the clock or the stamps")
+            f"{what} of {seconds} s since the epoch is outside a ROS header stamp's int32 seconds (13 Dec 1901 "
+            "to 19 Jan 2038 03:14:07 UTC): correct the clock or the stamps")
     return stamp_ns
 
 
