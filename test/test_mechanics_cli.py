@@ -206,3 +206,15 @@ def test_a_missing_measurement_of_several_is_named(capsys) -> None:
                  "--stroke", "tilt_cylinder=0.7648529"]) == 2
     err = capsys.readouterr().err
     assert "--angle float_lever_angle=RAD" in err and "--stroke" not in err.split("give also")[1], err
+
+
+@pytest.mark.slow
+def test_a_closed_pipe_keeps_the_verdicts_exit_code() -> None:
+    """`linkage-monitor solve ... | head -0`: nothing printed, no traceback, and still exit 1 for an ERROR."""
+    run = subprocess.Popen([PYTHON, "-m", "linkage_monitor.cli", "solve", "--preset", "belarus_1221", "--set",
+                            "tractor.mass=1", "--set", "tractor.front_ballast.mass=10000"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert run.stdout is not None
+    run.stdout.close()   # the reader is gone before anything is printed
+    _, err = run.communicate(timeout=120)
+    assert run.returncode == 1 and "Traceback" not in err and "BrokenPipe" not in err, err

@@ -14,7 +14,7 @@ import numpy as np
 
 from linkage_monitor.cli.arguments import add_mechanism_group, bounded, mechanism_from_args, output_file
 from linkage_monitor.cli.commands import COMMANDS, EXIT_CODES
-from linkage_monitor.cli.verdict import exit_code, finding_json, finding_line, judge_strokes, worst
+from linkage_monitor.cli.verdict import emit, exit_code, finding_json, finding_line, judge_strokes, worst
 from linkage_monitor.mechanics import LinkageError, Mechanism, Solver
 from linkage_monitor.mechanics.capacity import (interval_around, lift_cylinder, reference_length, relief_pressure,
                                                 stroke_mechanism)
@@ -151,5 +151,5 @@ def run_capacity(args: argparse.Namespace) -> int:
                  f" (transport)")
         plot_capacity(np.array(curve["length"], dtype=float), machine, mech.gravity, curve["implement_weight"],
                       title, args.plot, mech.tractor.steerability_reference if mech.tractor else "unit")
-    print(json.dumps(curve) if args.json else "\n".join([_table(curve), *_findings_lines(curve, sweep.steps)]))
+    emit(json.dumps(curve) if args.json else "\n".join([_table(curve), *_findings_lines(curve, sweep.steps)]))
     return exit_code(worst(sweep.steps))

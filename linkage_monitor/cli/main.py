@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from typing import NoReturn, Sequence
 
@@ -52,6 +53,12 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+def reader_gone() -> None:
+    """Standard output's reader closed the pipe (``| head -1``): what is left to print, and the
+    interpreter's last flush, go nowhere."""
+    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+
+
 def _input_error(exc: Exception) -> bool:
     """True for an error of the inputs (``INPUT_ERRORS``), reported in one line."""
     kinds = [getattr(sys.modules[m], name) for m, name in INPUT_ERRORS.items() if m in sys.modules]
@@ -70,6 +77,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         kernels.allow_threads()   # large batches on every core (fleet: one process per core instead)
     try:
         return int(getattr(module, command.run)(args))
+    except BrokenPipeError:   # `linkage-monitor presets | head -1`: the reader has what it wanted
+        reader_gone()
+        return 0
     except Exception as exc:
         if not _input_error(exc):
             raise

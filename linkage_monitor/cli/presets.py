@@ -4,8 +4,6 @@ YAML files only: no solver, no compiled kernels)."""
 from __future__ import annotations
 
 import argparse
-import os
-import sys
 
 from linkage_monitor.cli.commands import COMMANDS
 from linkage_monitor.mechanics.presets import preset_description, preset_names
@@ -18,9 +16,6 @@ def add_presets_parser(subparsers: argparse._SubParsersAction) -> argparse.Argum
 
 def run_presets(args: argparse.Namespace) -> int:
     """Print one line per preset: its name and description."""
-    try:
-        for name in preset_names():
-            print(f"{name:<24} {preset_description(name)}")
-    except BrokenPipeError:   # `linkage-monitor presets | head -1`
-        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - the interpreter closes it at exit
+    for name in preset_names():
+        print(f"{name:<24} {preset_description(name)}")
     return 0

@@ -19,7 +19,7 @@ import yaml
 
 from linkage_monitor.cli.arguments import add_mechanism_group, mechanism_from_args
 from linkage_monitor.cli.commands import COMMANDS, EXIT_CODES
-from linkage_monitor.cli.verdict import exit_code, finding_json, finding_line, judge
+from linkage_monitor.cli.verdict import emit, exit_code, finding_json, finding_line, judge
 from linkage_monitor.mechanics import (InputError, Inputs, Mechanism, Result, Solver,
                                        UnobservableError, apply_overrides)
 from linkage_monitor.mechanics.calibration import drive_mechanism
@@ -234,11 +234,11 @@ def _print(mech: Mechanism, step: Step, predicted: dict[str, float], as_json: bo
                      "predicted": predicted}
         if step.pose is not None:
             out.update({**result_json(step.pose.result), **machine_json(step.pose.machine)})
-        print(json.dumps(out))
+        emit(json.dumps(out))
     else:
         lines = _predicted_lines(mech, predicted)
         if step.pose is not None:
             lines += [*_table(step.pose.result), *_machine_lines(machine_json(step.pose.machine))]
-        print("\n".join([*lines, *_verdict_lines(step)]))
+        emit("\n".join([*lines, *_verdict_lines(step)]))
     return exit_code(step.level)
 
