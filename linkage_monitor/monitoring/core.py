@@ -127,7 +127,8 @@ class Segment:
 
 @dataclass(frozen=True)
 class Run:
-    """A batched run: one Step per input event, and the solved segments as arrays."""
+    """A batched run, or a piece of one (``Monitor.runs``): one Step per input event, and the solved
+    segments as arrays (their ``steps`` index these Steps)."""
 
     steps: list[Step]
     segments: list[Segment]
