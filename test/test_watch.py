@@ -52,7 +52,7 @@ def _record(hinge_count: int = len(BELARUS_HINGES), output_age_s: float | None =
         ratio=0.2561, ratio_min=0.2, margin=0.0561, ratio_reference="unit", lift_reserve=1.5349,
         implement_load_n=14_993.0, min_transmission_angle_rad=math.radians(26.94),
         statuses=(StatusLine("linkage_monitor: belarus_1221", "WARN", "lift reserve 0.93 below 1", "lift_reserve"),),
-        loss=StatusLine("linkage_monitor: inputs", "WARN", _loss_message()),
+        loss=StatusLine("linkage_monitor: inputs", "WARN", _loss_message()), ignored=(("gps_driver: fix", 12),),
         rates=tuple(TopicRate(topic, rate, 100) for topic, rate in zip(TOPICS, (50.0, 50.0, 50.0, 1.0))),
         output_age_s=output_age_s)
 
@@ -60,7 +60,8 @@ def _record(hinge_count: int = len(BELARUS_HINGES), output_age_s: float | None =
 # every figure of _record() as the view writes it, with its unit
 FIGURES = ["11.23 kN", "71.23 kN", "peak 100.57 kN", "peak 103.40 kN", "0.256 [-]", "0.200 [-]", "+0.056 [-]",
            "1.535 [-]", "14.99 kN", "26.9 deg", "50.0 msg/s", "1.0 msg/s", "WARN", "lift reserve 0.93 below 1",
-           "/joint_states: 3 lost of 3 received", "/pressure/lift_cap_pressure: 0 lost of 1 received"]
+           "/joint_states: 3 lost of 3 received", "/pressure/lift_cap_pressure: 0 lost of 1 received",
+           "not shown: 12 statuses (gps_driver: fix)"]
 
 
 def _screen(record: WatchRecord, width: int, height: int) -> list[str]:

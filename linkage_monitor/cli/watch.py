@@ -95,6 +95,7 @@ def _once(watch: OutputWatch, executor: Executor, timeout_s: float) -> int:
     end = time.monotonic() + timeout_s
     while watch.missing() and time.monotonic() < end:
         executor.spin_once(timeout_sec=min(0.1, max(0.0, end - time.monotonic())))
+        watch.drain()
     if missing := watch.missing():
         print(f"{PROG}: nothing arrived on {', '.join(missing)} within {timeout_s:g} s (waited on "
               f"{', '.join(watch.topics.values())}, ROS_DOMAIN_ID {os.environ.get('ROS_DOMAIN_ID', '0')}): is the "
@@ -106,7 +107,7 @@ def _once(watch: OutputWatch, executor: Executor, timeout_s: float) -> int:
 
 def _live(watch: OutputWatch, executor: Executor, refresh_hz: float) -> int:
     """Draw the view on the terminal's alternate screen ``refresh_hz`` times a second until Ctrl-C;
-    the messages are taken in between."""
+    the messages are taken in between (at each wake-up, all that wait)."""
     from rich.console import Console
     from rich.live import Live
 
@@ -122,6 +123,7 @@ def _live(watch: OutputWatch, executor: Executor, refresh_hz: float) -> int:
                 live.update(view(watch.record(), width, height), refresh=True)
                 draw_at = now + period
             executor.spin_once(timeout_sec=max(0.0, draw_at - time.monotonic()))
+            watch.drain()
 
 
 def main(argv: Sequence[str] | None = None) -> int:

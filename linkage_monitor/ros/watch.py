@@ -6,7 +6,7 @@ Topics as the node names them (``ros/node.py``): ``hinge_reactions``, ``hitch_st
 so ``--ros-args -r`` remappings apply to both alike) and ``/diagnostics``. /diagnostics is shared
 by every node of the ROS domain: a status is taken only when its name is ``<node>: ...`` for the
 node that publishes the watched ``hinge_reactions`` (rclpy's message info carries no publisher
-gid to tell two nodes apart); the others are counted by name (``OutputWatch.foreign``), not shown.
+gid to tell two nodes apart); the others are counted by name (``OutputWatch.foreign``; the record's ``ignored``), not shown.
 When nodes of that name in more than one namespace publish /diagnostics, their statuses cannot be
 told apart: the record says so in a WARN status of the watch itself.
 
@@ -19,11 +19,12 @@ import math
 import time
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 
 from linkage_monitor.monitoring.findings import Level
 from linkage_monitor.msg import HingeReactions, HitchState, Steerability
@@ -72,18 +73,32 @@ class OutputWatch:
                                                                         DIAGNOSTICS)}
         self._arrivals = {topic: _Arrivals() for topic in self.topics.values()}
         self._hinges: HingeReactions | None = None
-        self._hitch: HitchState | None = None
-        self._steer: Steerability | None = None
+        self._latest: dict[str, bytes] = {}   # hitch_state, steerability: the latest CDR bytes, read when drawn
         self._peaks: dict[str, float] = {}
         self._last_output: float | None = None
         self._statuses: dict[str, StatusLine] = {}
         self._monitors: set[str] = set()
         self._graph_asked, self._ambiguous = -GRAPH_PERIOD_S, ""
         self.foreign: dict[str, int] = {}   # status name -> statuses on /diagnostics from other nodes, ignored
-        for name, msg_type in ((HINGE_REACTIONS, HingeReactions), (HITCH_STATE, HitchState),
-                               (STEERABILITY, Steerability)):
-            node.create_subscription(msg_type, name, self._output_callback(name), WATCH_QOS)
-        node.create_subscription(DiagnosticArray, DIAGNOSTICS, self._on_diagnostics, WATCH_QOS)
+        self._subscriptions: list[tuple[Any, Callable[[Any], None]]] = []
+        # every HingeReactions is read (the peaks); of the two others only the latest, when the record is made
+        for name, msg_type, callback, raw in (
+                (HINGE_REACTIONS, HingeReactions, self._output_callback(HINGE_REACTIONS), False),
+                (HITCH_STATE, HitchState, self._output_callback(HITCH_STATE), True),
+                (STEERABILITY, Steerability, self._output_callback(STEERABILITY), True),
+                (DIAGNOSTICS, DiagnosticArray, self._on_diagnostics, False)):
+            sub = node.create_subscription(msg_type, name, callback, WATCH_QOS, raw=raw)
+            self._subscriptions.append((sub, callback))
+
+    def drain(self) -> None:
+        """Take every message waiting in the subscriptions' queues (rclpy's executor takes one per wake-up)."""
+        for sub, callback in self._subscriptions:
+            while True:
+                with sub.handle:   # as rclpy's executor takes a message (Executor._take_subscription)
+                    taken = sub.handle.take_message(sub.msg_type, sub.raw)
+                if taken is None:
+                    break
+                callback(taken[0])
 
     def _output_callback(self, name: str) -> Any:
         def callback(msg: Any) -> None:
@@ -92,10 +107,8 @@ class OutputWatch:
             self._last_output = now
             if name == HINGE_REACTIONS:
                 self._on_hinges(msg)
-            elif name == HITCH_STATE:
-                self._hitch = msg
             else:
-                self._steer = msg
+                self._latest[name] = msg
         return callback
 
     def _on_hinges(self, msg: HingeReactions) -> None:
@@ -131,14 +144,19 @@ class OutputWatch:
 
     def missing(self) -> list[str]:
         """The watched topics on which nothing has arrived yet (for /diagnostics: no status of the monitor)."""
-        missing = [self.topics[name] for name, msg in ((HINGE_REACTIONS, self._hinges), (HITCH_STATE, self._hitch),
-                                                        (STEERABILITY, self._steer)) if msg is None]
+        missing = [self.topics[HINGE_REACTIONS]] if self._hinges is None else []
+        missing += [self.topics[name] for name in (HITCH_STATE, STEERABILITY) if name not in self._latest]
         return missing + ([] if self._statuses else [DIAGNOSTICS])
+
+    def _read(self, name: str, msg_type: type) -> Any:
+        """The latest message of ``name`` (None before the first)."""
+        data = self._latest.get(name)
+        return deserialize_message(data, msg_type) if data is not None else None
 
     def record(self) -> WatchRecord:
         """What the watch knows now."""
         now = time.monotonic()
-        hinges, hitch, steer = self._hinges, self._hitch, self._steer
+        hinges, hitch, steer = self._hinges, self._read(HITCH_STATE, HitchState), self._read(STEERABILITY, Steerability)
         loss = next((s for name, s in self._statuses.items() if name.endswith(INPUTS_STATUS)), None)
         return WatchRecord(
             namespace=self.node.get_namespace(), topics=tuple(self.topics.values()),
@@ -154,6 +172,7 @@ class OutputWatch:
             min_transmission_angle_rad=hitch.min_transmission_angle if hitch is not None else math.nan,
             statuses=tuple(s for s in self._statuses.values() if s is not loss) + (
                 (StatusLine("watch", "WARN", self._ambiguous),) if self._ambiguous else ()), loss=loss,
+            ignored=tuple(sorted(self.foreign.items())),
             rates=tuple(TopicRate(topic, arrivals.rate(now, self.started), arrivals.count)
                         for topic, arrivals in self._arrivals.items()),
             output_age_s=None if self._last_output is None else now - self._last_output,

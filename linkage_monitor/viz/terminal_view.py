@@ -59,7 +59,8 @@ class WatchRecord:
     """What the watch knows of the monitor: the latest value of each output (NaN: not received
     yet), the statuses on /diagnostics, the rates, and how long ago an output last arrived
     (``output_age_s``, s; None: none yet). ``loss`` is the monitor's input-loss status (the node's
-    ``<node>: inputs``), None while it reported none. Forces N, angles rad, ratios dimensionless."""
+    ``<node>: inputs``), None while it reported none; ``ignored`` the statuses of other nodes on
+/diagnostics, not shown (by name, with their count). Forces N, angles rad, ratios dimensionless."""
 
     namespace: str
     topics: tuple[str, ...]
@@ -74,6 +75,7 @@ class WatchRecord:
     min_transmission_angle_rad: float = math.nan
     statuses: tuple[StatusLine, ...] = ()
     loss: StatusLine | None = None
+    ignored: tuple[tuple[str, int], ...] = ()   # (status name, count): statuses on /diagnostics of other nodes
     rates: tuple[TopicRate, ...] = ()
     output_age_s: float | None = None
     stale_after_s: float = 2.0
@@ -124,13 +126,17 @@ def rate_figures(record: WatchRecord) -> list[tuple[str, str]]:
 
 def loss_lines(record: WatchRecord) -> list[str]:
     """The monitor's input losses as it reported them on /diagnostics (``<node>: inputs``): its
-    level and sentence, then its per-topic counts (the part after ``): ``, one topic a line)."""
+    level and sentence, then its per-topic counts (the part after ``): ``, one topic a line); then
+    the statuses of other nodes the watch left out, if any."""
+    ignored = ([f"/diagnostics of other nodes, not shown: {sum(n for _, n in record.ignored)} statuses ("
+                + ", ".join(name for name, _ in record.ignored) + ")"] if record.ignored else [])
     if record.loss is None:
-        return ["input losses: none reported"]
+        return ["input losses: none reported", *ignored]
     sentence, _, counts = record.loss.message.partition("): ")
     if not counts:
-        return [f"input losses: {record.loss.level} {record.loss.message}"]
-    return [f"input losses: {record.loss.level} {sentence.partition(' (')[0]}", *(f"  {c}" for c in counts.split("; "))]
+        return [f"input losses: {record.loss.level} {record.loss.message}", *ignored]
+    return [f"input losses: {record.loss.level} {sentence.partition(' (')[0]}", *(f"  {c}" for c in counts.split("; ")),
+            *ignored]
 
 
 def snapshot_lines(record: WatchRecord) -> list[str]:
