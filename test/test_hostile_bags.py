@@ -258,3 +258,14 @@ def test_a_header_stamp_beyond_int32_seconds_is_a_named_input_error():
         with pytest.raises(StampRangeError, match=f"{beyond // 10**9} s since the epoch") as err:
             time_bytes(beyond)
         assert isinstance(err.value, InputError) and isinstance(err.value, struct_module.error)
+
+
+def test_an_unlisted_file_that_is_no_storage_file_is_named_not_fatal(split_bag, tmp_path):
+    """A stray `.mcap` of garbage beside the listed files: named and left out; the bag reads as listed."""
+    bag = _copy(split_bag, tmp_path / "lift")
+    (bag / "stray.mcap").write_bytes(b"not an mcap file")
+    with read_faults() as faults:
+        read = [(m.topic, m.log_time_ns) for m in read_bag_raw(bag)]
+    assert read == _rosbags_order(split_bag)
+    assert [(f.kind, Path(f.file).name) for f in faults] == [("unlisted_file", "stray.mcap")]
+    assert "not read" in faults[0].text and "neither an MCAP nor a sqlite3" in faults[0].text

@@ -156,7 +156,7 @@ def storage_files(path: str | os.PathLike[str]) -> list[Path]:
         if not file.is_file():
             raise BagError(f"bag file {file} listed in {path / 'metadata.yaml'} is missing")
     on_disk = [f for f in path.iterdir() if f.suffix in STORAGE_SUFFIXES and f.is_file()]
-    for file in on_disk:
+    for file in on_disk if listed is None else listed:
         _storage_of(file)
     files = _directory_order(path, listed, on_disk)
     if not files:
@@ -175,17 +175,28 @@ def _directory_order(directory: Path, listed: list[Path] | None, on_disk: list[P
     lose them without a word. It is read in the order of its messages' log times, with every other
     file, and named in a ``ReadFault`` (a file of another recording shows up there: remove it)."""
     if listed is not None:
-        unlisted = sorted(set(on_disk) - set(listed), key=_split_order)
-        for file in unlisted:
-            _report(ReadFault(str(file), "unlisted_file", None, None,
-                              f"{file} is in bag {directory} but not listed in its metadata.yaml: read in the "
-                              "order of its log times with the listed files (remove it if it is not this "
-                              "recording's)"))
+        unlisted = [file for file in sorted(set(on_disk) - set(listed), key=_split_order)
+                    if _unlisted_is_read(directory, file)]
         if not unlisted:
             return listed
         on_disk = listed + unlisted
     starts = {file: _first_log_time(file) for file in on_disk}
     return sorted(on_disk, key=lambda f: (starts[f] is None, starts[f] or 0, _split_order(f)))
+
+
+def _unlisted_is_read(directory: Path, file: Path) -> bool:
+    """Whether the storage file ``file`` that bag ``directory``'s metadata.yaml does not list is read (it
+    is an MCAP or sqlite3 file) or left out (it is not); named in a ``ReadFault`` either way."""
+    try:
+        _storage_of(file)
+    except BagError as exc:
+        _report(ReadFault(str(file), "unlisted_file", None, None,
+                          f"{file} is in bag {directory} but not listed in its metadata.yaml, and not read: {exc}"))
+        return False
+    _report(ReadFault(str(file), "unlisted_file", None, None,
+                      f"{file} is in bag {directory} but not listed in its metadata.yaml: read in the order of its "
+                      "log times with the listed files (remove it if it is not this recording's)"))
+    return True
 
 
 _SPLIT_NAME = re.compile(r"^(?P<stem>.+)_(?P<index>[0-9]+)$")   # rosbag2's `<bag>_<N>.<storage>`
