@@ -197,7 +197,7 @@ def test_live_view_in_tmux_shows_outputs_within_1_s(monitor):
     arrivals: list[tuple[int, HingeReactions]] = []   # (receive time ns, message)
     client.node.create_subscription(HingeReactions, "hinge_reactions",
                                     lambda msg, info: arrivals.append((info["received_timestamp"], msg)), RELIABLE)
-    _tmux("new-session", "-d", "-s", "watch", "-x", "80", "-y", "24", " ".join(WATCH) + f" 2> {tmp / 'watch.err'}")
+    _tmux("new", "-d", "-s", "watch", "-x", "80", "-y", "24", " ".join(WATCH) + f" 2> {tmp / 'watch.err'}")
     captures: list[tuple[int, str]] = []   # (capture time ns, screen)
     try:
         started, end = time.monotonic(), time.monotonic() + 20
