@@ -110,7 +110,7 @@ GENERATED.mkdir(exist_ok=True)  # filled by build_py; must exist for the metadat
 (CAN_MSGS / "msg").mkdir(parents=True, exist_ok=True)
 setup(
     name=PACKAGE,
-    version="0.2.0",
+    version="0.3.0",
     description="Live hinge reactions, lift capacity and steerability of tractor linkages (ROS 2)",
     packages=sorted({*find_packages(include=[PACKAGE, f"{PACKAGE}.*"]), f"{PACKAGE}.msg", "can_msgs", "can_msgs.msg"}),
     package_data={PACKAGE: ["*.so"], f"{PACKAGE}.mechanics.presets": ["*.yaml"], "can_msgs": ["*.so"]},
