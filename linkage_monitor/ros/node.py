@@ -91,10 +91,12 @@ PARAMETERS: dict[str, Declaration] = {
     "joint_state_topic": Declaration("joint_states", "", "Input sensor_msgs/JointState topic (angles rad, cylinder "
                                      "lengths m)", True),
     "joint_map": Declaration([""], "", "JointState names mapped to the mechanism's measurements, as "
-                             "'joint_name=measurement' (unlisted measurements are expected under their own name)", True),
+                             "'joint_name=measurement' (unlisted measurements are expected under their own name)",
+                             True),
     "pressure_topics": Declaration([""], "", "One sensor_msgs/FluidPressure topic per cylinder chamber, as "
-                                   "'topic=pressure_sensor'; default 'pressure/<sensor>' for every sensor; ['none']: no "
-                                   "pressures (the implement load is then implement_mass, the pressures predicted)", True),
+                                   "'topic=pressure_sensor'; default 'pressure/<sensor>' for every sensor; ['none']: "
+                                   "no pressures (the implement load is then implement_mass, the pressures predicted)",
+                                   True),
     "pressure_absolute": Declaration(True, "", "FluidPressure carries absolute pressure (true, per its definition) "
                                      "or gauge", True),
     "atmospheric_pressure": Declaration(ATMOSPHERIC_PRESSURE, "Pa", "subtracted from absolute pressures", True,
@@ -128,7 +130,8 @@ PARAMETERS: dict[str, Declaration] = {
     "record_name": Declaration("", "", "Name of this run's bag directory; empty: <mechanism>_<YYYYmmdd_HHMMSS>",
                                True),
     "max_bag_size": Declaration(0, "B", "the bag starts a new file once the current one has reached this size (as "
-                                "ros2 bag record --max-bag-size); 0: one file", True, (0, 1 << 50)),
+                                "ros2 bag record --max-bag-size); 0: one file; below 86016 (rosbag2's smallest "
+                                "split size) refused at start", True, (0, 1 << 50)),
     "max_bag_duration": Declaration(0.0, "s", "the bag starts a new file once the current one spans this long (as "
                                     "ros2 bag record --max-bag-duration); 0: one file", True, (0.0, 1e9)),
     "rerun": Declaration("off", "", "Rerun logging: 'off', 'save' (to rerun_path) or 'connect' (to a running "
@@ -166,8 +169,9 @@ def check_bounds(name: str, value: Any) -> None:
         return
     lo, hi = d.bounds
     if not lo <= value <= hi:   # NaN too
-        raise ValueError(f"parameter {name} = {value!r}: outside its range [{lo:g}, {hi:g}]{' ' + d.unit if d.unit else ''}; "
-                         "give a value inside it")
+        unit = f" {d.unit}" if d.unit else ""
+        raise ValueError(f"parameter {name} = {value!r}: outside its range [{lo:g}, {hi:g}]{unit}; give a value "
+                         "inside it")
 
 
 def is_double(name: str) -> bool:
@@ -238,6 +242,20 @@ class LinkageMonitorNode(Node):
         self._doubles_as_declared()
         for name, declaration in PARAMETERS.items():
             self.declare_parameter(name, declaration.default, _descriptor(name))
+        self.build_monitor()
+        self.start_inputs()
+        self.add_pre_set_parameters_callback(self.as_declared_types)
+        self.add_on_set_parameters_callback(self.validate_parameters)
+        self.add_post_set_parameters_callback(self.apply_parameters)
+        gc.freeze()   # what start-up built (modules, kernels, layouts) is left out of every later collection
+        config = self.monitor.config
+        self.get_logger().info(f"monitoring '{self.monitor.description.name}': {config.topics.joint_states} + "
+                               f"{', '.join(config.pressure_topics) or 'no pressures'}")
+
+    def build_monitor(self) -> None:
+        """The monitor of the node's parameters (every one checked before anything is created), its
+        publishers, the recorder, the Rerun view, the physics kernels loaded: the node's start, and
+        the configure of the managed node (``ros.lifecycle_node``)."""
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
         # everything is validated before anything is created
         for name, value in p.items():
@@ -295,6 +313,11 @@ class LinkageMonitorNode(Node):
                 "writable; `python -m linkage_monitor.mechanics.warm` compiles them ahead of the next start")
         self._inputs: list[tuple[Any, Callable[[bytes, dict], None]]] = []   # (subscription, its callback)
         self.input_events = InputEvents()   # taken at the heartbeat (ros/input_events.py)
+
+    def start_inputs(self) -> None:
+        """The sensors subscribed (unless the driver brings its own inputs), the heartbeat and the
+        start status started: the node's start, and the activate of the managed node."""
+        config = self.monitor.config
         if self.subscribes_sensors:
             self._subscribe(JointState, config.topics.joint_states, self._input_callback(config.topics.joint_states,
                                                                                           JOINT_STATE))
@@ -302,15 +325,9 @@ class LinkageMonitorNode(Node):
                 self._subscribe(FluidPressure, topic, self._input_callback(topic, FLUID_PRESSURE))
         # on the steady clock: losses and the heartbeat are reported with use_sim_time and /clock stopped too
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(HEARTBEAT_S, self.on_heartbeat, clock=steady)
+        self.heartbeat = self.create_timer(HEARTBEAT_S, self.on_heartbeat, clock=steady)
         # once, as soon as spinning starts (a subclass has set up its own inputs by then): STALE until a solve
         self._start_status = self.create_timer(0.0, self._report_start, clock=steady)
-        self.add_pre_set_parameters_callback(self.as_declared_types)
-        self.add_on_set_parameters_callback(self.validate_parameters)
-        self.add_post_set_parameters_callback(self.apply_parameters)
-        gc.freeze()   # what start-up built (modules, kernels, layouts) is left out of every later collection
-        self.get_logger().info(f"monitoring '{description.name}': {config.topics.joint_states} + "
-                               f"{', '.join(config.pressure_topics) or 'no pressures'}")
 
     def _input_callback(self, topic: str, type_name: str) -> Callable[[bytes, dict], None]:
         def callback(data: bytes, info: dict) -> None:

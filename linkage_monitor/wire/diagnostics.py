@@ -4,7 +4,8 @@ bytes written by the message's layout (``wire.compose``: published and recorded 
 One DiagnosticStatus per step (level OK / WARN / ERROR, the message naming the input and the
 reason, key-values with the numbers and the stamp of the triggering input). A step is
 reported when it is not OK or when the status changed; the live node repeats the last one
-as a heartbeat.
+as a heartbeat, or, when it has solved nothing for its staleness limit, sends STALE in its
+place (``monitoring.freshness``: a status stamped with its clock, not recorded).
 """
 
 from __future__ import annotations
