@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pytest
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rich.console import Console
 
 from linkage_monitor.monitoring.loss import LossCounter
@@ -94,8 +95,9 @@ def test_view_of_many_hinges_fits_80x24():
 
 def test_stale_and_waiting_said_plainly():
     assert "STALE: no output for 3.5 s" in _screen(_record(output_age_s=3.5), 80, 24)[0]
-    waiting = _screen(_record(output_age_s=None), 120, 40)[0]
-    assert "WAITING: no output yet on /hinge_reactions" in waiting
+    waiting = _screen(WatchRecord(namespace="/", topics=TOPICS), 80, 24)
+    assert "WAITING: no output yet" in waiting[0]
+    assert "waiting for /hinge_reactions, /hitch_state, /steerability, /diagnostics" in "\n".join(waiting)
 
 
 def test_snapshot_has_one_figure_per_line():
@@ -145,10 +147,19 @@ def test_once_prints_what_the_node_published(monitor):
     from linkage_monitor.wire.diagnostics import CODES_KEY as NODE_CODES_KEY
 
     assert CODES_KEY == NODE_CODES_KEY
-    watch = subprocess.run([*WATCH, "--once", "--timeout", "20"], capture_output=True, text=True, timeout=40)
+    # another node's status on /diagnostics, 20 a second: counted and named, not shown as the monitor's
+    other = client.node.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE)
+    watch = subprocess.Popen([*WATCH, "--once", "--timeout", "20"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             text=True)
+    end = time.monotonic() + 40
+    while watch.poll() is None and time.monotonic() < end:
+        other.publish(DiagnosticArray(status=[DiagnosticStatus(level=DiagnosticStatus.ERROR, name="gps_driver: fix",
+                                                               message="no fix")]))
+        client.spin_until(lambda: False, 0.05)
+    stdout, stderr = watch.communicate(timeout=5)
     client.spin_until(lambda: False, 0.5)   # the last outputs the watch may have seen
-    assert watch.returncode == 0, watch.stderr
-    lines = watch.stdout.splitlines()
+    assert watch.returncode == 0, stderr
+    lines = stdout.splitlines()
     figures = _hinge_figures(client)
     for name in BELARUS_HINGES:
         line = next(line for line in lines if line.startswith(f"hinge {name} "))
@@ -157,7 +168,9 @@ def test_once_prints_what_the_node_published(monitor):
     ratio_min = {f"{m.ratio_min:.3f} [-]" for m in client.received["steerability"]}
     assert next(line for line in lines if line.startswith("ratio min ")).removeprefix("ratio min ") in ratio_min
     assert any(re.match(r"diagnostics (OK|WARN|ERROR|STALE) linkage_monitor: belarus_1221: .", line)
-               for line in lines), watch.stdout
+               for line in lines), stdout
+    assert "gps_driver" not in "".join(line for line in lines if line.startswith("diagnostics")), stdout
+    assert re.search(r"^/diagnostics of other nodes, not shown: \d+ statuses \(gps_driver: fix\)$", stdout, re.M), stdout
 
 
 @pytest.mark.ros
@@ -192,7 +205,8 @@ def _forces(msg: HingeReactions) -> tuple[str, ...]:
 def test_live_view_in_tmux_shows_outputs_within_1_s(monitor):
     """While the simulator runs, every screen captured shows the forces of a HingeReactions that
     arrived here (DDS receive time) no earlier than the newest one that had arrived 1 s before the
-    capture; once the simulator has stopped, the screen shows the node's last outputs."""
+    capture; once the simulator has stopped, the screen shows the node's last outputs, and STALE
+    3 s later."""
     client, tmp, sim = monitor
     arrivals: list[tuple[int, HingeReactions]] = []   # (receive time ns, message)
     client.node.create_subscription(HingeReactions, "hinge_reactions",
@@ -209,6 +223,8 @@ def test_live_view_in_tmux_shows_outputs_within_1_s(monitor):
         assert stop(sim) == 0, (tmp / "sim.log").read_text()
         client.spin_until(lambda: False, 1.0)   # the last outputs arrive here and on the screen
         final = _tmux("capture-pane", "-p", "-t", "watch")
+        time.sleep(2.0)   # 3 s after the last output: more than --stale-after's default 2 s
+        stale = _tmux("capture-pane", "-p", "-t", "watch")
     finally:
         _tmux("kill-server")
     print(final)   # what the user sees (pytest -s)
@@ -229,3 +245,4 @@ def test_live_view_in_tmux_shows_outputs_within_1_s(monitor):
     assert f"{last_steer.ratio:.3f} [-]" in final and f"{last_steer.margin:+.3f} [-]" in final, final
     assert f"{last_hitch.lift_reserve:.3f} [-]" in final, final
     assert f"{math.degrees(last_hitch.min_transmission_angle):.1f} deg" in final, final
+    assert "STALE: no output for" in stale.splitlines()[0], f"not STALE 3 s after the last output:\n{stale}"

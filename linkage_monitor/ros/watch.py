@@ -6,7 +6,7 @@ Topics as the node names them (``ros/node.py``): ``hinge_reactions``, ``hitch_st
 so ``--ros-args -r`` remappings apply to both alike) and ``/diagnostics``. /diagnostics is shared
 by every node of the ROS domain: a status is taken only when its name is ``<node>: ...`` for the
 node that publishes the watched ``hinge_reactions`` (rclpy's message info carries no publisher
-gid to tell two nodes apart); the others are counted by name (``OutputWatch.foreign``; the record's ``ignored``), not shown.
+gid to tell two nodes apart); the others are counted by name (the record's ``ignored``), not shown.
 When nodes of that name in more than one namespace publish /diagnostics, their statuses cannot be
 told apart: the record says so in a WARN status of the watch itself.
 
@@ -53,11 +53,13 @@ class _Arrivals:
         self.times.append(now)
         self.count += 1
 
-    def rate(self, now: float, since: float) -> float:
-        """Messages per second over the last RATE_WINDOW_S (or since ``since`` when that is shorter)."""
+    def rate(self, now: float) -> float:
+        """Messages per second between the first and the last arrival of the last RATE_WINDOW_S (0
+        with fewer than two: a topic that started lately is not rated over time it did not exist)."""
         while self.times and self.times[0] < now - RATE_WINDOW_S:
             self.times.popleft()
-        return len(self.times) / max(min(RATE_WINDOW_S, now - since), 1e-3)
+        span = self.times[-1] - self.times[0] if len(self.times) > 1 else 0.0
+        return (len(self.times) - 1) / span if span > 0.0 else 0.0
 
 
 class OutputWatch:
@@ -68,7 +70,6 @@ class OutputWatch:
 
     def __init__(self, node: Node, stale_after_s: float) -> None:
         self.node, self.stale_after_s = node, stale_after_s
-        self.started = time.monotonic()
         self.topics = {name: node.resolve_topic_name(name) for name in (HINGE_REACTIONS, HITCH_STATE, STEERABILITY,
                                                                         DIAGNOSTICS)}
         self._arrivals = {topic: _Arrivals() for topic in self.topics.values()}
@@ -79,7 +80,7 @@ class OutputWatch:
         self._statuses: dict[str, StatusLine] = {}
         self._monitors: set[str] = set()
         self._graph_asked, self._ambiguous = -GRAPH_PERIOD_S, ""
-        self.foreign: dict[str, int] = {}   # status name -> statuses on /diagnostics from other nodes, ignored
+        self._status_counts: dict[str, int] = {}   # status name -> statuses received
         self._subscriptions: list[tuple[Any, Callable[[Any], None]]] = []
         # every HingeReactions is read (the peaks); of the two others only the latest, when the record is made
         for name, msg_type, callback, raw in (
@@ -118,14 +119,13 @@ class OutputWatch:
                 self._peaks[h.name] = max(self._peaks.get(h.name, 0.0), h.magnitude)
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        """Every status kept, the latest per name, and counted: whose they are is decided when the
+        record is made (the graph may not know the monitor yet when its first statuses arrive)."""
         self._arrivals[self.topics[DIAGNOSTICS]].arrived(time.monotonic())
-        monitors = self._monitor_names()
         for status in msg.status:
-            if status.name.partition(": ")[0] not in monitors:
-                self.foreign[status.name] = self.foreign.get(status.name, 0) + 1
-                continue
             codes = next((kv.value for kv in status.values if kv.key == CODES_KEY), "")
             self._statuses[status.name] = StatusLine(status.name, _level_name(status.level), status.message, codes)
+            self._status_counts[status.name] = self._status_counts.get(status.name, 0) + 1
 
     def _monitor_names(self) -> set[str]:
         """The names of the nodes that publish the watched ``hinge_reactions`` (the graph asked at most
@@ -146,7 +146,8 @@ class OutputWatch:
         """The watched topics on which nothing has arrived yet (for /diagnostics: no status of the monitor)."""
         missing = [self.topics[HINGE_REACTIONS]] if self._hinges is None else []
         missing += [self.topics[name] for name in (HITCH_STATE, STEERABILITY) if name not in self._latest]
-        return missing + ([] if self._statuses else [DIAGNOSTICS])
+        monitors = self._monitor_names()
+        return missing + ([] if any(name.partition(": ")[0] in monitors for name in self._statuses) else [DIAGNOSTICS])
 
     def _read(self, name: str, msg_type: type) -> Any:
         """The latest message of ``name`` (None before the first)."""
@@ -157,7 +158,9 @@ class OutputWatch:
         """What the watch knows now."""
         now = time.monotonic()
         hinges, hitch, steer = self._hinges, self._read(HITCH_STATE, HitchState), self._read(STEERABILITY, Steerability)
-        loss = next((s for name, s in self._statuses.items() if name.endswith(INPUTS_STATUS)), None)
+        monitors = self._monitor_names()
+        mine = [s for name, s in self._statuses.items() if name.partition(": ")[0] in monitors]
+        loss = next((s for s in mine if s.name.endswith(INPUTS_STATUS)), None)
         return WatchRecord(
             namespace=self.node.get_namespace(), topics=tuple(self.topics.values()),
             mechanism=hinges.mechanism if hinges is not None else "",
@@ -170,14 +173,14 @@ class OutputWatch:
             lift_reserve=hitch.lift_reserve if hitch is not None else math.nan,
             implement_load_n=hitch.implement_load if hitch is not None else math.nan,
             min_transmission_angle_rad=hitch.min_transmission_angle if hitch is not None else math.nan,
-            statuses=tuple(s for s in self._statuses.values() if s is not loss) + (
+            statuses=tuple(s for s in mine if s is not loss) + (
                 (StatusLine("watch", "WARN", self._ambiguous),) if self._ambiguous else ()), loss=loss,
-            ignored=tuple(sorted(self.foreign.items())),
-            rates=tuple(TopicRate(topic, arrivals.rate(now, self.started), arrivals.count)
+            ignored=tuple(sorted((name, n) for name, n in self._status_counts.items()
+                                 if name.partition(": ")[0] not in monitors)),
+            rates=tuple(TopicRate(topic, arrivals.rate(now), arrivals.count)
                         for topic, arrivals in self._arrivals.items()),
             output_age_s=None if self._last_output is None else now - self._last_output,
             stale_after_s=self.stale_after_s)
-
 
 
 def _level_name(level: bytes | int) -> str:

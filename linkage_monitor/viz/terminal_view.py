@@ -104,7 +104,7 @@ def degrees(angle_rad: float) -> str:
 def freshness(record: WatchRecord) -> str:
     """LIVE / STALE / WAITING with the age of the last output."""
     if record.output_age_s is None:
-        return f"WAITING: no output yet on {', '.join(record.topics)}"
+        return "WAITING: no output yet"
     if record.stale:
         return f"STALE: no output for {record.output_age_s:.1f} s"
     return f"LIVE: last output {record.output_age_s:.1f} s ago"
@@ -183,6 +183,8 @@ def _hinge_rows(count: int, rows: int, width: int) -> int:
 
 def _hinges(record: WatchRecord, rows: int, width: int) -> RenderableType:
     """The hinges in one column, or two when they do not fit in ``rows`` (and the width allows)."""
+    if not record.hinges:
+        return Text(f"waiting for {', '.join(record.topics)}", overflow="fold")
     half = _hinge_rows(len(record.hinges), rows, width)
     if half == len(record.hinges):
         return _hinge_table(record.hinges)
