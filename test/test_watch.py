@@ -84,11 +84,13 @@ def test_view_shows_every_figure_within_the_terminal(width, height):
     assert "LIVE" in lines[0]
 
 
-def test_view_of_many_hinges_fits_80x24():
-    """damping_hitch has 11 hinges: each is on the screen with its force, and the screen is 80x24."""
-    lines = _screen(_record(hinge_count=11), 80, 24)
+@pytest.mark.parametrize("count", [11, 20])
+def test_view_of_many_hinges_fits_80x24(count):
+    """damping_hitch has 11 hinges (one column), a mechanism of 20 takes two: each is on the 80x24
+    screen with its force."""
+    lines = _screen(_record(hinge_count=count), 80, 24)
     text = "\n".join(lines)
-    for k in range(11):
+    for k in range(count):
         assert f"H{k} " in text and f"{(10_000.0 * (k + 1) + 1_234.0) / 1e3:.2f} kN" in text, text
     assert len(lines) <= 24 and max(len(line) for line in lines) <= 80
 
