@@ -228,14 +228,16 @@ def _pairs(figures: list[tuple[str, str]], columns: int) -> Table:
     return grid
 
 
-def _line(text: str) -> Text:
-    return Text(text, no_wrap=True, overflow="ellipsis")
+def _wrapped(lines: list[str], width: int) -> list[Text]:
+    """Each of ``lines`` wrapped to ``width``, its continuation indented 4 cells."""
+    return [Text(chunk, no_wrap=True, overflow="ellipsis") for line in lines
+            for chunk in textwrap.wrap(line, width, subsequent_indent="    ")]
 
 
 def _header(record: WatchRecord) -> Text:
     title = Text(no_wrap=True, overflow="ellipsis")
     title.append("linkage-monitor watch ", style="bold")
-    title.append(f"{record.mechanism or '?'} in {record.namespace}  ")
+    title.append(f"{record.mechanism or '(mechanism not known yet)'} in {record.namespace}  ")
     title.append(freshness(record), style="bold reverse red" if record.stale else "bold green")
     return title
 
@@ -248,7 +250,7 @@ def view(record: WatchRecord, width: int, height: int) -> RenderableType:
     inner = width - 4 if boxed else width
     columns = 2 if inner >= 2 * MIN_COLUMN_WIDTH else 1
     machine, rates = machine_figures(record), rate_figures(record)
-    losses = [_line(line) for line in loss_lines(record)]
+    losses = _wrapped(loss_lines(record), inner)
     machine_rows, rate_rows = -(-len(machine) // columns), -(-len(rates) // columns)
     hinge_rows = max(1, len(record.hinges))
     status_rows = height - (1 + hinge_rows + machine_rows + rate_rows + len(losses) + 8)   # 4 boxes, 2 rows each
@@ -262,6 +264,7 @@ def view(record: WatchRecord, width: int, height: int) -> RenderableType:
                      Panel(Group(_pairs(rates, columns), *losses), title="inputs: received by this watch, lost by "
                            "the monitor", title_align="left"))
     columns = 2 if width >= 2 * MIN_COLUMN_WIDTH else 1
+    losses = _wrapped(loss_lines(record), width)
     machine_rows, rate_rows = -(-len(machine) // columns), -(-len(rates) // columns)
     fixed = 1 + machine_rows + rate_rows + len(losses)
     hinge_rows = _hinge_rows(len(record.hinges), height - fixed - 1, width)
