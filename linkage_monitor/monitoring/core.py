@@ -308,7 +308,7 @@ class Monitor:
             return Step(event.stamp_ns, event.topic, (refused.finding,))
         inputs = tracker.inputs_at(event.stamp_ns)
         if isinstance(inputs, Finding):   # an input missing or stale: a misspelt joint name is named
-            unknown = tracker.unknown_joints_finding()
+            unknown = tracker.unknown_joints_finding(event.stamp_ns)
             return Step(event.stamp_ns, event.topic, (inputs,) if unknown is None else (inputs, unknown))
         return _Due(event.stamp_ns, event.topic, inputs)
 

@@ -144,11 +144,16 @@ class InputTracker:
         self.readings.update(updates)
         self.unknown_joints = tuple(unknown)
 
-    def unknown_joints_finding(self) -> Finding | None:
+    def unknown_joints_finding(self, stamp_ns: int) -> Finding | None:
         """The joint names of the last accepted JointState that map to no measurement, named, or None.
-        A JointState may carry joints the mechanism does not measure; they are named where a solve is
-        missing an input (a misspelt name is then the likely cause)."""
+        A JointState may carry joints the mechanism does not measure; they are named where a solve
+        triggered at ``stamp_ns`` (ns) lacks a joint's reading, missing or stale (a misspelt name is
+        then the likely cause), not where only a pressure is lacking."""
         if not self.unknown_joints:
+            return None
+        limit_ns = self.config.staleness_limit_s * NS
+        fed_by_joints = set(self._joint_to_input.values()) & self.required
+        if all(n in self.readings and abs(stamp_ns - self.readings[n].stamp_ns) <= limit_ns for n in fed_by_joints):
             return None
         shown = ", ".join(f"'{n}'" for n in self.unknown_joints[:5]) + (", ..." if len(self.unknown_joints) > 5 else "")
         return Finding(Code.UNKNOWN_INPUT, f"unknown joint {shown} in {self.config.topics.joint_states}; expected one "
