@@ -122,6 +122,7 @@ setup(
         "console_scripts": [
             "linkage-monitor = linkage_monitor.cli.main:main",
             "linkage_monitor_node = linkage_monitor.ros.node:main",
+            "linkage_monitor_lifecycle_node = linkage_monitor.ros.lifecycle_node:main",
         ],
     },
 )

@@ -12,6 +12,7 @@ import signal
 import subprocess
 import sys
 from pathlib import Path
+from typing import Callable
 
 DEFAULT_PARAMS = Path(__file__).resolve().parent.parent / "config" / "belarus_1221.yaml"
 
@@ -47,13 +48,19 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Run linkage_monitor_node with a parameter file.")
     parser.add_argument("--params", type=Path, default=DEFAULT_PARAMS, help="config/<preset>.yaml")
     args = parser.parse_args(argv)
-    command = [sys.executable, "-m", "linkage_monitor.ros.node", "--ros-args", "--params-file", str(args.params)]
+    return run([sys.executable, "-m", "linkage_monitor.ros.node", "--ros-args", "--params-file", str(args.params)])
+
+
+def run(command: list[str], started: Callable[[subprocess.Popen], None] = lambda node: None) -> int:
+    """Run the node's ``command`` until it ends (``started`` is called with its process once it is
+    started: launch/monitor_lifecycle.launch.py configures and activates it there); its exit code."""
     # Ctrl-C and SIGTERM stop the node cleanly, also when this launcher was started with SIGINT
     # ignored (a background job of a non-interactive shell: Python then installs no handler)
     signal.signal(signal.SIGINT, signal.default_int_handler)
     signal.signal(signal.SIGTERM, signal.default_int_handler)
     node = subprocess.Popen(command, preexec_fn=_stop_with_parent if sys.platform == "linux" else None)
     try:
+        started(node)
         return node.wait()
     except KeyboardInterrupt:  # pass Ctrl-C on, so the node closes its bag
         node.send_signal(signal.SIGINT)
