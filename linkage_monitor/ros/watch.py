@@ -10,7 +10,7 @@ gid to tell two nodes apart); the others are counted by name (the record's ``ign
 When nodes of that name in more than one namespace publish /diagnostics, their statuses cannot be
 told apart: the record says so in a WARN status of the watch itself.
 
-Forces N, angles rad, times s (monotonic clock of this process).
+Forces N, angles rad, times s (receive times: the middleware's, since the epoch).
 """
 
 from __future__ import annotations
@@ -44,13 +44,14 @@ REFERENCES = {Steerability.REFERENCE_UNIT: "unit", Steerability.REFERENCE_TRACTO
 
 @dataclass
 class _Arrivals:
-    """Receive times of one topic (monotonic s) within the rate window, and the count in all."""
+    """Receive times of one topic within the rate window (s since the epoch: the middleware's, so a
+    watch that takes a backlog late still rates the stream as it came), and the count in all."""
 
     times: deque[float] = field(default_factory=deque)
     count: int = 0
 
-    def arrived(self, now: float) -> None:
-        self.times.append(now)
+    def arrived(self, received_s: float) -> None:
+        self.times.append(received_s)
         self.count += 1
 
     def rate(self, now: float) -> float:
@@ -81,14 +82,15 @@ class OutputWatch:
         self._monitors: set[str] = set()
         self._graph_asked, self._ambiguous = -GRAPH_PERIOD_S, ""
         self._status_counts: dict[str, int] = {}   # status name -> statuses received
-        self._subscriptions: list[tuple[Any, Callable[[Any], None]]] = []
+        self._subscriptions: list[tuple[Any, Callable[[Any, dict], None]]] = []
         # every HingeReactions is read (the peaks); of the two others only the latest, when the record is made
         for name, msg_type, callback, raw in (
                 (HINGE_REACTIONS, HingeReactions, self._output_callback(HINGE_REACTIONS), False),
                 (HITCH_STATE, HitchState, self._output_callback(HITCH_STATE), True),
                 (STEERABILITY, Steerability, self._output_callback(STEERABILITY), True),
                 (DIAGNOSTICS, DiagnosticArray, self._on_diagnostics, False)):
-            sub = node.create_subscription(msg_type, name, callback, WATCH_QOS, raw=raw)
+            # a callback of two arguments is given the message info too (rclpy's stubs know one argument only)
+            sub = node.create_subscription(msg_type, name, callback, WATCH_QOS, raw=raw)  # type: ignore[arg-type]
             self._subscriptions.append((sub, callback))
 
     def drain(self) -> None:
@@ -99,13 +101,13 @@ class OutputWatch:
                     taken = sub.handle.take_message(sub.msg_type, sub.raw)
                 if taken is None:
                     break
-                callback(taken[0])
+                callback(*taken)
 
-    def _output_callback(self, name: str) -> Any:
-        def callback(msg: Any) -> None:
-            now = time.monotonic()
-            self._arrivals[self.topics[name]].arrived(now)
-            self._last_output = now
+    def _output_callback(self, name: str) -> Callable[[Any, dict], None]:
+        def callback(msg: Any, info: dict) -> None:
+            received = _received_s(info)
+            self._arrivals[self.topics[name]].arrived(received)
+            self._last_output = received
             if name == HINGE_REACTIONS:
                 self._on_hinges(msg)
             else:
@@ -118,10 +120,10 @@ class OutputWatch:
             if math.isfinite(h.magnitude):
                 self._peaks[h.name] = max(self._peaks.get(h.name, 0.0), h.magnitude)
 
-    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+    def _on_diagnostics(self, msg: DiagnosticArray, info: dict) -> None:
         """Every status kept, the latest per name, and counted: whose they are is decided when the
         record is made (the graph may not know the monitor yet when its first statuses arrive)."""
-        self._arrivals[self.topics[DIAGNOSTICS]].arrived(time.monotonic())
+        self._arrivals[self.topics[DIAGNOSTICS]].arrived(_received_s(info))
         for status in msg.status:
             codes = next((kv.value for kv in status.values if kv.key == CODES_KEY), "")
             self._statuses[status.name] = StatusLine(status.name, _level_name(status.level), status.message, codes)
@@ -156,7 +158,7 @@ class OutputWatch:
 
     def record(self) -> WatchRecord:
         """What the watch knows now."""
-        now = time.monotonic()
+        now = time.time()
         hinges, hitch, steer = self._hinges, self._read(HITCH_STATE, HitchState), self._read(STEERABILITY, Steerability)
         monitors = self._monitor_names()
         mine = [s for name, s in self._statuses.items() if name.partition(": ")[0] in monitors]
@@ -181,6 +183,13 @@ class OutputWatch:
                         for topic, arrivals in self._arrivals.items()),
             output_age_s=None if self._last_output is None else now - self._last_output,
             stale_after_s=self.stale_after_s)
+
+
+def _received_s(info: dict) -> float:
+    """When the middleware received a message (its info's ``received_timestamp``), s since the epoch;
+    now when it gives none."""
+    received_ns = info.get("received_timestamp") or 0
+    return received_ns / 1e9 if received_ns > 0 else time.time()
 
 
 def _level_name(level: bytes | int) -> str:
