@@ -183,6 +183,8 @@ def test_managed_node_transitions_outputs_and_reconfigure(ros, tmp_path):
         # reconfigure: cleanup, another mechanism, configure, activate
         assert life.transition(Transition.TRANSITION_CLEANUP)
         assert life.state() == "unconfigured"
+        out_of_range = life.set(staleness_limit=3600.001)[0]   # unconfigured: checked against its exact range
+        assert not out_of_range.successful and "outside its range" in out_of_range.reason
         assert all(r.successful for r in life.set(mechanism="ttz1080_base_change"))
         assert life.transition(Transition.TRANSITION_CONFIGURE), log.read_text()
         assert life.transition(Transition.TRANSITION_ACTIVATE)
