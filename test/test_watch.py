@@ -245,3 +245,12 @@ def test_live_view_in_tmux_shows_outputs_within_1_s(monitor):
     assert "no fix" not in final, final
     assert f"{math.degrees(last_hitch.min_transmission_angle):.1f} deg" in final, final
     assert "STALE: no output for" in stale.splitlines()[0], f"not STALE 3 s after the last output:\n{stale}"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("namespace,reason", [("bad ns!", "alphanumerics"), ("/a//b", "repeated '/'")])
+def test_bad_namespace_is_one_line_and_exit_2(namespace, reason):
+    watch = subprocess.run([*WATCH, "--namespace", namespace, "--once"], capture_output=True, text=True, timeout=30)
+    assert watch.returncode == 2 and watch.stdout == ""
+    assert len(watch.stderr.splitlines()) == 1, watch.stderr
+    assert f"--namespace {namespace}: " in watch.stderr and reason in watch.stderr, watch.stderr

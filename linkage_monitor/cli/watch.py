@@ -63,18 +63,20 @@ def run_watch(args: argparse.Namespace) -> int:
     import rclpy
     from rclpy.exceptions import InvalidNamespaceException
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.validate_namespace import validate_namespace
 
     from linkage_monitor.ros.watch import OutputWatch
 
-    rclpy.init(args=getattr(args, "ros_args", None))
+    namespace = args.namespace if args.namespace.startswith("/") else "/" + args.namespace
     try:
-        node = rclpy.create_node(f"linkage_monitor_watch_{os.getpid()}", namespace=args.namespace,
-                                 start_parameter_services=False)
+        validate_namespace(namespace)
     except InvalidNamespaceException as exc:
-        print(f"{PROG}: --namespace {args.namespace}: {str(exc).splitlines()[0]}; give a ROS namespace such as "
-              "/tractor1", file=sys.stderr)
-        rclpy.try_shutdown()
+        print(f"{PROG}: --namespace {args.namespace}: {str(exc).splitlines()[0].rstrip(':')}; give a ROS namespace "
+              "such as /tractor1", file=sys.stderr)
         return 2
+    rclpy.init(args=getattr(args, "ros_args", None))
+    node = rclpy.create_node(f"linkage_monitor_watch_{os.getpid()}", namespace=namespace,
+                             start_parameter_services=False)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     watch = OutputWatch(node, args.stale_after)
