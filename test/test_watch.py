@@ -29,7 +29,7 @@ from linkage_monitor.viz.terminal_view import (HingeLoad, StatusLine, TopicRate,
                                                view)
 from support.ros_harness import RELIABLE, MonitorClient, start_node, start_simulator, stop
 
-WATCH = [sys.executable, "-m", "linkage_monitor.cli.watch"]
+WATCH = [sys.executable, "-m", "linkage_monitor.cli.main", "watch"]
 TOPICS = ("/hinge_reactions", "/hitch_state", "/steerability", "/diagnostics")
 BELARUS_HINGES = ("P03", "P34", "P45", "P05", "P56", "P07", "P67")   # the preset's hinges, in its order
 

@@ -46,4 +46,6 @@ COMMANDS = {c.name: c for c in (
             "add_can_parsers", "run_can_command"),
     Command("can-calibrate", "fit the mapping's position tables (hitch position -> angle, length) from a recorded "
             "lift", "linkage_monitor.cli.can", "add_can_parsers", "run_can_command"),
+    Command("watch", "live terminal view of a running monitor: hinge forces, steerability, lift reserve, "
+            "diagnostics, rates", "linkage_monitor.cli.watch", "add_watch_parser", "run_watch"),
 )}

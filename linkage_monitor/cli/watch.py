@@ -16,13 +16,13 @@ import time
 from typing import TYPE_CHECKING, Sequence
 
 from linkage_monitor.cli.arguments import bounded
+from linkage_monitor.cli.commands import COMMANDS
 
 if TYPE_CHECKING:
     from rclpy.executors import Executor
 
     from linkage_monitor.ros.watch import OutputWatch
 
-HELP = "live terminal view of a running monitor: hinge forces, steerability, lift reserve, diagnostics, rates"
 PROG = "linkage-monitor watch"
 NO_OUTPUT_EXIT = 1   # --once: nothing (or not every topic) arrived within --timeout
 
@@ -45,7 +45,7 @@ def add_watch_arguments(parser: argparse.ArgumentParser) -> None:
 
 def add_watch_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Register the ``watch`` subcommand on ``subparsers``; returns its parser."""
-    sub = subparsers.add_parser("watch", help=HELP, description=__doc__.splitlines()[0])
+    sub = subparsers.add_parser("watch", help=COMMANDS["watch"].help, description=__doc__.splitlines()[0])
     add_watch_arguments(sub)
     return sub
 
