@@ -81,14 +81,15 @@ def _source_messages() -> list[tuple[str, str, int, bytes]]:
 
 @pytest.fixture(scope="module")
 def split_bag(tmp_path_factory) -> Path:
-    """The bundled lift's inputs in a bag split by duration into 12 files (`_0` .. `_11`)."""
+    """The bundled lift's inputs in a bag split by duration into 11 or more files (`_0` .. `_10` and on:
+    how many depends on the gaps in the recording's stamps)."""
     messages = _source_messages()
     span_s = (messages[-1][2] - messages[0][2]) / 1e9
     bag = tmp_path_factory.mktemp("split") / "lift"
     with BagWriter(bag, chunk_size=16 * 1024, max_bag_duration_s=span_s / 11.5) as writer:
         for topic, type_name, stamp, data in messages:
             writer.write(topic, data, stamp, type_name=type_name, log_time_ns=stamp)
-    assert len(list(bag.glob("*.mcap"))) == 12
+    assert len(list(bag.glob("*.mcap"))) >= 11
     return bag
 
 
@@ -107,7 +108,8 @@ def test_a_split_bag_without_metadata_reads_in_the_order_of_its_files_stamps(spl
     the same messages in the same order as rosbags reads the bag with its metadata."""
     bag = _copy(split_bag, tmp_path / "lift")
     (bag / "metadata.yaml").unlink()
-    assert [f.name for f in storage_files(bag)] == [f"lift_{i}.mcap" for i in range(12)]
+    files = len(list(bag.glob("*.mcap")))
+    assert [f.name for f in storage_files(bag)] == [f"lift_{i}.mcap" for i in range(files)]
     assert [(m.topic, m.log_time_ns) for m in read_bag_raw(bag)] == _rosbags_order(split_bag)
 
 
@@ -126,12 +128,13 @@ def test_a_file_metadata_does_not_list_is_read_in_stamp_order_and_named(split_ba
 
 def test_a_split_bag_whose_last_file_is_cut_reads_every_complete_record(split_bag, tmp_path):
     bag = _copy(split_bag, tmp_path / "lift")
-    _cut(split_bag / "lift_11.mcap", bag / "lift_11.mcap", 0.5)
-    expected = sum(1 for _ in read_bag_raw(split_bag)) - sum(1 for _ in read_bag_raw(split_bag / "lift_11.mcap")) \
-        + len(_stream_reader_messages(bag / "lift_11.mcap"))
+    last = f"lift_{len(list(bag.glob('*.mcap'))) - 1}.mcap"
+    _cut(split_bag / last, bag / last, 0.5)
+    expected = sum(1 for _ in read_bag_raw(split_bag)) - sum(1 for _ in read_bag_raw(split_bag / last)) \
+        + len(_stream_reader_messages(bag / last))
     with read_faults() as faults:
         assert sum(1 for _ in read_bag_raw(bag)) == expected
-    assert [(f.kind, Path(f.file).name) for f in faults] == [("cut_off", "lift_11.mcap")]
+    assert [(f.kind, Path(f.file).name) for f in faults] == [("cut_off", last)]
 
 
 def test_fleet_takes_a_split_bag_without_metadata_for_one_bag(split_bag, tmp_path):
