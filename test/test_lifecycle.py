@@ -185,6 +185,11 @@ def test_managed_node_transitions_outputs_and_reconfigure(ros, tmp_path):
         assert life.state() == "unconfigured"
         out_of_range = life.set(staleness_limit=3600.001)[0]   # unconfigured: checked against its exact range
         assert not out_of_range.successful and "outside its range" in out_of_range.reason
+        # a mechanism that does not load fails the configure; the node stays unconfigured, the process up
+        assert all(r.successful for r in life.set(mechanism=str(tmp_path / "no_such_tractor.yaml")))
+        assert not life.transition(Transition.TRANSITION_CONFIGURE)
+        assert life.state() == "unconfigured"
+        assert "configure failed: " in log.read_text() and "no_such_tractor.yaml" in log.read_text()
         assert all(r.successful for r in life.set(mechanism="ttz1080_base_change"))
         assert life.transition(Transition.TRANSITION_CONFIGURE), log.read_text()
         assert life.transition(Transition.TRANSITION_ACTIVATE)
