@@ -51,7 +51,8 @@ class Run:
     # {bus} and {scheduler} are filled in
     ready: str | None = None   # runs until stopped: Ctrl-C once it has printed this
     exit_code: int = 0
-    needs: frozenset[str] = frozenset()   # services started for it: "display", "scheduler", "monitor"
+    needs: frozenset[str] = frozenset()   # services started for it: "display", "scheduler", "node" (a
+    # belarus_1221 node), "monitor" (that node fed by the simulator)
     ros: bool = False   # starts a ROS node
     fails: str = ""   # a known fault of the software that makes it fail (reported): the example is xfail,
     # strictly, so that the fix must remove this
@@ -61,7 +62,7 @@ AS_IS = Run()
 THE_NODE = Run(ready=NODE_READY, ros=True)
 CAN_NODE = Run(ready=CAN_READY, ros=True)
 MAPPING = {"my_tractor.yaml": copy_of(*CAN_MAP)}   # `--map my_tractor.yaml`: the user's copy of the mapping
-WATCH = Run(needs=frozenset({"monitor"}), ready="linkage-monitor watch", arguments={"linkage_monitor": "."}, ros=True)
+WATCH = Run(needs=frozenset({"monitor"}), ready="linkage-monitor watch", ros=True)
 
 RUNS: dict[str, Run] = {
     # README.md
@@ -115,11 +116,16 @@ RUNS: dict[str, Run] = {
     # docs/dead-centre.md, docs/performance.md
     ".venv/bin/linkage-monitor solve --preset belarus_1221 --explain": AS_IS,
     ".venv/bin/numba -s": AS_IS,
-    # docs/watch.md: against a running monitor (a node fed by `linkage-monitor simulate --loop`); the
-    # clone (`cd linkage_monitor`) is the working directory
-    "cd linkage_monitor && .venv/bin/python -m linkage_monitor.cli.watch": WATCH,
-    ".venv/bin/python -m linkage_monitor.cli.watch --namespace /tractor1": WATCH,
-    ".venv/bin/python -m linkage_monitor.cli.watch --once --timeout 10": Run(needs=frozenset({"monitor"}), ros=True),
+    # docs/watch.md: against a running monitor (a node fed by `linkage-monitor simulate --loop`)
+    ".venv/bin/linkage-monitor watch": WATCH,
+    ".venv/bin/linkage-monitor watch --namespace /tractor1": WATCH,
+    ".venv/bin/linkage-monitor watch --once --timeout 10": Run(needs=frozenset({"monitor"}), ros=True),
+    "linkage-monitor simulate --preset belarus_1221 --loop": Run(needs=frozenset({"node"}), ready="simulating '",
+                                                                 ros=True),
+    # inline commands
+    "linkage-monitor --help": AS_IS,
+    "linkage-monitor capacity --preset belarus_1221 --stroke 0.515 0.715 --plot docs/capacity_belarus_1221.png": AS_IS,
+    "linkage-monitor replay BAG --spectra": Run(arguments={"BAG": "bags/drill_coulter_relief"}),
     # docs/lifecycle.md
     "linkage_monitor_lifecycle_node --ros-args --params-file config/belarus_1221.yaml":
         Run(ready="unconfigured: ", ros=True),
@@ -131,6 +137,8 @@ RUNS: dict[str, Run] = {
 BENCHMARK = ("a benchmark or profile: it measures for tens of seconds to an hour and needs the machine to "
              "itself (`make bench` runs every bench)")
 TEST_SUITE = "runs the test suite, which holds this test"
+SYNOPSIS = "a synopsis: placeholders and [optional] parts"
+MENTION = "the prose names a subcommand's option, not a whole command"
 ROS2_CLI = ("needs a ROS 2 installation's ros2 CLI (and launch_ros to launch): the venv's wheels have neither "
             "(test_the_venv_has_no_ros2_cli)")
 CANNOT_RUN: dict[str, str] = {
@@ -149,11 +157,16 @@ CANNOT_RUN: dict[str, str] = {
         "param set /linkage_monitor pressure_topics \"['']\"")},
     "linkage-monitor calibrate (--mechanism START.yaml | --preset NAME) --data FILE.csv|BAG "
     "--free PARAM[,PARAM...] --out FITTED.yaml [--inputs NAME[,NAME...]] [--sigma COLUMN=VALUE ...] "
-    "[--bound PARAM=HALF_WIDTH ...] [--gauge-pressure]": "a synopsis: placeholders and [optional] parts",
+    "[--bound PARAM=HALF_WIDTH ...] [--gauge-pressure]": SYNOPSIS,
     "sudo ip link set can0 up type can bitrate 250000": "needs a CAN adapter (no vcan module here either)",
     "candump can0": "needs a CAN interface and can-utils",
     "candump -L can0 > lift.log": "needs a CAN interface and can-utils (the bundled log stands in for lift.log)",
     "ssh tractor": "logs in to the tractor's PC",
+    "linkage-monitor replay BAG --map fixed.yaml [--dbc ...]": SYNOPSIS,
+    "linkage-monitor fleet BAG_OR_DIR... --out DIR": SYNOPSIS,
+    "linkage-monitor can --topic": MENTION + " (the whole command: README.md's CAN block)",
+    "linkage-monitor solve --explain": MENTION + " (the whole command, with a preset: docs/dead-centre.md)",
+    "linkage-monitor replay --out": MENTION,
     "make bench 2>&1 | tee bench.log": BENCHMARK,
     **{f".venv/bin/python bench/{bench}": BENCHMARK for bench in (
         "bench_step.py", "bench_solver.py", "bench_replay.py", "bench_replay.py --long-inputs 1000000",
@@ -194,17 +207,18 @@ def test_the_venv_has_no_ros2_cli() -> None:
 
 
 @contextmanager
-def _monitor(base: Path) -> Iterator[None]:
-    """A belarus_1221 node (not recording) fed by `linkage-monitor simulate --loop`."""
+def _monitor(base: Path, simulated: bool) -> Iterator[None]:
+    """A belarus_1221 node (not recording), ``simulated``: fed by `linkage-monitor simulate --loop`."""
     from support.ros_harness import start_node, start_simulator, stop
 
     node = start_node({"mechanism": "belarus_1221", "record": False}, base / "monitor.log")
-    simulator = start_simulator(["--preset", "belarus_1221", "--loop"], base / "simulator.log")
+    simulator = start_simulator(["--preset", "belarus_1221", "--loop"], base / "simulator.log") if simulated else None
     try:
         wait_for_line(base / "monitor.log", NODE_READY, node)
         yield
     finally:
-        stop(simulator)
+        if simulator is not None:
+            stop(simulator)
         stop(node)
 
 
@@ -216,17 +230,14 @@ def _services(example: Example, base: Path, stack: ExitStack) -> dict[str, str]:
         values["DISPLAY"] = stack.enter_context(x_display())
     if "scheduler" in needs:
         values["scheduler"] = stack.enter_context(dask_scheduler())
-    if "monitor" in needs:
-        stack.enter_context(_monitor(base))
+    if "monitor" in needs or "node" in needs:
+        stack.enter_context(_monitor(base, simulated="monitor" in needs))
     return values
 
 
-def _argv(command: Command, run: Run, values: dict[str, str], work: Path) -> tuple[list[str], Path]:
-    """The command's arguments with the stand-ins put in, and the directory it runs in (`cd DIR &&`)."""
-    argv = [run.arguments.get(word, word).format(**values) for word in shlex.split(command.text)]
-    if argv[:1] == ["cd"] and argv[2:3] == ["&&"]:
-        return argv[3:], work / argv[1]
-    return argv, work
+def _argv(command: Command, run: Run, values: dict[str, str]) -> list[str]:
+    """The command's arguments with the stand-ins put in."""
+    return [run.arguments.get(word, word).format(**values) for word in shlex.split(command.text)]
 
 
 def _check_transcript(command: Command, run: Run, finished: Finished) -> None:
@@ -266,9 +277,8 @@ def test_example_runs(example: Example, tmp_path: Path) -> None:
             for name, make in run.stand_ins.items():
                 if not (work / name).exists():
                     make(work / name, work)
-            argv, cwd = _argv(command, run, values, work)
-            finished = (run_until_ready(argv, cwd, env, run.ready) if run.ready is not None
-                        else run_once(argv, cwd, env))
+            argv = _argv(command, run, values)
+            finished = run_until_ready(argv, work, env, run.ready) if run.ready is not None else run_once(argv, work, env)
             said = f"{example.where}: {command.text}\n{finished.output}"
             assert finished.code == run.exit_code, f"exit code {finished.code}, not {run.exit_code}: {said}"
             assert TRACEBACK not in finished.output, said

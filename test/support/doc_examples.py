@@ -4,7 +4,7 @@ it, a headless X display, a Dask scheduler, stand-in files for the user's own on
 
 An example is a fenced block (```sh, ```bash, ```shell, ```console, or a bare ``` block that is a
 `$ ` transcript or whose every line is a command, a program's name first) or an inline span that
-starts with `.venv/bin/` and has an argument. In a block, `\\` continuations are joined and a trailing `# comment` dropped; a block
+starts with `.venv/bin/` and has an argument, or with `linkage-monitor` and has an option. In a block, `\\` continuations are joined and a trailing `# comment` dropped; a block
 with `$ ` prompts is a transcript: its commands are the prompted lines, the lines after one are
 the output the doc shows for it.
 """
@@ -34,7 +34,7 @@ SHELL_LANGUAGES = {"sh", "bash", "shell", "console"}
 COMMAND_START = re.compile(r"(\$ |\.venv/bin/|linkage-monitor(\s|$)|linkage_monitor_\w+|python3? |make |ros2 |colcon |"
                            r"rosdep |candump |sudo |ssh |cd |mkdir |[A-Z_]+=\S+ )")
 FENCE = re.compile(r"^\s*```(\S*)\s*$")
-INLINE = re.compile(r"`(\.venv/bin/[^`]*\s[^`]*)`")
+INLINE = re.compile(r"`(\.venv/bin/[^`]*\s[^`]*|linkage-monitor [^`]*(?<=\s)-[^`]*)`")
 COMMENT = re.compile(r"(^|\s)#.*$")
 TRACEBACK = "Traceback (most recent call last)"
 # the checkout's entries an example may name; the working directory links them (read only: no
