@@ -218,7 +218,7 @@ def wait_for_line(log: Path, text: str, proc: subprocess.Popen, timeout: float =
     end = time.monotonic() + timeout
     while not (log.exists() and text in log.read_text(errors="replace")):
         assert proc.poll() is None and time.monotonic() < end, \
-            f"{proc.args} did not write {text!r} (exit code {proc.poll()}):\n{log.read_text(errors='replace')}"
+            f"{proc.args!r} did not write {text!r} (exit code {proc.poll()}):\n{log.read_text(errors='replace')}"
         time.sleep(0.1)
 
 
