@@ -131,7 +131,9 @@ RUNS: dict[str, Run] = {
         Run(ready="unconfigured: ", ros=True),
     ".venv/bin/python launch/monitor_lifecycle.launch.py --params config/belarus_1221.yaml":
         replace(THE_NODE, fails="the launcher exits 254, not 0, on Ctrl-C (SIGINT to its process group, as a "
-                                "terminal sends it), after the node wrote its bag; launch/monitor.launch.py exits 0"),
+                                "terminal sends it): it passes Ctrl-C on to the node, which the terminal's SIGINT "
+                                "already stops, and a second SIGINT kills a node that is shutting down (code -2, "
+                                "sys.exit(-2) = 254)"),
 }
 
 BENCHMARK = ("a benchmark or profile: it measures for tens of seconds to an hour and needs the machine to "
