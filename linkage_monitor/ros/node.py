@@ -701,7 +701,7 @@ def main(argv: list[str] | None = None, make_node: Callable[[], LinkageMonitorNo
         node = make_node()
         executor = SingleThreadedExecutor()
         executor.add_node(node)
-        spinner = InputSpinner(node, executor, node.input_subscriptions, node.take_inputs)
+        spinner = InputSpinner(node, executor, lambda: node.input_subscriptions, node.take_inputs)
         while not stopping.is_set() and rclpy.ok():
             spinner.spin_once(STOP_POLL_S)
     except ExternalShutdownException:   # rclpy shut down from elsewhere

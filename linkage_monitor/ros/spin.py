@@ -40,16 +40,19 @@ OTHER_KINDS: tuple[Literal["timer", "service", "client", "guard_condition"], ...
 
 
 class InputSpinner:
-    """Spins ``node`` (added to ``executor``), its ``inputs`` subscriptions worked off by ``take_inputs``."""
+    """Spins ``node`` (added to ``executor``), the subscriptions ``inputs()`` gives worked off by
+    ``take_inputs``. ``inputs`` is asked again with every gathering: a managed node subscribes its
+    inputs at activation, a wake-up that is not an input's."""
 
-    def __init__(self, node: Node, executor: Executor, inputs: list[Any], take_inputs: Callable[[], None]) -> None:
-        self._node, self._executor, self._take_inputs = node, executor, take_inputs
-        self._inputs = {sub.handle.pointer for sub in inputs}
+    def __init__(self, node: Node, executor: Executor, inputs: Callable[[], list[Any]],
+                 take_inputs: Callable[[], None]) -> None:
+        self._node, self._executor, self._take_inputs, self._input_subscriptions = node, executor, take_inputs, inputs
         self._gather()
 
     def _gather(self) -> None:
         """The node's waitable handles, and a wait set sized for them."""
         node = self._node
+        self._inputs = {sub.handle.pointer for sub in self._input_subscriptions()}
         self._subscriptions = [s.handle for s in node.subscriptions]
         self._timers = [t.handle for t in node.timers]
         self._services = [s.handle for s in node.services]
