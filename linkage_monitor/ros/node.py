@@ -715,6 +715,10 @@ def main(argv: list[str] | None = None, make_node: Callable[[], LinkageMonitorNo
             node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
+        # the run is over: a second Ctrl-C (a launcher forwarding the terminal's) while the interpreter
+        # exits, where Python restores the default handlers it replaced, would end it with -SIGINT
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, signal.SIG_IGN)
     if ABANDONED_RERUN:   # the bag is finished; a failed Rerun sink would hang the interpreter's exit
         sys.stdout.flush()
         sys.stderr.flush()
