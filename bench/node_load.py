@@ -68,7 +68,7 @@ def input_spinner(node: Any, subscriptions: list[Any], take: Callable[[bytes], N
                 take(message[0])
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    return InputSpinner(node, executor, subscriptions, take_inputs)
+    return InputSpinner(node, executor, lambda: subscriptions, take_inputs)
 
 
 def main() -> None:

@@ -81,7 +81,7 @@ def main() -> None:
             profile.enable()
         executor = SingleThreadedExecutor()   # as the node's main() spins it
         executor.add_node(node)
-        spinner = InputSpinner(node, executor, node.input_subscriptions, node.take_inputs)
+        spinner = InputSpinner(node, executor, lambda: node.input_subscriptions, node.take_inputs)
         while child.poll() is None:
             spinner.spin_once(0.1)
         profile.disable()

@@ -34,7 +34,7 @@ def spun(ros):
         while (msg := sub.handle.take_message(String, True)) is not None:
             taken.append(msg[0])
 
-    spinner = InputSpinner(node, executor, [sub], take)
+    spinner = InputSpinner(node, executor, lambda: [sub], take)
     yield node, spinner, taken
     executor.shutdown()
     node.destroy_node()
