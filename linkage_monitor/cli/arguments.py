@@ -7,8 +7,9 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Callable, Sequence
 
 if TYPE_CHECKING:   # the mechanics (numba: seconds) are loaded by the commands that read a mechanism
     from linkage_monitor.mechanics import Mechanism
@@ -69,3 +70,15 @@ def mechanism_from_args(args: argparse.Namespace) -> Mechanism | None:
     if getattr(args, "mechanism", None):
         return load_mechanism(args.mechanism)
     return None
+
+
+def run_with_ros_args(parser: argparse.ArgumentParser, run: Callable[[argparse.Namespace], int],
+                      argv: Sequence[str] | None = None) -> int:
+    """``python -m linkage_monitor.cli.<command>``: ``parser``'s options, and ROS's arguments after
+    ``--ros-args`` (remappings, parameters) kept whole in ``args.ros_args`` for ``rclpy.init``."""
+    from rclpy.utilities import remove_ros_args
+
+    every = list(sys.argv if argv is None else argv)
+    args = parser.parse_args(remove_ros_args(every)[1:])
+    args.ros_args = every
+    return run(args)

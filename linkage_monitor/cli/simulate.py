@@ -11,7 +11,7 @@ import argparse
 import sys
 from typing import Sequence
 
-from linkage_monitor.cli.arguments import add_mechanism_group, bounded, mechanism_from_args
+from linkage_monitor.cli.arguments import add_mechanism_group, bounded, mechanism_from_args, run_with_ros_args
 from linkage_monitor.cli.commands import COMMANDS
 from linkage_monitor.mechanics import LinkageError
 from linkage_monitor.sim.telemetry import SCENARIOS, Noise
@@ -83,12 +83,7 @@ def run_simulate(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m linkage_monitor.cli.simulate``: the options of ``linkage-monitor simulate`` plus ROS arguments."""
-    from rclpy.utilities import remove_ros_args
-
-    argv = list(sys.argv if argv is None else argv)
-    args = parser().parse_args(remove_ros_args(argv)[1:])
-    args.ros_args = argv
-    return run_simulate(args)
+    return run_with_ros_args(parser(), run_simulate, argv)
 
 
 if __name__ == "__main__":

@@ -15,7 +15,7 @@ import sys
 import time
 from typing import TYPE_CHECKING, Sequence
 
-from linkage_monitor.cli.arguments import bounded
+from linkage_monitor.cli.arguments import bounded, run_with_ros_args
 from linkage_monitor.cli.commands import COMMANDS
 
 if TYPE_CHECKING:
@@ -130,12 +130,7 @@ def _live(watch: OutputWatch, executor: Executor, refresh_hz: float) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m linkage_monitor.cli.watch``: the options of ``linkage-monitor watch`` plus ROS arguments."""
-    from rclpy.utilities import remove_ros_args
-
-    argv = list(sys.argv if argv is None else argv)
-    args = parser().parse_args(remove_ros_args(argv)[1:])
-    args.ros_args = argv
-    return run_watch(args)
+    return run_with_ros_args(parser(), run_watch, argv)
 
 
 if __name__ == "__main__":
