@@ -19,6 +19,7 @@ import shutil
 import signal
 import struct
 import subprocess
+import sys
 import termios
 import threading
 import time
@@ -28,7 +29,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-VENV_BIN = ROOT / ".venv" / "bin"
+# the venv running the tests: `.venv` (Jazzy) as the docs write it, or `.venv-kilted` under
+# ROS_DISTRO=kilted, which the examples' `.venv` stands for in their working directory
+VENV = Path(sys.prefix)
+VENV_BIN = VENV / "bin"
 DOCS = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
 SHELL_LANGUAGES = {"sh", "bash", "shell", "console"}
 COMMAND_START = re.compile(r"(\$ |\.venv/bin/|linkage-monitor(\s|$)|linkage_monitor_\w+|python3? |make |ros2 |colcon |"
@@ -39,7 +43,7 @@ COMMENT = re.compile(r"(^|\s)#.*$")
 TRACEBACK = "Traceback (most recent call last)"
 # the checkout's entries an example may name; the working directory links them (read only: no
 # example that runs writes under them) and has its own `docs/` and `out/`
-NOT_LINKED = {".git", "build", "out", "docs", "log", "install"}
+NOT_LINKED = {".git", "build", "out", "docs", "log", "install", ".venv"}
 
 
 @dataclass(frozen=True)
@@ -135,7 +139,7 @@ def all_examples() -> list[Example]:
 
 def workdir(base: Path) -> Path:
     """A directory to run examples in, as the checkout looks to a user: its entries linked (read
-    only), its own empty `docs/` and no `out/`; a private HOME beside it (the viewer and Dask
+    only), `.venv` the venv running the tests, its own empty `docs/` and no `out/`; a private HOME beside it (the viewer and Dask
     write there)."""
     work = base / "work"
     work.mkdir()
@@ -143,6 +147,7 @@ def workdir(base: Path) -> Path:
         if entry.name not in NOT_LINKED:
             (work / entry.name).symlink_to(entry)
     (work / "docs").mkdir()
+    (work / ".venv").symlink_to(VENV)
     (base / "home").mkdir(mode=0o700)
     return work
 
