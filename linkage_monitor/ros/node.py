@@ -111,7 +111,7 @@ PARAMETERS: dict[str, Declaration] = {
                                    "clock, checked every second)", False, (0.0, 3600.0)),
     "stamp_tolerance": Declaration(10.0, "s", "an input whose header stamp is farther than this from the node's clock "
                                    "is refused (ERROR)", False, (0.001, 1e6)),
-    "kinetostatics": Declaration(False, "", "Add inertia loads from JointState velocities and their change (seed 004)",
+    "kinetostatics": Declaration(False, "", "Add inertia loads from JointState velocities and their change (Naumenko et al. 2021)",
                                  True),
     "dead_centre_transmission_deg": Declaration(DEAD_CENTRE_TRANSMISSION_DEG, "degrees", "a pose whose smallest "
                                                 "transmission angle along the linkage's chain of dyads is below this "
@@ -123,7 +123,7 @@ PARAMETERS: dict[str, Declaration] = {
                                 "value", False, (-1.0, 100_000.0)),
     "front_ballast_mass": Declaration(-1.0, "kg", "front ballast; -1 (exactly) keeps the file's value", False,
                                       (-1.0, 10_000.0)),
-    "ratio_min": Declaration(-1.0, "", "minimum share of weight on the steered axle (seed 003: 0.2); -1 (exactly) "
+    "ratio_min": Declaration(-1.0, "", "minimum share of weight on the steered axle (Popov 2009: 0.2); -1 (exactly) "
                              "keeps the file's value", False, (-1.0, 1.0)),
     "record": Declaration(True, "", "Record every input and output to a rosbag2 MCAP bag", True),
     "record_dir": Declaration("out/bags", "", "Directory under which each run's bag directory is created", True),
