@@ -111,8 +111,8 @@ PARAMETERS: dict[str, Declaration] = {
                                    "clock, checked every second)", False, (0.0, 3600.0)),
     "stamp_tolerance": Declaration(10.0, "s", "an input whose header stamp is farther than this from the node's clock "
                                    "is refused (ERROR)", False, (0.001, 1e6)),
-    "kinetostatics": Declaration(False, "", "Add inertia loads from JointState velocities and their change (Naumenko et al. 2021)",
-                                 True),
+    "kinetostatics": Declaration(False, "", "Add inertia loads from JointState velocities and their change "
+                                 "(Naumenko et al. 2021)", True),
     "dead_centre_transmission_deg": Declaration(DEAD_CENTRE_TRANSMISSION_DEG, "degrees", "a pose whose smallest "
                                                 "transmission angle along the linkage's chain of dyads is below this "
                                                 "is a dead centre (ERROR, no outputs); applies from the next message",
