@@ -6,7 +6,6 @@ DBC files: ``--dbc`` (repeatable) or the mapping's own ``dbc`` list; mapping: do
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
 import sys
 from pathlib import Path
@@ -15,6 +14,7 @@ from typing import Any
 import yaml
 
 from linkage_monitor.cli.arguments import add_mechanism_group, bounded, mechanism_from_args, new_directory, output_file
+from linkage_monitor.cli.main import emit
 from linkage_monitor.mechanics import InputError, Mechanism, load_description
 from linkage_monitor.monitoring.config import MonitorConfig
 
@@ -128,8 +128,8 @@ def run_can_to_bag(args: argparse.Namespace) -> int:
     if refused:
         print(f"linkage-monitor: CAN log {args.log}: {len(refused)} line(s) refused, not converted"
               f"{_refused_text(refused)}", file=sys.stderr)
-    _print_quietly([converted.counts.summary(), *refusal_lines(converted.refusals),
-                    f"bag written to {args.out}: `linkage-monitor replay {args.out}` gives the monitor's outputs"])
+    emit("\n".join([converted.counts.summary(), *refusal_lines(converted.refusals),
+                    f"bag written to {args.out}: `linkage-monitor replay {args.out}` gives the monitor's outputs"]))
     return 0
 
 
@@ -138,16 +138,6 @@ def _refused_text(refused: list[Any]) -> str:
     named = "; ".join(f"line {r.number} ({r.reason})" for r in refused[:SHOWN_LINES])
     more = f"; and {len(refused) - SHOWN_LINES} more" if len(refused) > SHOWN_LINES else ""
     return f": {named}{more}" if refused else ""
-
-
-def _print_quietly(lines: list[str]) -> None:
-    """Print ``lines``; a reader that stopped reading (``| head``) ends the output quietly, as Unix tools do."""
-    try:
-        for line in lines:
-            print(line)
-        sys.stdout.flush()
-    except BrokenPipeError:
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())   # the interpreter's last flush goes nowhere
 
 
 def run_can_calibrate(args: argparse.Namespace) -> int:
@@ -222,7 +212,8 @@ def redecoded(args: argparse.Namespace, work: Path) -> Path:
                          args.raw_topic)
     bag = work / "redecoded"
     converted = can_to_bag(read_bag_frames(args.bag, args.raw_topic), decoder, mech, config, bag, args.raw_topic)
-    _print_quietly([f"decoded again with {args.map}: {converted.counts.summary()}", *refusal_lines(converted.refusals)])
+    emit("\n".join([f"decoded again with {args.map}: {converted.counts.summary()}",
+                    *refusal_lines(converted.refusals)]))
     return bag
 
 

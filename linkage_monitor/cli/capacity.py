@@ -14,7 +14,8 @@ import numpy as np
 
 from linkage_monitor.cli.arguments import add_mechanism_group, bounded, mechanism_from_args, output_file
 from linkage_monitor.cli.commands import COMMANDS, EXIT_CODES
-from linkage_monitor.cli.verdict import emit, exit_code, finding_json, finding_line, judge_strokes, worst
+from linkage_monitor.cli.main import emit
+from linkage_monitor.cli.verdict import exit_code, finding_json, finding_line, judge_strokes, worst
 from linkage_monitor.mechanics import LinkageError, Mechanism, Solver
 from linkage_monitor.mechanics.capacity import (interval_around, lift_cylinder, reference_length, relief_pressure,
                                                 stroke_mechanism)

@@ -59,6 +59,15 @@ def reader_gone() -> None:
     os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
+def emit(text: str) -> None:
+    """Print ``text``; into a pipe its reader closed (``| head -1``), nowhere, and the command goes on
+    (its exit code stays its own: ``solve``'s verdict, ``can-to-bag``'s conversion)."""
+    try:
+        print(text, flush=True)
+    except BrokenPipeError:
+        reader_gone()
+
+
 def _input_error(exc: Exception) -> bool:
     """True for an error of the inputs (``INPUT_ERRORS``), reported in one line."""
     kinds = [getattr(sys.modules[m], name) for m, name in INPUT_ERRORS.items() if m in sys.modules]

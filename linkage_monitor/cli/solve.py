@@ -19,7 +19,8 @@ import yaml
 
 from linkage_monitor.cli.arguments import add_mechanism_group, mechanism_from_args
 from linkage_monitor.cli.commands import COMMANDS, EXIT_CODES
-from linkage_monitor.cli.verdict import emit, exit_code, finding_json, finding_line, judge
+from linkage_monitor.cli.main import emit
+from linkage_monitor.cli.verdict import exit_code, finding_json, finding_line, judge
 from linkage_monitor.mechanics import (InputError, Inputs, Mechanism, Result, Solver,
                                        UnobservableError, apply_overrides)
 from linkage_monitor.mechanics.calibration import drive_mechanism

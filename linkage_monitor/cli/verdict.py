@@ -14,7 +14,6 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from linkage_monitor.cli.main import reader_gone
 from linkage_monitor.mechanics import Inputs, Mechanism
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Monitor, Step
@@ -79,15 +78,6 @@ def worst(steps: Sequence[Step]) -> Level:
 def exit_code(level: Level) -> int:
     """``ERROR_EXIT`` for an ERROR verdict, 0 for OK and WARN."""
     return ERROR_EXIT if level >= Level.ERROR else 0
-
-
-def emit(text: str) -> None:
-    """Print ``text``; into a pipe its reader closed (``| head -1``), nowhere: the command's exit code
-    is still its verdict's (``cli.main`` answers 0 for a closed pipe elsewhere)."""
-    try:
-        print(text, flush=True)
-    except BrokenPipeError:
-        reader_gone()
 
 
 def finding_line(finding: Finding) -> str:
