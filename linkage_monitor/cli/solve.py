@@ -18,14 +18,17 @@ from dataclasses import dataclass
 import yaml
 
 from linkage_monitor.cli.arguments import add_mechanism_group, mechanism_from_args
+from linkage_monitor.cli.budget import budget_json, budget_lines
 from linkage_monitor.cli.commands import COMMANDS, EXIT_CODES
 from linkage_monitor.cli.main import emit
 from linkage_monitor.cli.verdict import exit_code, finding_json, finding_line, judge
 from linkage_monitor.mechanics import (InputError, Inputs, Mechanism, Result, Solver,
                                        UnobservableError, apply_overrides)
 from linkage_monitor.mechanics.calibration import drive_mechanism
-from linkage_monitor.mechanics.machine import CAPACITY_KEYS, STEERABILITY_KEYS, MachineResult
+from linkage_monitor.mechanics.error_sources import Motion
+from linkage_monitor.mechanics.machine import CAPACITY_KEYS, STEERABILITY_KEYS, MachineModel, MachineResult
 from linkage_monitor.mechanics.results import Status, angle_readings
+from linkage_monitor.mechanics.uncertainty import Budget, UncertaintyModel
 from linkage_monitor.monitoring.core import Step
 from linkage_monitor.monitoring.name_value import name_value, number
 
@@ -57,6 +60,12 @@ def add_solve_arguments(parser: argparse.ArgumentParser) -> None:
                         help="override a scalar of the file, e.g. implement.mass=1530 or "
                              "cylinders.lift_cylinder.bore=0.11 (repeatable)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    parser.add_argument("--uncertainty", action="store_true",
+                        help="print every output's standard uncertainty (1 sigma, same unit as the value) and "
+                             "the share of each declared error source (docs/accuracy.md)")
+    parser.add_argument("--motion", choices=[m.value for m in Motion], default=Motion.STANDING.value,
+                        help="how the lift cylinder moves, for the seal friction's band (default: standing, "
+                             "the whole breakaway band)")
     parser.add_argument("--explain", action="store_true",
                         help="print whether reduced coordinates (along the chain of dyads) serve the statics of "
                              "each set of measured cylinder forces, or only the general linear system does, and "
@@ -225,21 +234,36 @@ def run_solve(args: argparse.Namespace) -> int:
                           *solver.explain()]))
         return 0
     pose = pose_inputs(mech, args)
-    return _print(mech, judge(pose.mechanism, args.preset or args.mechanism, pose.inputs), pose.predicted, args.json)
+    step = judge(pose.mechanism, args.preset or args.mechanism, pose.inputs)
+    budget = _budget(pose, step, Motion(args.motion)) if args.uncertainty else None
+    return _print(mech, step, pose.predicted, args.json, budget)
 
 
-def _print(mech: Mechanism, step: Step, predicted: dict[str, float], as_json: bool) -> int:
-    """Print the judged pose (its table, or JSON) and the verdict; the exit code of the verdict."""
+def _budget(pose: PoseInputs, step: Step, motion: Motion) -> Budget | None:
+    """The error budget of the judged pose (None when the monitor solved no pose)."""
+    if step.pose is None:
+        return None
+    model = MachineModel(pose.mechanism, Solver(pose.mechanism))
+    return UncertaintyModel(model).budget(pose.inputs, step.pose.result, step.pose.machine, motion)
+
+
+def _print(mech: Mechanism, step: Step, predicted: dict[str, float], as_json: bool, budget: Budget | None) -> int:
+    """Print the judged pose (its table, or JSON), its error budget when given, and the verdict; the
+    exit code of the verdict."""
     if as_json:
         out: dict = {"level": step.level.name, "findings": [finding_json(f) for f in step.findings],
                      "predicted": predicted}
         if step.pose is not None:
             out.update({**result_json(step.pose.result), **machine_json(step.pose.machine)})
+        if budget is not None:
+            out["uncertainty"] = budget_json(budget)
         emit(json.dumps(out))
     else:
         lines = _predicted_lines(mech, predicted)
         if step.pose is not None:
             lines += [*_table(step.pose.result), *_machine_lines(machine_json(step.pose.machine))]
+        if budget is not None:
+            lines += budget_lines(budget)
         emit("\n".join([*lines, *_verdict_lines(step)]))
     return exit_code(step.level)
 

@@ -14,6 +14,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .error_sources import ErrorSources
+
 
 @dataclass(frozen=True)
 class Body:
@@ -193,6 +195,7 @@ class Mechanism:
     implement: Implement | None = None
     reference_inputs: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     tractor: Tractor | None = None
+    error_sources: ErrorSources = field(default_factory=ErrorSources)
     raw: Mapping[str, Any] = field(default_factory=dict, repr=False)
 
     @cached_property

@@ -16,13 +16,14 @@ from typing import Any, Mapping
 import numpy as np
 import yaml
 
+from .error_sources import read_error_sources
 from .errors import MechanismFileError
 from .model import (AngleSensor, Body, Contact, Cylinder, FrontBallast, Hinge, Implement, Load,
                     Measurements, Mechanism, Mount, PressureSensor, Spring, Tractor)
 
 _TOP_KEYS = {"name", "description", "source", "gravity", "points", "bodies", "hinges", "cylinders",
              "springs", "contacts", "loads", "implement", "measurements", "reference_inputs",
-             "tractor"}
+             "tractor", "error_sources"}
 _NAME = re.compile(r"^[a-z0-9_]+$")
 MAX_FILE_BYTES = 1 << 20     # a mechanism description is a few kB; more is not a mechanism
 MAX_DEPTH = 32               # nesting of mappings/lists (the schema needs 5)
@@ -305,7 +306,9 @@ class _Reader:
             cylinders=cylinders, springs=self.read_springs(top.get("springs")),
             contacts=self.read_contacts(top.get("contacts")), loads=self.read_loads(top.get("loads")),
             implement=implement, reference_inputs=self.read_reference_inputs(top.get("reference_inputs"), measurements),
-            tractor=self.read_tractor(top.get("tractor")), raw=copy.deepcopy(top))
+            tractor=self.read_tractor(top.get("tractor")),
+            error_sources=read_error_sources(self, top.get("error_sources"), {c.name for c in cylinders}),
+            raw=copy.deepcopy(top))
         self.check_geometry(mech)
         return mech
 

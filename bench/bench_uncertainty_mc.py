@@ -1,0 +1,76 @@
+"""First-order error budget against Monte Carlo: at random poses of every preset (samples of the
+simulator's scenario for it), every output's first-order standard uncertainty
+(``mechanics.uncertainty``) against the standard deviation of the outputs over draws of the declared
+sources (``test/oracles/monte_carlo.py``: bias and noise normal, resolution and seal friction uniform),
+the lift cylinder standing (the widest friction band).
+
+Goal: every output within 10 % of the Monte Carlo one at 200 poses of each preset with >= 10,000
+samples each; printed: the worst ratio u_first_order / u_monte_carlo per preset (and which output,
+where), the share of samples the monitor refused (they leave the spread), the time per budget.
+
+    .venv/bin/python bench/bench_uncertainty_mc.py [--poses 200] [--samples 10000] [--seed 51]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "test"))
+from linkage_monitor.mechanics import preset_names  # noqa: E402
+from linkage_monitor.mechanics.error_sources import Motion  # noqa: E402
+from linkage_monitor.mechanics.uncertainty import UncertaintyModel  # noqa: E402
+from oracles.monte_carlo import monte_carlo, sample_poses  # noqa: E402
+
+GOAL = 0.10   # |u_first_order / u_monte_carlo − 1|
+FLOOR = 1e-9  # an output whose Monte Carlo u is below FLOOR·max(1, |value|) has nothing to compare
+
+
+def study(preset: str, poses: int, samples: int, rng: np.random.Generator) -> bool:
+    """The study of one preset, printed; True when every compared output is within GOAL."""
+    sampled = sample_poses(preset, poses, rng)
+    um = UncertaintyModel(sampled.model)
+    worst, where, compared, failed, budget_time = 1.0, "", 0, 0, 0.0
+    for k, (inputs, pose) in enumerate(sampled.poses):
+        t0 = time.perf_counter()
+        budget = um.budget(inputs, pose.result, pose.machine, Motion.STANDING)
+        budget_time += time.perf_counter() - t0
+        mc = monte_carlo(um, inputs, budget, samples, rng)
+        failed += mc.failed
+        ok = np.isfinite(budget.u) & np.isfinite(mc.u) & (mc.u > FLOOR * np.maximum(1.0, np.abs(budget.values)))
+        ratio = budget.u[ok] / mc.u[ok]
+        compared += int(ok.sum())
+        if ratio.size:
+            j = int(np.argmax(np.abs(ratio - 1.0)))
+            if abs(ratio[j] - 1.0) > abs(worst - 1.0):
+                worst = float(ratio[j])
+                where = f"{np.array(budget.outputs, dtype=object)[ok][j].name} at pose {k} " + ", ".join(
+                    f"{n}={v:.5g}" for group in (inputs.cylinders, inputs.angles, inputs.pressures)
+                    for n, v in group.items())
+    passed = abs(worst - 1.0) <= GOAL
+    print(f"{preset:<22} worst u_first_order/u_mc {worst:.4f} ({'ok' if passed else 'FAIL'}: within "
+          f"{GOAL:.0%}) over {compared} outputs x poses; refused samples {failed / (poses * samples):.2%}; "
+          f"budget {budget_time / poses * 1e3:.2f} ms/pose\n    worst: {where}", flush=True)
+    return passed
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--poses", type=int, default=200)
+    parser.add_argument("--samples", type=int, default=10_000)
+    parser.add_argument("--seed", type=int, default=51)
+    args = parser.parse_args()
+    rng = np.random.default_rng(args.seed)
+    print(f"first order vs Monte Carlo: {args.poses} poses per preset, {args.samples} samples each, standing")
+    results = [study(preset, args.poses, args.samples, rng) for preset in preset_names()]
+    return 0 if all(results) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

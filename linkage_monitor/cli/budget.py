@@ -1,0 +1,50 @@
+"""The error budget of a judged pose as ``linkage-monitor solve --uncertainty`` prints it: every output
+with its standard uncertainty (1 sigma, the output's unit) and the share of u² of each declared source
+(docs/accuracy.md); the 95 % interval is the value ± 1.96 u.
+"""
+
+from __future__ import annotations
+
+import math
+
+from linkage_monitor.mechanics.uncertainty import Budget, OutputUncertainty
+
+COVERAGE_FACTOR = 1.96    # the 95 % interval's half-width in standard uncertainties (normal distribution)
+SHOWN_SHARE = 0.005       # the text table names the sources of at least this share of u²
+
+
+def _number(x: float) -> float | None:
+    """``x`` for JSON: NaN and ±inf as None."""
+    return x if math.isfinite(x) else None
+
+
+def budget_json(budget: Budget) -> dict:
+    """``{"motion", "sources": [{name, input, part, u, unit}], "outputs": {name: {value, u, unit, shares}}}``
+    (u a standard uncertainty; shares of u², source name -> 0..1; NaN -> None)."""
+    return {"motion": budget.motion.value,
+            "sources": [{"name": s.name, "input": s.input, "part": s.part, "u": s.u, "unit": s.unit}
+                        for s in budget.sources],
+            "outputs": {line.output.name: {"value": _number(line.value), "u": _number(line.u),
+                                           "unit": line.output.unit,
+                                           "shares": {k: _number(v) for k, v in line.shares.items()}}
+                        for line in budget.lines()}}
+
+
+def _shares_text(line: OutputUncertainty) -> str:
+    """The sources of ``line`` by share, largest first (those below SHOWN_SHARE left out)."""
+    if not math.isfinite(line.u):
+        return "unbounded: a derivative could not be taken (the pose fails nearby)"
+    ranked = sorted(((share, name) for name, share in line.shares.items() if share >= SHOWN_SHARE), reverse=True)
+    return ", ".join(f"{name} {share:.0%}" for share, name in ranked) or "-"
+
+
+def budget_lines(budget: Budget) -> list[str]:
+    """The budget as a table: output [unit], value, u, the sources' shares."""
+    lines = [f"uncertainty: u = standard uncertainty (1 sigma, same unit as the value); 95 % interval = value "
+             f"± {COVERAGE_FACTOR} u; seal friction: {budget.motion.value}",
+             f"{'output':<32} {'value':>12} {'u':>11}  sources (share of u²)"]
+    for line in budget.lines():
+        label = f"{line.output.name} [{line.output.unit}]"
+        lines.append(f"{label:<32} {line.value:12.5g} {line.u:11.4g}  {_shares_text(line)}")
+    lines.append("sources: " + "; ".join(f"{s.name} u = {s.u:.4g} {s.unit}" for s in budget.sources))
+    return lines

@@ -1,0 +1,97 @@
+"""Monte Carlo oracle of the first-order error budget (``mechanics.uncertainty``): the declared sources
+drawn, the perturbed readings solved, the spread of every output measured.
+
+Per sample, each source of the pose's budget is drawn from its distribution: bias and noise normal
+(σ = u), resolution uniform over one step (±√3·u), seal friction uniform over its band (±√3·u, N,
+entered as the pressure that carries it). The samples are solved as one series by the same
+``MachineModel`` (each from the one before); the standard deviation of each output over the samples
+is the Monte Carlo standard uncertainty. SI units.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from linkage_monitor.mechanics import LinkageError, Mechanism, Solver, load_preset
+from linkage_monitor.mechanics.machine import STEERABILITY_KEYS, MachineModel, MachinePose
+from linkage_monitor.mechanics.solver import Inputs
+from linkage_monitor.mechanics.uncertainty import Budget, UncertaintyModel, force_per_pressure
+from linkage_monitor.sim.telemetry import simulate
+
+SCENARIO = {"ksu1_mower_adapter": "field_copy", "drill_coulter": "relief"}   # the simulator's; the others: "lift"
+UNIFORM = {"resolution", "friction"}   # the parts drawn uniform (±√3·u); the others normal
+
+
+@dataclass(frozen=True)
+class MonteCarlo:
+    """The spread of every output over ``samples`` draws: ``u`` (n_out,) the standard deviation of the
+    solved samples, ``failed`` how many samples did not solve."""
+
+    u: np.ndarray
+    samples: int
+    failed: int
+
+
+def monte_carlo(um: UncertaintyModel, inputs: Inputs, budget: Budget, samples: int, rng: np.random.Generator
+                ) -> MonteCarlo:
+    """Draw the sources of ``budget`` (the first-order budget of ``inputs``) ``samples`` times, solve."""
+    readings = {kind: {name: np.full(samples, float(v)) for name, v in getattr(inputs, kind).items()}
+                for kind in ("cylinders", "angles", "pressures")}
+    kind_of = {name: kind for kind, group in readings.items() for name in group}
+    for source in budget.sources:
+        draw = (rng.uniform(-math.sqrt(3.0), math.sqrt(3.0), samples) if source.part in UNIFORM
+                else rng.standard_normal(samples)) * source.u
+        if source.part == "friction":
+            sensor = um.friction_sensor(source.input, inputs)
+            assert sensor is not None
+            readings["pressures"][sensor] += draw / force_per_pressure(um.mech, sensor)
+        elif source.part == "mass":
+            raise ValueError("the Monte Carlo oracle does not draw the implement mass")
+        else:
+            readings[kind_of[source.input]][source.input] += draw
+    series = um.model.solve_series(readings["cylinders"], readings["angles"], readings["pressures"])
+    batch, machine = series.batch, series.machine
+    names = um.model.solver.names
+    hinge_force = (np.stack([batch.hinge_force[h] for h, _, _ in names.hinges], axis=1) if names.hinges
+                   else np.zeros((samples, 0, 2)))
+    cylinder_force = (np.stack([batch.cylinder_force[c] for c in names.cylinders], axis=1) if names.cylinders
+                      else np.zeros((samples, 0)))
+    steer = (np.stack([machine.steerability[k] for k in STEERABILITY_KEYS], axis=1) if machine.steerability
+             else np.zeros((samples, 0)))
+    capacity = (np.stack([machine.lift_capacity[k] for k in um.model.capacity_keys], axis=1) if machine.lift_capacity
+                else np.zeros((samples, 0)))
+    rows = um.table.rows(hinge_force, cylinder_force, batch.implement_load, steer, capacity)
+    solved = batch.status < 2
+    return MonteCarlo(np.std(rows[solved], axis=0, ddof=1), samples, int(np.count_nonzero(~solved)))
+
+
+@dataclass(frozen=True)
+class SampledPoses:
+    """Solved poses of a preset: its mechanism, its model and (inputs, pose) pairs."""
+
+    mechanism: Mechanism
+    model: MachineModel
+    poses: list[tuple[Inputs, MachinePose]]
+
+
+def sample_poses(preset: str, count: int, rng: np.random.Generator) -> SampledPoses:
+    """``count`` random poses of ``preset`` that solve: samples of the simulator's scenario for it (its
+    noise-free inputs at 20 Hz; a pose the monitor refuses, e.g. a negative chamber pressure or a dead
+    centre, has no budget and is passed over)."""
+    mech = load_preset(preset)
+    model = MachineModel(mech, Solver(mech))
+    stream = simulate(mech, SCENARIO.get(preset, "lift"), rate_hz=20.0)
+    columns = stream.solver_inputs()
+    poses = []
+    for i in rng.permutation(len(stream)).tolist():
+        inputs = Inputs(**{kind: {n: float(v[i]) for n, v in group.items()} for kind, group in columns.items()})
+        try:
+            poses.append((inputs, model.solve(inputs)))
+        except LinkageError:
+            continue
+        if len(poses) == count:
+            return SampledPoses(mech, model, poses)
+    raise ValueError(f"{preset}: fewer than {count} poses of its scenario solve")
