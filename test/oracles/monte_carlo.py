@@ -19,9 +19,14 @@ from linkage_monitor.mechanics import LinkageError, Mechanism, Solver, load_pres
 from linkage_monitor.mechanics.machine import STEERABILITY_KEYS, MachineModel, MachinePose
 from linkage_monitor.mechanics.solver import Inputs
 from linkage_monitor.mechanics.uncertainty import Budget, UncertaintyModel, force_per_pressure
+from linkage_monitor.monitoring.core import ASSEMBLY_LIMIT_M
 from linkage_monitor.sim.telemetry import simulate
 
 SCENARIO = {"ksu1_mower_adapter": "field_copy", "drill_coulter": "relief"}   # the simulator's; the others: "lift"
+# below this share of max(1, |value|) the Monte Carlo u is negligible: an output at its extremum along the
+# stroke (a lift capacity at its largest, a hinge magnitude at its smallest), where the first-order u
+# tends to 0 and the spread is second order
+NEGLIGIBLE = 1e-5
 UNIFORM = {"resolution", "friction"}   # the parts drawn uniform (±√3·u); the others normal
 
 
@@ -68,6 +73,13 @@ def monte_carlo(um: UncertaintyModel, inputs: Inputs, budget: Budget, samples: i
     return MonteCarlo(np.std(rows[solved], axis=0, ddof=1), samples, int(np.count_nonzero(~solved)))
 
 
+def comparable(budget: Budget, mc: MonteCarlo) -> np.ndarray:
+    """The outputs (n_out,) whose first-order u is held to the Monte Carlo one: both finite, the Monte
+    Carlo u above NEGLIGIBLE of max(1, |value|)."""
+    return (np.isfinite(budget.u) & np.isfinite(mc.u)
+            & (mc.u > NEGLIGIBLE * np.maximum(1.0, np.abs(budget.values))))
+
+
 @dataclass(frozen=True)
 class SampledPoses:
     """Solved poses of a preset: its mechanism, its model and (inputs, pose) pairs."""
@@ -78,12 +90,12 @@ class SampledPoses:
 
 
 def sample_poses(preset: str, count: int, rng: np.random.Generator) -> SampledPoses:
-    """``count`` random poses of ``preset`` that solve: samples of the simulator's scenario for it (its
-    noise-free inputs at 20 Hz; a pose the monitor refuses, e.g. a negative chamber pressure or a dead
+    """``count`` random poses of ``preset`` that solve by the monitor's solver: samples of the simulator's
+    scenario for it (its noise-free inputs at 100 Hz; a pose the monitor refuses, e.g. a negative chamber pressure or a dead
     centre, has no budget and is passed over)."""
     mech = load_preset(preset)
-    model = MachineModel(mech, Solver(mech))
-    stream = simulate(mech, SCENARIO.get(preset, "lift"), rate_hz=20.0)
+    model = MachineModel(mech, Solver(mech, consistency_tol=ASSEMBLY_LIMIT_M))   # the monitor's solver
+    stream = simulate(mech, SCENARIO.get(preset, "lift"), rate_hz=100.0)
     columns = stream.solver_inputs()
     poses = []
     for i in rng.permutation(len(stream)).tolist():
