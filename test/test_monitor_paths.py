@@ -54,8 +54,8 @@ def _events():
     return mech, base, events
 
 
-def test_step_by_step_and_the_batched_run_give_the_same_steps() -> None:
-    mech, config, events = _events()
+def step_by_step(mech, config: MonitorConfig, events: list) -> list:
+    """The Steps of ``events`` through ``Monitor.step`` one at a time (a ConfigEvent reconfigures)."""
     live = Monitor(mech, config)
     stepped = []
     for event in events:
@@ -63,6 +63,12 @@ def test_step_by_step_and_the_batched_run_give_the_same_steps() -> None:
             live.reconfigure(event.config)
         else:
             stepped.append(live.step(event))
+    return stepped
+
+
+def test_step_by_step_and_the_batched_run_give_the_same_steps() -> None:
+    mech, config, events = _events()
+    stepped = step_by_step(mech, config, events)
     run = Monitor(mech, config).run(events)
     assert len(run.steps) == len(stepped) and len(run.segments) == len(SEGMENTS)
     fired = Counter(f.code for s in stepped for f in s.findings)

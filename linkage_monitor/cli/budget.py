@@ -8,8 +8,8 @@ from __future__ import annotations
 import math
 
 from linkage_monitor.mechanics.uncertainty import Budget, OutputUncertainty
+from linkage_monitor.monitoring.bounds import COVERAGE_FACTOR
 
-COVERAGE_FACTOR = 1.96    # the 95 % interval's half-width in standard uncertainties (normal distribution)
 SHOWN_SHARE = 0.005       # the text table names the sources of at least this share of u²
 
 
@@ -19,9 +19,10 @@ def _number(x: float) -> float | None:
 
 
 def budget_json(budget: Budget) -> dict:
-    """``{"motion", "sources": [{name, input, part, u, unit}], "outputs": {name: {value, u, unit, shares}}}``
-    (u a standard uncertainty; shares of u², source name -> 0..1; NaN -> None)."""
-    return {"motion": budget.motion.value,
+    """``{"motions", "sources": [{name, input, part, u, unit}], "outputs": {name: {value, u, unit, shares}}}``
+    (motions: force-measured cylinder -> the motion whose friction band it took; u a standard
+    uncertainty; shares of u², source name -> 0..1; NaN -> None)."""
+    return {"motions": {name: motion.value for name, motion in budget.motions.items()},
             "sources": [{"name": s.name, "input": s.input, "part": s.part, "u": s.u, "unit": s.unit}
                         for s in budget.sources],
             "outputs": {line.output.name: {"value": _number(line.value), "u": _number(line.u),
@@ -40,8 +41,9 @@ def _shares_text(line: OutputUncertainty) -> str:
 
 def budget_lines(budget: Budget) -> list[str]:
     """The budget as a table: output [unit], value, u, the sources' shares."""
+    friction = ", ".join(f"{name} {motion.value}" for name, motion in budget.motions.items()) or "none"
     lines = [f"uncertainty: u = standard uncertainty (1 sigma, same unit as the value); 95 % interval = value "
-             f"± {COVERAGE_FACTOR} u; seal friction: {budget.motion.value}",
+             f"± {COVERAGE_FACTOR} u; seal friction: {friction}",
              f"{'output':<32} {'value':>12} {'u':>11}  sources (share of u²)"]
     for line in budget.lines():
         label = f"{line.output.name} [{line.output.unit}]"

@@ -25,10 +25,9 @@ from linkage_monitor.cli.verdict import exit_code, finding_json, finding_line, j
 from linkage_monitor.mechanics import (InputError, Inputs, Mechanism, Result, Solver,
                                        UnobservableError, apply_overrides)
 from linkage_monitor.mechanics.calibration import drive_mechanism
-from linkage_monitor.mechanics.error_sources import Motion
-from linkage_monitor.mechanics.machine import CAPACITY_KEYS, STEERABILITY_KEYS, MachineModel, MachineResult
+from linkage_monitor.mechanics.machine import CAPACITY_KEYS, STEERABILITY_KEYS, MachineResult
 from linkage_monitor.mechanics.results import Status, angle_readings
-from linkage_monitor.mechanics.uncertainty import Budget, UncertaintyModel
+from linkage_monitor.mechanics.uncertainty import Budget
 from linkage_monitor.monitoring.core import Step
 from linkage_monitor.monitoring.name_value import name_value, number
 
@@ -62,10 +61,9 @@ def add_solve_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     parser.add_argument("--uncertainty", action="store_true",
                         help="print every output's standard uncertainty (1 sigma, same unit as the value) and "
-                             "the share of each declared error source (docs/accuracy.md)")
-    parser.add_argument("--motion", choices=[m.value for m in Motion], default=Motion.STANDING.value,
-                        help="how the lift cylinder moves, for the seal friction's band (default: standing, "
-                             "the whole breakaway band)")
+                             "the share of each declared error source, and judge the limits on their 95 %% "
+                             "intervals (docs/accuracy.md); one pose stands: its seal friction takes the whole "
+                             "breakaway band")
     parser.add_argument("--explain", action="store_true",
                         help="print whether reduced coordinates (along the chain of dyads) serve the statics of "
                              "each set of measured cylinder forces, or only the general linear system does, and "
@@ -234,17 +232,8 @@ def run_solve(args: argparse.Namespace) -> int:
                           *solver.explain()]))
         return 0
     pose = pose_inputs(mech, args)
-    step = judge(pose.mechanism, args.preset or args.mechanism, pose.inputs)
-    budget = _budget(pose, step, Motion(args.motion)) if args.uncertainty else None
-    return _print(mech, step, pose.predicted, args.json, budget)
-
-
-def _budget(pose: PoseInputs, step: Step, motion: Motion) -> Budget | None:
-    """The error budget of the judged pose (None when the monitor solved no pose)."""
-    if step.pose is None:
-        return None
-    model = MachineModel(pose.mechanism, Solver(pose.mechanism))
-    return UncertaintyModel(model).budget(pose.inputs, step.pose.result, step.pose.machine, motion)
+    step = judge(pose.mechanism, args.preset or args.mechanism, pose.inputs, uncertainty=args.uncertainty)
+    return _print(mech, step, pose.predicted, args.json, step.pose.budget if step.pose is not None else None)
 
 
 def _print(mech: Mechanism, step: Step, predicted: dict[str, float], as_json: bool, budget: Budget | None) -> int:

@@ -24,12 +24,13 @@ ERROR_EXIT = 1   # the exit code of ``solve`` / ``capacity`` when the monitor's 
 SERIES_PERIOD_NS = 1_000_000   # ns between the stamps of the poses of a series (any period < the staleness limit)
 
 
-def monitor_for(mech: Mechanism, spec: str, pressures: Sequence[str] = ()) -> Monitor:
+def monitor_for(mech: Mechanism, spec: str, pressures: Sequence[str] = (), uncertainty: bool = False) -> Monitor:
     """The node's monitor of ``mech`` (``spec``: preset name or file, for the record) with its default
     configuration, but reading only the pressure sensors ``pressures`` (gauge Pa, as the CLI takes them):
-    a pressure not given is not awaited, the implement load then comes from ``implement.mass``."""
+    a pressure not given is not awaited, the implement load then comes from ``implement.mass``;
+    ``uncertainty``: its poses carry their error budget and its limits are judged on their 95 % intervals."""
     default = MonitorConfig.default(spec, mech)
-    config = replace(default, pressure_absolute=False,
+    config = replace(default, pressure_absolute=False, uncertainty=uncertainty,
                      pressure_topics={t: s for t, s in default.pressure_topics.items() if s in pressures})
     return Monitor(mech, config)
 
@@ -47,11 +48,12 @@ def pose_events(monitor: Monitor, inputs: Inputs, stamp_ns: int) -> list[InputEv
     return events
 
 
-def judge(mech: Mechanism, spec: str, inputs: Inputs) -> Step:
-    """The monitor's Step of one pose (``inputs``: the measured values, SI units). Its findings are
-    those of the pose's own step plus any refusal of the pose's earlier messages (a pressure the
-    node refuses): the earlier steps' "no value yet" only says the pose was not complete yet."""
-    monitor = monitor_for(mech, spec, list(inputs.pressures))
+def judge(mech: Mechanism, spec: str, inputs: Inputs, uncertainty: bool = False) -> Step:
+    """The monitor's Step of one pose (``inputs``: the measured values, SI units; ``uncertainty`` as
+    ``monitor_for``'s). Its findings are those of the pose's own step plus any refusal of the pose's
+    earlier messages (a pressure the node refuses): the earlier steps' "no value yet" only says the
+    pose was not complete yet."""
+    monitor = monitor_for(mech, spec, list(inputs.pressures), uncertainty)
     steps = [monitor.step(event) for event in pose_events(monitor, inputs, time.time_ns())]
     *earlier, last = steps
     refused = tuple(f for step in earlier for f in step.findings if f.code is not Code.NO_VALUE_YET)

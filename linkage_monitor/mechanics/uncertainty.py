@@ -90,14 +90,14 @@ class OutputUncertainty:
 @dataclass(eq=False)
 class Budget:
     """The error budget of one pose: ``outputs`` and ``sources`` named, ``values`` (n_out,) and
-    ``contributions`` (n_out, n_src) = ∂y/∂s · u_s in the output's unit (signed); ``motion`` the
-    friction band used."""
+    ``contributions`` (n_out, n_src) = ∂y/∂s · u_s in the output's unit (signed); ``motions`` the
+    motion whose friction band each force-measured cylinder took."""
 
     outputs: tuple[Output, ...]
     sources: tuple[Source, ...]
     values: np.ndarray
     contributions: np.ndarray
-    motion: Motion
+    motions: Mapping[str, Motion]
 
     @cached_property
     def u(self) -> np.ndarray:
@@ -241,10 +241,13 @@ class UncertaintyModel:
         """The outputs of every budget, in order."""
         return self.table.outputs
 
-    def budget(self, inputs: Inputs, result: Result, machine: MachineResult, motion: Motion = Motion.STANDING
-               ) -> Budget:
+    def budget(self, inputs: Inputs, result: Result, machine: MachineResult,
+               motion: Motion | Mapping[str, Motion] = Motion.STANDING) -> Budget:
         """The error budget of the solved pose (``result``, ``machine``: ``self.model``'s answer to
-        ``inputs``), the seal friction's band by ``motion``."""
+        ``inputs``), each seal friction's band by ``motion``: one for every cylinder, or per cylinder
+        name (a cylinder not named: standing)."""
+        motions = ({c.name: motion.get(c.name, Motion.STANDING) for c in self.mech.cylinders}
+                   if isinstance(motion, Mapping) else {c.name: motion for c in self.mech.cylinders})
         y0 = self.table.values(result, machine)
         sources: list[Source] = []
         columns: list[np.ndarray] = []
@@ -260,7 +263,9 @@ class UncertaintyModel:
                 for part, u in parts.items():
                     sources.append(Source(f"{name} {part}", name, part, u, units[kind]))
                     columns.append(d * u)
-        for sensor, cylinder, u in self._friction(inputs, result, motion):
+        used = {}
+        for sensor, cylinder, u in self._friction(inputs, result, motions):
+            used[cylinder] = motions[cylinder]
             d = self._load_derivative(inputs, result, y0, "pressures", sensor) / force_per_pressure(self.mech, sensor)
             sources.append(Source(f"{cylinder} seal friction", cylinder, "friction", u, "N"))
             columns.append(d * u)
@@ -268,16 +273,17 @@ class UncertaintyModel:
             sources.append(Source("implement mass", "implement", "mass", self.sources.implement_mass, "kg"))
             columns.append(self._mass_derivative(inputs, y0) * self.sources.implement_mass)
         contributions = np.column_stack(columns) if columns else np.zeros((len(y0), 0))
-        return Budget(self.table.outputs, tuple(sources), y0, contributions, motion)
+        return Budget(self.table.outputs, tuple(sources), y0, contributions, used)
 
-    def _friction(self, inputs: Inputs, result: Result, motion: Motion) -> list[tuple[str, str, float]]:
+    def _friction(self, inputs: Inputs, result: Result, motions: Mapping[str, Motion]
+                  ) -> list[tuple[str, str, float]]:
         """(pressure sensor, cylinder, u N) of every cylinder whose force is measured (a pressure of it
         given; its cap sensor when it has one) and whose seal friction is not 0."""
         out = []
         forces = result.cylinders
         for cyl in self.mech.cylinders:
             sensor = self.friction_sensor(cyl.name, inputs)
-            u = self.sources.seal_friction(cyl.name).standard_uncertainty(forces[cyl.name].force, motion)
+            u = self.sources.seal_friction(cyl.name).standard_uncertainty(forces[cyl.name].force, motions[cyl.name])
             if sensor is not None and u > 0.0:
                 out.append((sensor, cyl.name, u))
         return out

@@ -39,6 +39,11 @@ class Check(IntFlag):
     REAR_AXLE_LIFT_OFF = 16   # rear axle load < 0
     STEERABILITY_LOW = 32     # steerability margin < 0
     LIFT_RESERVE_LOW = 64     # lift reserve < 1
+    # the 95 % interval of a value that clears its limit reaches across it (monitoring.bounds)
+    FRONT_AXLE_UNCERTAIN = 128
+    REAR_AXLE_UNCERTAIN = 256
+    STEERABILITY_UNCERTAIN = 512
+    LIFT_RESERVE_UNCERTAIN = 1024
 
 
 class CheckedValues(NamedTuple):
@@ -60,7 +65,9 @@ class CheckedValues(NamedTuple):
 
 
 # the bits as plain ints (an IntFlag member in arithmetic costs as much as the comparison)
-_LIFT_OFF, _SENSORS, _PRESSURES, _FRONT, _REAR, _STEER, _RESERVE = (int(c) for c in Check)
+_LIFT_OFF, _SENSORS, _PRESSURES, _FRONT, _REAR, _STEER, _RESERVE = (int(c) for c in (
+    Check.LIFT_OFF, Check.SENSORS_DISAGREE, Check.PRESSURES_DISAGREE, Check.FRONT_AXLE_LIFT_OFF,
+    Check.REAR_AXLE_LIFT_OFF, Check.STEERABILITY_LOW, Check.LIFT_RESERVE_LOW))
 
 
 def pose_checks(values: CheckedValues) -> int | np.ndarray:

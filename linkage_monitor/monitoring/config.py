@@ -54,7 +54,9 @@ class MonitorConfig:
     distance of a header stamp from the monitor's clock. kinetostatics: use JointState
     velocities (and their differences) for inertia loads (Naumenko et al. 2021). dead_centre_transmission_deg:
     degrees, a pose whose smallest transmission angle along the linkage's chain of dyads is below
-    this is a dead centre (``Solver(dead_centre_transmission_deg=)``).
+    this is a dead centre (``Solver(dead_centre_transmission_deg=)``). uncertainty: every solved pose
+    carries the error budget of the mechanism's declared error sources (``mechanics.uncertainty``),
+    and the machine-level limits are judged on their 95 % intervals (``monitoring.bounds``).
     """
 
     mechanism: str
@@ -68,6 +70,7 @@ class MonitorConfig:
     stamp_tolerance_s: float = 10.0
     kinetostatics: bool = False
     dead_centre_transmission_deg: float = DEAD_CENTRE_TRANSMISSION_DEG
+    uncertainty: bool = False
 
     @staticmethod
     def default(spec: str, mech: Mechanism, namespace: str = "/") -> MonitorConfig:

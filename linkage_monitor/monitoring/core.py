@@ -24,7 +24,10 @@ import numpy as np
 from linkage_monitor.mechanics import (AssemblyError, BatchResult, DeadCentreError, InputError, Inputs, LinkageError,
                                        Mechanism, Result, Solver, Status, apply_overrides)
 from linkage_monitor.mechanics.machine import MachineBatch, MachineModel, MachineResult, MachineSeries
+from linkage_monitor.mechanics.error_sources import Motion
+from linkage_monitor.mechanics.uncertainty import Budget, UncertaintyModel
 
+from .bounds import LimitUncertainties, MotionTracker, ballast_at_bound_text, interval_checks, uncertain_findings
 from .checks import CONSISTENCY_WARN_M, RESIDUAL_WARN_SHARE, Check, CheckedValues, pose_checks
 from .config import MonitorConfig
 from .events import ConfigEvent, Event, InputEvent, JointStateEvent, PressureEvent, UnreadableEvent
@@ -34,6 +37,10 @@ from .inputs import InputTracker, Refused
 # A pose whose sensors misfit the closed linkage by more than this cannot be assembled from the inputs
 # (an ERROR; up to checks.CONSISTENCY_WARN_M the misfit is sensor noise, between the two a WARN).
 ASSEMBLY_LIMIT_M = 20e-3
+# the diagnostic's standard uncertainties (with MonitorConfig.uncertainty): label, budget output, unit
+UNCERTAINTY_KEYS = (("implement load", "implement_load", "N"), ("steerability margin", "steerability_margin", "-"),
+                    ("front axle load", "front_axle_load", "N"), ("rear axle load", "rear_axle_load", "N"),
+                    ("lift reserve", "lift_reserve", "-"))
 MESSAGE_JOIN = " | "  # between the sentences of several findings of one step
 NO_FINDINGS = "ok"    # the message of a step without findings
 FAILURE_CODE = {Status.INPUT: Code.MALFORMED_INPUT, Status.ASSEMBLY: Code.CANNOT_ASSEMBLE,
@@ -52,6 +59,7 @@ class Pose:
     result: Result
     machine: MachineResult
     values: np.ndarray | None = None   # its value row (mechanics.programs.ValueRow) when the compiled call wrote one
+    budget: Budget | None = None       # its error budget, when the configuration asks for it (MonitorConfig.uncertainty)
 
 
 # built per input event: a plain dataclass, not a frozen one (docs/architecture.md, One pipeline)
@@ -92,6 +100,10 @@ class Step:
                 values["min transmission angle [rad]"] = f"{result.transmission_angle:.4f}"
             if result.weakest_transmission:
                 values["weakest transmission"] = result.weakest_transmission
+            if self.pose.budget is not None:   # standard uncertainties (1 sigma) of the judged values
+                budget = self.pose.budget
+                values.update({f"{label} standard uncertainty [{unit}]": fmt(budget.u_of(name))
+                               for label, name, unit in UNCERTAINTY_KEYS})
         return values
 
     @property
@@ -142,6 +154,7 @@ class _Due:
     stamp_ns: int
     trigger: str
     inputs: Inputs
+    motions: dict[str, Motion] | None = None   # each measured cylinder's motion since the due before (uncertainty)
 
 
 _LIFT_OFF = Status.LIFT_OFF.label
@@ -172,6 +185,8 @@ class Monitor:
         self.overdetermined = solver.kin.m > solver.kin.n
         self.estimates_load = bool(tracker.pressure_names)
         self.warm: Result | None = None   # the last solved pose: where the next live solve starts
+        self.uncertainty = UncertaintyModel(machine) if config.uncertainty else None
+        self.motion = MotionTracker.of(mech, mech.error_sources)
 
     def load_kernels(self) -> None:
         """Solve the mechanism's reference pose once, cold and warm-started, with its machine-level
@@ -281,9 +296,15 @@ class Monitor:
             batch, machine = series.batch, series.machine
             values = [row if plain else None for row, plain in zip(series.values, series.plain.tolist())]
         results, machine_results = batch.results(), machine.results()
-        checks = _segment_checks(batch, machine).tolist()
-        for k, ((i, due), status, check) in enumerate(zip(indexed, batch.status.tolist(), checks)):
-            pose = Pose(results[k], machine_results[k], values[k])
+        checks = _segment_checks(batch, machine)
+        budgets = self._budgets(dues, results, machine_results, batch.status)
+        if self.uncertainty is not None:
+            front, rear, margin, reserve = _limit_values(machine, len(batch))
+            checks = checks + interval_checks(front, rear, margin, reserve, LimitUncertainties(*(
+                np.array([getattr(LimitUncertainties.of(b), f) if b is not None else math.nan for b in budgets])
+                for f in LimitUncertainties._fields)))
+        for k, ((i, due), status, check) in enumerate(zip(indexed, batch.status.tolist(), checks.tolist())):
+            pose = Pose(results[k], machine_results[k], values[k], budgets[k])
             steps[i] = (self._pose_step(due, pose, check) if status < Status.INPUT
                         else self._failed(due, Status(status), batch.messages[k]))
         segments.append(Segment(np.array([i for i, _ in indexed]),
@@ -310,7 +331,8 @@ class Monitor:
         if isinstance(inputs, Finding):   # an input missing or stale: a misspelt joint name is named
             unknown = tracker.unknown_joints_finding(event.stamp_ns)
             return Step(event.stamp_ns, event.topic, (inputs,) if unknown is None else (inputs, unknown))
-        return _Due(event.stamp_ns, event.topic, inputs)
+        return _Due(event.stamp_ns, event.topic, inputs,
+                    self.motion.motions(inputs) if self.uncertainty is not None else None)
 
     @staticmethod
     def _failed(due: _Due, status: Status, message: str) -> Step:
@@ -326,20 +348,33 @@ class Monitor:
 
     def _finish(self, due: _Due, result: Result, machine: MachineResult, values: np.ndarray | None) -> Step:
         """The Step of one solved pose with its machine-level results and value row, if any
-        (``checks.pose_checks``)."""
-        checks = pose_checks(CheckedValues(
-            result.status == _LIFT_OFF, result.consistency_residual, result.residual, result.largest_force,
-            machine.value("front_axle_load"), machine.value("rear_axle_load"), machine.value("margin"),
-            machine.value("reserve")))
-        return self._pose_step(due, Pose(result, machine, values), int(checks))
+        (``checks.pose_checks``; with the uncertainty, ``bounds.interval_checks`` too)."""
+        limits = (machine.value("front_axle_load"), machine.value("rear_axle_load"), machine.value("margin"),
+                  machine.value("reserve"))
+        checks = int(pose_checks(CheckedValues(result.status == _LIFT_OFF, result.consistency_residual,
+                                               result.residual, result.largest_force, *limits)))
+        budget = self._budgets([due], [result], [machine], [Status.OK])[0]
+        if budget is not None:
+            checks += int(interval_checks(*limits, LimitUncertainties.of(budget)))
+        return self._pose_step(due, Pose(result, machine, values, budget), checks)
+
+    def _budgets(self, dues: Sequence[_Due], results: Sequence[Result], machines: Sequence[MachineResult],
+                 status: Sequence[int] | np.ndarray) -> list[Budget | None]:
+        """The error budget of each solved pose (None for a failed one, or when the configuration does
+        not ask for them), each cylinder's seal friction by its motion since the due before."""
+        uncertainty = self.uncertainty
+        return [uncertainty.budget(due.inputs, result, machine, due.motions or {})
+                if uncertainty is not None and code < Status.INPUT else None
+                for due, result, machine, code in zip(dues, results, machines, status)]
 
     def _pose_step(self, due: _Due, pose: Pose, checks: int) -> Step:
         """The Step of a solved pose whose failed checks are ``checks`` (``Check`` bits)."""
-        findings = self._findings(Check(checks), pose.result, pose.machine) if checks else ()
+        findings = self._findings(Check(checks), pose) if checks else ()
         return Step(due.stamp_ns, due.trigger, findings, pose, due.inputs)
 
-    def _findings(self, checks: Check, result: Result, machine: MachineResult) -> tuple[Finding, ...]:
+    def _findings(self, checks: Check, pose: Pose) -> tuple[Finding, ...]:
         """The findings of the failed ``checks`` of a solved pose, worded with its numbers."""
+        result, machine = pose.result, pose.machine
         findings = []
         if Check.LIFT_OFF in checks:
             findings.append(Finding(Code.LIFT_OFF, result.message or "a ground contact lifts off"))
@@ -363,11 +398,15 @@ class Monitor:
             findings.append(Finding(Code.STEERABILITY_LOW, f"steerability margin {steer['margin']:+.3f} < 0: the front "
                                     f"axle carries {steer['ratio']:.1%} of the {reference} weight, below ratio_min "
                                     f"{steer['ratio_min']:.0%}; extra front ballast needed "
-                                    f"{fmt(round(steer['front_ballast_needed']))} kg"))
+                                    f"{fmt(round(steer['front_ballast_needed']))} kg"
+                                    + (ballast_at_bound_text(pose.budget, self.mechanism, steer["total_weight"])
+                                       if pose.budget is not None else "")))
         if Check.LIFT_RESERVE_LOW in checks:
             findings.append(Finding(Code.LIFT_RESERVE_LOW, f"lift reserve {machine.value('reserve'):.2f} < 1: implement "
                                     f"load {fmt(result.implement_load / 1e3)} kN exceeds the lift capacity "
                                     f"{fmt(machine.value('implement_cg') / 1e3)} kN at its centre of gravity"))
+        if pose.budget is not None:
+            findings += uncertain_findings(checks, pose.budget, self.mechanism, machine.value("total_weight"))
         return tuple(findings)
 
 
@@ -424,11 +463,17 @@ class _SegmentSeries:
                                                _column(dues, "pressures")))
 
 
+def _limit_values(machine: MachineBatch, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The values judged against a limit of a solved segment's poses: front and rear axle loads,
+    steerability margin, lift reserve ((N,) each; NaN where not computed)."""
+    steer, capacity, missing = machine.steerability, machine.lift_capacity, np.full(size, math.nan)
+    return (steer.get("front_axle_load", missing), steer.get("rear_axle_load", missing), steer.get("margin", missing),
+            capacity.get("reserve", missing))
+
+
 def _segment_checks(batch: BatchResult, machine: MachineBatch) -> np.ndarray:
     """``pose_checks`` of every pose of a solved segment at once ((N,) ints; a failed pose's NaN
     values pass every check, and its verdict is worded from its status)."""
-    steer, capacity, missing = machine.steerability, machine.lift_capacity, np.full(len(batch), math.nan)
     return np.asarray(pose_checks(CheckedValues(
         batch.status == Status.LIFT_OFF, batch.consistency_residual, batch.residual, batch.largest_force,
-        steer.get("front_axle_load", missing), steer.get("rear_axle_load", missing), steer.get("margin", missing),
-        capacity.get("reserve", missing))))
+        *_limit_values(machine, len(batch)))))

@@ -44,6 +44,10 @@ class Code(Enum):
     AXLE_LIFT_OFF = ("axle_lift_off", Level.ERROR)          # an axle's ground load < 0: the machine tips over
     STEERABILITY_LOW = ("steerability_low", Level.WARN)     # steerability margin < 0
     LIFT_RESERVE_LOW = ("lift_reserve_low", Level.WARN)     # lift reserve < 1
+    # the 95 % interval of a value that clears its limit reaches across it (monitoring.bounds)
+    AXLE_LOAD_UNCERTAIN = ("axle_load_uncertain", Level.WARN)
+    STEERABILITY_UNCERTAIN = ("steerability_uncertain", Level.WARN)
+    LIFT_RESERVE_UNCERTAIN = ("lift_reserve_uncertain", Level.WARN)
     # the monitor itself
     INTERNAL_ERROR = ("internal_error", Level.ERROR)        # a bug: reported, the monitor goes on
     NOT_SOLVING = ("not_solving", Level.STALE)             # no input solved for the staleness limit (live node)

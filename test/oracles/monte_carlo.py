@@ -27,6 +27,7 @@ SCENARIO = {"ksu1_mower_adapter": "field_copy", "drill_coulter": "relief"}   # t
 # stroke (a lift capacity at its largest, a hinge magnitude at its smallest), where the first-order u
 # tends to 0 and the spread is second order
 NEGLIGIBLE = 1e-5
+REFUSED_SHARE = 0.01   # above this share of refused samples the Monte Carlo spread is cut short
 UNIFORM = {"resolution", "friction"}   # the parts drawn uniform (±√3·u); the others normal
 
 
@@ -38,6 +39,13 @@ class MonteCarlo:
     u: np.ndarray
     samples: int
     failed: int
+
+    @property
+    def truncated(self) -> bool:
+        """More than REFUSED_SHARE of the samples were refused (e.g. a chamber pressure near vacuum,
+        where the errors drive readings below −1 atm gauge): the spread of the rest is cut short, no
+        measure of the pose's u."""
+        return self.failed > REFUSED_SHARE * self.samples
 
 
 def monte_carlo(um: UncertaintyModel, inputs: Inputs, budget: Budget, samples: int, rng: np.random.Generator

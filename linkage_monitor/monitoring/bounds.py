@@ -1,0 +1,167 @@
+"""Verdicts on the bounds: the machine-level limits judged on the 95 % interval of each value
+(docs/accuracy.md), when the configuration asks for it (``MonitorConfig.uncertainty``).
+
+A value beyond its limit is the finding it always was (``steerability_low``, ``lift_reserve_low``,
+``axle_lift_off``). A value on the right side of its limit whose 95 % interval (value ± 1.96 u, u
+the standard uncertainty of the declared error sources, ``mechanics.uncertainty``) reaches across it
+— or whose u is unbounded — is a WARN of its own code (``steerability_uncertain``,
+``lift_reserve_uncertain``, ``axle_load_uncertain``) naming the dominant source; the steerability's
+also gives the front ballast that clears the limit at the interval's lower bound. Only a value whose
+whole interval clears its limit passes. One rule for the live pose (floats) and a replayed segment
+(arrays (N,)), as ``checks.pose_checks``. Units SI (N, kg).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from linkage_monitor.mechanics.error_sources import ErrorSources, Motion
+from linkage_monitor.mechanics.model import Mechanism
+from linkage_monitor.mechanics.solver import Inputs
+from linkage_monitor.mechanics.uncertainty import Budget
+
+from .checks import Check
+from .findings import Code, Finding, fmt
+
+COVERAGE_FACTOR = 1.96   # the 95 % interval's half-width in standard uncertainties
+MOTION_DEADBAND_M = 1e-4   # m: the least change of a cylinder's length between two solves that is motion
+MOTION_DEADBAND_SIGMAS = 3.0   # ... or this many standard deviations of the change its noise makes
+
+
+class LimitUncertainties(NamedTuple):
+    """Standard uncertainties of the values judged against a limit, for one pose (floats) or N
+    poses (arrays (N,)): axle loads N, steerability margin and lift reserve (-); NaN where unbounded."""
+
+    front_axle_load: float | np.ndarray
+    rear_axle_load: float | np.ndarray
+    margin: float | np.ndarray
+    reserve: float | np.ndarray
+
+    @staticmethod
+    def of(budget: Budget) -> "LimitUncertainties":
+        """The four from a pose's budget (NaN for one the mechanism does not compute)."""
+        return LimitUncertainties(budget.u_of("front_axle_load"), budget.u_of("rear_axle_load"),
+                                  budget.u_of("steerability_margin"), budget.u_of("lift_reserve"))
+
+
+_STEER, _RESERVE = int(Check.STEERABILITY_UNCERTAIN), int(Check.LIFT_RESERVE_UNCERTAIN)
+_FRONT, _REAR = int(Check.FRONT_AXLE_UNCERTAIN), int(Check.REAR_AXLE_UNCERTAIN)
+
+
+def _straddles(value: float | np.ndarray, u: float | np.ndarray, limit: float) -> np.ndarray:
+    """True where a finite ``value`` clears ``limit`` (≥) but its 95 % interval does not, or u is
+    unbounded (a NaN value fails no check; an infinite one, a reserve without load, clears); a 0-d
+    array for one pose."""
+    with np.errstate(invalid="ignore"):
+        bound = np.subtract(value, COVERAGE_FACTOR * np.asarray(u))
+        return np.asarray(np.isfinite(value) & np.greater_equal(value, limit) & ~np.greater_equal(bound, limit))
+
+
+def interval_checks(front_axle_load: float | np.ndarray, rear_axle_load: float | np.ndarray,
+                    margin: float | np.ndarray, reserve: float | np.ndarray, u: LimitUncertainties) -> np.ndarray:
+    """The ``Check`` bits of the values whose interval straddles their limit: a 0-d int array for one
+    pose, an int array (N,) for N poses (the limits of ``checks.pose_checks``: 0 N, 0, 1)."""
+    return (_straddles(front_axle_load, u.front_axle_load, 0.0) * _FRONT
+            + _straddles(rear_axle_load, u.rear_axle_load, 0.0) * _REAR
+            + _straddles(margin, u.margin, 0.0) * _STEER
+            + _straddles(reserve, u.reserve, 1.0) * _RESERVE)
+
+
+def ballast_at_bound(mech: Mechanism, ratio: float, half_width: float, total_weight: float) -> float:
+    """kg of extra front ballast (at the configured ballast's x) after which the 95 % interval of the
+    steerability ratio, ``ratio`` ± ``half_width``, clears ratio_min r at its lower bound: the ratio brought
+    to t = r + half_width by Popov 2009's moment balance (``kernels.steerability_pose``: R_A grows by
+    g·x_cw/L and W by g per kg) — Δm = (t·W − R_A) / (g·(x_cw/L − t·c)), c = 1 for the unit's weight and
+    0 for the tractor's, the half-width taken as unchanged by the ballast; 0 when the bound already
+    clears, inf where no ballast can."""
+    tractor = mech.tractor
+    assert tractor is not None
+    unit = tractor.steerability_reference == "unit"
+    weight = total_weight if unit else tractor.mass * mech.gravity
+    x = tractor.front_ballast.x if tractor.front_ballast is not None else tractor.wheelbase
+    target = tractor.ratio_min + half_width
+    slope = mech.gravity * (x / tractor.wheelbase - target * (1.0 if unit else 0.0))
+    shortfall = (target - ratio) * weight
+    if shortfall <= 0.0:
+        return 0.0
+    return shortfall / slope if slope > 0.0 else math.inf
+
+
+def ballast_at_bound_text(budget: Budget, mech: Mechanism, total_weight: float) -> str:
+    """``; N kg of front ballast clear the limit at the 95 % interval's lower bound`` (or why none can)."""
+    ratio = budget.line("steerability_ratio")
+    ballast = ballast_at_bound(mech, ratio.value, COVERAGE_FACTOR * ratio.u, total_weight)
+    if not math.isfinite(ballast):
+        return "; no front ballast clears the limit at the 95 % interval's lower bound"
+    return f"; {fmt(round(ballast))} kg of front ballast clear the limit at the 95 % interval's lower bound"
+
+
+def _dominant(budget: Budget, output: str) -> str:
+    """``source (share)`` of the output's largest share, or why there is none."""
+    line = budget.line(output)
+    if not math.isfinite(line.u):
+        return "unbounded: the pose cannot be solved within the sources' errors"
+    return f"dominant source {line.dominant} ({line.shares[line.dominant]:.0%})" if line.dominant else "no source"
+
+
+def _interval(budget: Budget, output: str, digits: str) -> str:
+    line = budget.line(output)
+    return f"{line.value:{digits}} ± {COVERAGE_FACTOR * line.u:{digits[1:] if digits.startswith('+') else digits}}"
+
+
+def uncertain_findings(checks: Check, budget: Budget, mech: Mechanism, total_weight: float) -> list[Finding]:
+    """The WARNs of the straddling intervals of one pose, worded with its budget (95 % intervals)."""
+    findings = []
+    for axle, check in (("front", Check.FRONT_AXLE_UNCERTAIN), ("rear", Check.REAR_AXLE_UNCERTAIN)):
+        if check in checks:
+            name = f"{axle}_axle_load"
+            line = budget.line(name)
+            findings.append(Finding(Code.AXLE_LOAD_UNCERTAIN, (
+                f"{axle} axle load {fmt(line.value / 1e3)} ± {fmt(COVERAGE_FACTOR * line.u / 1e3)} kN (95 %) may be "
+                f"below 0: the machine may tip over its {'rear' if axle == 'front' else 'front'} axle; "
+                f"{_dominant(budget, name)}")))
+    if Check.STEERABILITY_UNCERTAIN in checks:
+        findings.append(Finding(Code.STEERABILITY_UNCERTAIN, (
+            f"steerability margin {_interval(budget, 'steerability_margin', '+.3f')} (95 %) reaches below 0: the "
+            f"front axle may carry less than ratio_min; {_dominant(budget, 'steerability_margin')}"
+            + ballast_at_bound_text(budget, mech, total_weight))))
+    if Check.LIFT_RESERVE_UNCERTAIN in checks:
+        findings.append(Finding(Code.LIFT_RESERVE_UNCERTAIN, (
+            f"lift reserve {_interval(budget, 'lift_reserve', '.2f')} (95 %) reaches below 1: the implement load "
+            f"may exceed the lift capacity; {_dominant(budget, 'lift_reserve')}")))
+    return findings
+
+
+@dataclass
+class MotionTracker:
+    """The direction each force-measured cylinder moves in, from the change of its measured length
+    between two solves (``Motion``): standing within the deadband (MOTION_DEADBAND_M, or
+    MOTION_DEADBAND_SIGMAS standard deviations of the change the sensor's noise and resolution
+    make), standing at the first solve and for a cylinder whose length is not measured."""
+
+    deadband: dict[str, float]
+    last: dict[str, float]
+
+    @staticmethod
+    def of(mech: Mechanism, sources: ErrorSources) -> "MotionTracker":
+        """The tracker of ``mech``'s measured cylinders."""
+        deadband = {}
+        for name in mech.measurements.cylinders:
+            parts = sources.sensor(name, "cylinders").components()
+            scatter = math.hypot(parts["noise"], parts["resolution"]) * math.sqrt(2.0)
+            deadband[name] = max(MOTION_DEADBAND_M, MOTION_DEADBAND_SIGMAS * scatter)
+        return MotionTracker(deadband, {})
+
+    def motions(self, inputs: Inputs) -> dict[str, Motion]:
+        """Each measured cylinder's motion since the last call's inputs (then these are the last)."""
+        out = {}
+        for name, length in inputs.cylinders.items():
+            change = length - self.last.get(name, length)
+            out[name] = (Motion.STANDING if abs(change) <= self.deadband.get(name, MOTION_DEADBAND_M)
+                         else Motion.LIFTING if change > 0.0 else Motion.LOWERING)
+            self.last[name] = length
+        return out

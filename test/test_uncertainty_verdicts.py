@@ -1,0 +1,119 @@
+"""Verdicts on the bounds (monitoring.bounds, ``MonitorConfig.uncertainty``): a limit passes only
+when the whole 95 % interval (value ± 1.96 u) clears it; an interval across it is a WARN of its own
+code naming the dominant source; below the limit the finding it always was, with the ballast that
+clears it at the interval's bound. The live path (``Monitor.step``) and the replay's (``Monitor.run``)
+give the same verdicts and budgets; without the option the verdicts are today's."""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+import pytest
+
+from linkage_monitor.cli.verdict import judge
+from linkage_monitor.mechanics import Inputs, Solver, apply_overrides, load_preset
+from linkage_monitor.mechanics.error_sources import Motion
+from linkage_monitor.mechanics.machine import MachineModel
+from linkage_monitor.monitoring.bounds import COVERAGE_FACTOR, MotionTracker, ballast_at_bound
+from linkage_monitor.monitoring.core import Monitor
+from linkage_monitor.monitoring.events import ConfigEvent
+from linkage_monitor.monitoring.findings import Code, Level
+from linkage_monitor.monitoring.config import MonitorConfig
+from linkage_monitor.monitoring.events import JointStateEvent, PressureEvent
+from linkage_monitor.sim.telemetry import Noise, simulate
+from test_monitor_paths import step_by_step
+
+MECH = load_preset("belarus_1221")
+
+
+def _judged(pressure: float, uncertainty: bool = True):
+    ri = MECH.reference_inputs
+    inputs = Inputs(cylinders=dict(ri["cylinders"]), angles=dict(ri["angles"]),
+                    pressures={"lift_cap_pressure": pressure})
+    return judge(MECH, MECH.name, inputs, uncertainty=uncertainty)
+
+
+def test_a_margin_whose_interval_clears_zero_is_ok() -> None:
+    step = _judged(10.132e6)   # Popov 2009's working pose: margin 0.055, u 0.0043
+    margin = step.pose.budget.line("steerability_margin")
+    assert margin.value - COVERAGE_FACTOR * margin.u > 0.0
+    assert step.level is Level.OK
+
+
+def test_a_margin_whose_interval_straddles_zero_warns_naming_the_source() -> None:
+    step = _judged(13.6e6)
+    margin = step.pose.budget.line("steerability_margin")
+    assert 0.0 < margin.value < COVERAGE_FACTOR * margin.u
+    codes = [f.code for f in step.findings]
+    assert codes == [Code.STEERABILITY_UNCERTAIN]
+    text = step.findings[0].text
+    assert "lift_cylinder seal friction" in text and "95 %" in text and "lower bound" in text
+    # without the option, today's verdict: OK
+    assert _judged(13.6e6, uncertainty=False).level is Level.OK
+
+
+def test_below_the_limit_is_todays_finding_with_the_ballast_at_the_bound() -> None:
+    step = _judged(14.5e6)
+    assert [f.code for f in step.findings] == [Code.STEERABILITY_LOW]
+    assert "lower bound" in step.findings[0].text
+    assert _judged(14.5e6, uncertainty=False).findings[0].text in step.findings[0].text
+
+
+def test_the_ballast_at_the_bound_brings_the_lower_bound_to_ratio_min() -> None:
+    """Closed form: the ballast Δm added to the file's front ballast, the same pose re-solved: its ratio
+    minus the old 95 % half-width is ratio_min (Popov 2009's moment balance is exact in Δm)."""
+    step = _judged(14.5e6)
+    ratio = step.pose.budget.line("steerability_ratio")
+    half_width = COVERAGE_FACTOR * ratio.u
+    total = step.pose.machine.value("total_weight")
+    mass = ballast_at_bound(MECH, ratio.value, half_width, total)
+    heavier = apply_overrides(MECH, {"tractor.front_ballast.mass": MECH.tractor.front_ballast.mass + mass})
+    again = MachineModel(heavier, Solver(heavier)).solve(step.inputs)
+    assert again.machine.value("ratio") - half_width == pytest.approx(MECH.tractor.ratio_min, abs=1e-12)
+
+
+def _overload_events():
+    """The simulator's overload of belarus_1221 (a load ramp from 15 kN to 30.7 kN at the transport
+    pose: the margin and the reserve cross their limits), noisy, the implement mass changed half-way
+    (a new configuration segment)."""
+    stream = simulate(MECH, "overload", rate_hz=20.0, noise=Noise(0.001, 0.0002, 2e4), seed=5,
+                      start_ns=1_700_000_000_000_000_000)
+    topic = "/pressure/lift_cap_pressure"
+    config = MonitorConfig(mechanism=MECH.name, pressure_topics={topic: "lift_cap_pressure"}, pressure_absolute=False,
+                           staleness_limit_s=3600.0, stamp_tolerance_s=1e9, uncertainty=True)
+    names = list(stream.joint_names)
+    events: list = []
+    for i, stamp in enumerate(stream.stamps_ns.tolist()):
+        if i == len(stream) // 2:
+            events.append(ConfigEvent(config.with_overrides({"implement.mass": 1600.0})))
+        events.append(PressureEvent(topic, float(stream.pressure_values[i, 0]), stamp, stamp))
+        events.append(JointStateEvent("joint_states", names, stream.joint_positions[i].tolist(), [], stamp, stamp))
+    return config, events
+
+
+def test_live_and_replay_give_the_same_verdicts_and_budgets() -> None:
+    config, events = _overload_events()
+    stepped = step_by_step(MECH, config, events)
+    run = Monitor(MECH, config).run(events)
+    fired = Counter(f.code for s in stepped for f in s.findings)
+    for code in (Code.STEERABILITY_UNCERTAIN, Code.LIFT_RESERVE_UNCERTAIN, Code.STEERABILITY_LOW):
+        assert fired[code] > 0, (code, fired)
+    assert len(run.steps) == len(stepped)
+    for one, batched in zip(stepped, run.steps):
+        assert [(f.code, f.text) for f in one.findings] == [(f.code, f.text) for f in batched.findings]
+        assert (one.pose is None) == (batched.pose is None)
+        if one.pose is not None:
+            assert one.pose.budget.motions == batched.pose.budget.motions
+            np.testing.assert_allclose(batched.pose.budget.u, one.pose.budget.u, rtol=1e-6, atol=1e-9)
+
+
+def test_the_cylinder_moves_beyond_its_deadband() -> None:
+    tracker = MotionTracker.of(MECH, MECH.error_sources)
+    # default stroke sensor: 1 mm steps, u = 0.29 mm: a change of 3·√2·0.29 mm = 1.2 mm is motion
+    assert tracker.deadband["lift_cylinder"] == pytest.approx(3 * np.sqrt(2) * 1e-3 / np.sqrt(12))
+    first = tracker.motions(Inputs(cylinders={"lift_cylinder": 0.535}))
+    assert first == {"lift_cylinder": Motion.STANDING}
+    assert tracker.motions(Inputs(cylinders={"lift_cylinder": 0.5355})) == {"lift_cylinder": Motion.STANDING}
+    assert tracker.motions(Inputs(cylinders={"lift_cylinder": 0.540})) == {"lift_cylinder": Motion.LIFTING}
+    assert tracker.motions(Inputs(cylinders={"lift_cylinder": 0.530})) == {"lift_cylinder": Motion.LOWERING}
