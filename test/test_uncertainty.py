@@ -211,3 +211,24 @@ def test_solve_uncertainty_table(capsys) -> None:
     assert "standard uncertainty" in text and "seal friction: lift_cylinder standing" in text
     assert any(line.startswith("steerability_margin [-]") and "lift_cylinder seal friction" in line
                for line in text.splitlines())
+
+
+def test_the_budget_picture_is_a_real_image(tmp_path) -> None:
+    """tools/accuracy_plot.py's drawing (viz.budget_plot) of three poses along the stroke."""
+    import matplotlib.image
+
+    from linkage_monitor.viz.budget_plot import plot_budget
+
+    mech = load_preset("belarus_1221")
+    model = _model(mech)
+    um = UncertaintyModel(model)
+    budgets = []
+    for pressure in (9e6, 10e6, 11e6):
+        inputs = replace(_reference(mech), pressures={"lift_cap_pressure": pressure})
+        pose = model.solve(inputs)
+        budgets.append(um.budget(inputs, pose.result, pose.machine))
+    png = tmp_path / "budget.png"
+    plot_budget(np.array([0.53, 0.535, 0.54]), budgets, ("implement_load", "steerability_margin"), "S [m]", "t", png)
+    image = matplotlib.image.imread(png)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and image.ndim == 3 and image.shape[0] > 300
+    assert image[..., :3].std() > 0.05   # not a blank canvas
