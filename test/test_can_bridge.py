@@ -22,12 +22,10 @@ from pathlib import Path
 
 import can
 import pytest
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from support.can_bridge import bag_messages, cli_command, wait_for_frame_count, wait_for_log_line
 from support.ros_harness import node_bag, stop
 
 pytestmark = pytest.mark.ros
@@ -39,10 +37,6 @@ OUTPUTS = ("/hinge_reactions", "/hitch_state", "/steerability")
 RATE = 600.0   # frames/s sent (the log's 120 frames/s at 5x)
 
 
-def _cli(*args: str) -> list[str]:
-    return [sys.executable, "-m", "linkage_monitor.cli.main", *args]
-
-
 def _topic_bytes(bag: Path, topics: tuple[str, ...]) -> dict[str, list[bytes]]:
     """Every message of ``topics`` in the bag as recorded (rosbags reads it: a reader we did not write)."""
     out: dict[str, list[bytes]] = {t: [] for t in topics}
@@ -51,15 +45,6 @@ def _topic_bytes(bag: Path, topics: tuple[str, ...]) -> dict[str, list[bytes]]:
         for connection, _, data in reader.messages(connections=connections):
             out[connection.topic].append(bytes(data))
     return out
-
-
-def _messages(bag: Path, topic: str) -> list:
-    """The messages of ``topic`` decoded by rosbags with the bag's own definitions."""
-    with Reader(bag) as reader:
-        [connection] = [c for c in reader.connections if c.topic == topic]
-        store = get_typestore(Stores.EMPTY)
-        store.register(get_types_from_msg(connection.msgdef.data, connection.msgtype))
-        return [store.deserialize_cdr(data, connection.msgtype) for _, _, data in reader.messages([connection])]
 
 
 def _frames_in_bag(bag: Path) -> list[can.Message]:
@@ -87,35 +72,6 @@ def _expected_counts() -> tuple[int, int]:
     return mapped, sum(ids.values()) - mapped
 
 
-def _wait_for_count(total: int, timeout: float = 90.0) -> str:
-    """Spin a test node on /diagnostics until the bridge's frame-count status says ``total`` frames
-    were received (it repeats it every heartbeat); returns that status text."""
-    node = rclpy.create_node("can_bridge_test")
-    seen: list[str] = []
-    node.create_subscription(DiagnosticArray, "/diagnostics",
-                             lambda m: seen.extend(s.message for s in m.status if s.name.endswith(": can")),
-                             QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
-    try:
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            rclpy.spin_once(node, timeout_sec=0.1)
-            if seen and seen[-1].startswith(f"{total} frames"):
-                return seen[-1]
-        raise AssertionError(f"the bridge did not count {total} frames within {timeout} s: {seen[-1:]}")
-    finally:
-        node.destroy_node()
-
-
-def _wait_for(path: Path, text: str, proc: subprocess.Popen, timeout: float = 60.0) -> None:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if path.exists() and text in path.read_text():
-            return
-        assert proc.poll() is None, f"bridge exited ({proc.returncode}):\n{path.read_text()}"
-        time.sleep(0.1)
-    raise AssertionError(f"bridge did not log {text!r} within {timeout} s:\n{path.read_text()}")
-
-
 @pytest.mark.parametrize("source", ["bus", "topic"])
 def test_live_bridge_equals_replay_and_can_to_bag(source: str, tmp_path: Path, ros: None,
                                                   monkeypatch: pytest.MonkeyPatch) -> None:
@@ -124,11 +80,11 @@ def test_live_bridge_equals_replay_and_can_to_bag(source: str, tmp_path: Path, r
     monkeypatch.setenv("CAN_CONFIG", json.dumps({"port": chance.randint(20000, 60000)}))
     where = ["--bus", f"udp_multicast:{group}"] if source == "bus" else ["--topic"]
     bridge_log = tmp_path / "bridge.log"
-    bridge = subprocess.Popen(_cli("can", "--map", str(MAP), *where, "--ros-args", "-p",
+    bridge = subprocess.Popen(cli_command("can", "--map", str(MAP), *where, "--ros-args", "-p",
                                    f"record_dir:={tmp_path / 'bags'}", "-p", "sensor_qos:=reliable"),
                               stdout=bridge_log.open("w"), stderr=subprocess.STDOUT)
     try:
-        _wait_for(bridge_log, "CAN frames from", bridge)
+        wait_for_log_line(bridge_log, "CAN frames from", bridge)
         time.sleep(1.5)   # longer than the mapping's silence_timeout (1 s): the silent bus is a finding
         target = f"udp_multicast:{group}" if source == "bus" else "/from_can_bus"
         sent = subprocess.run([sys.executable, str(ROOT / "test" / "support" / "can_sender.py"), source, target,
@@ -136,7 +92,7 @@ def test_live_bridge_equals_replay_and_can_to_bag(source: str, tmp_path: Path, r
         assert sent.returncode == 0, sent.stderr
         mapped, other = _expected_counts()
         faults = 3   # the sender's error frame, bus-off and 'not available' position
-        status = _wait_for_count(mapped + other + faults)
+        status = wait_for_frame_count(mapped + other + faults)
     finally:
         code = stop(bridge)
     assert code == 0, bridge_log.read_text()
@@ -149,7 +105,7 @@ def test_live_bridge_equals_replay_and_can_to_bag(source: str, tmp_path: Path, r
     assert status.startswith(f"{mapped + other + faults} frames: {mapped} decoded, {other} ignored")
     assert status.endswith(f"{faults} refused")
     # the silent bus, the error frame, bus-off and the missing value: findings on /diagnostics (as recorded)
-    findings = [s for m in _messages(live, "/diagnostics") for s in m.status]
+    findings = [s for m in bag_messages(live, "/diagnostics") for s in m.status]
     for words, level in (("no CAN frame on", 1), ("error frame on", 2), ("bus-off on", 1), ("'not available'", 1)):
         assert any(words in s.message and s.level == level for s in findings), words
 
@@ -157,7 +113,7 @@ def test_live_bridge_equals_replay_and_can_to_bag(source: str, tmp_path: Path, r
     live_out = _topic_bytes(live, OUTPUTS)
     assert len(live_out["/hinge_reactions"]) > 0.9 * mapped   # one output per solved input
     replayed = tmp_path / "replayed"
-    subprocess.run(_cli("replay", str(live), "--out", str(replayed), "--quiet"), check=True, capture_output=True)
+    subprocess.run(cli_command("replay", str(live), "--out", str(replayed), "--quiet"), check=True, capture_output=True)
     assert _topic_bytes(replayed, OUTPUTS) == live_out
 
     # the recorded raw frames as a candump log (python-can's writer), can-to-bag, replay: the same outputs
@@ -166,8 +122,8 @@ def test_live_bridge_equals_replay_and_can_to_bag(source: str, tmp_path: Path, r
         for msg in raw:
             writer.on_message_received(msg)
     converted, replayed_log = tmp_path / "converted", tmp_path / "replayed_log"
-    subprocess.run(_cli("can-to-bag", str(candump), "--map", str(MAP), "--out", str(converted)), check=True,
+    subprocess.run(cli_command("can-to-bag", str(candump), "--map", str(MAP), "--out", str(converted)), check=True,
                    capture_output=True)
-    subprocess.run(_cli("replay", str(converted), "--out", str(replayed_log), "--quiet"), check=True,
+    subprocess.run(cli_command("replay", str(converted), "--out", str(replayed_log), "--quiet"), check=True,
                    capture_output=True)
     assert _topic_bytes(replayed_log, OUTPUTS) == live_out

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from linkage_monitor.mechanics import Solver, kernels, load_mechanism, load_preset, preset_names
 from linkage_monitor.mechanics.chain import ANGLE, CYLINDER, RRR
-from test_mechanics_oracles import FIXTURES
+from support.fixtures import FIXTURES
 
 MECHANISMS = ([load_preset(name) for name in preset_names()]
               + [load_mechanism(f) for f in sorted(FIXTURES.glob("*.yaml"))])

@@ -18,8 +18,8 @@ from linkage_monitor.mechanics import (Inputs, LinkageError, Mechanism, Solver, 
 from linkage_monitor.mechanics.capacity import stroke_mechanism
 from linkage_monitor.mechanics.results import BatchResult, angle_readings
 from oracles.numpy_solver import Solver as NumpySolver
-from test_mechanics_errors import _arm
-from test_mechanics_oracles import FIXTURES
+from support.arm_mechanism import arm_mechanism
+from support.fixtures import FIXTURES
 
 REL = 1e-9
 MECHANISMS = [("preset", n) for n in preset_names()] + [("fixture", p.name) for p in sorted(FIXTURES.glob("*.yaml"))]
@@ -138,8 +138,8 @@ def test_live_sequence_equals_the_numpy_solver(kind: str, name: str) -> None:
     ({"angles": [{"name": "arm_angle", "hinge": "O"}]}, "angles", [-math.pi / 4, -math.pi / 2, 0.3, 2 * math.pi - 0.3]),
 ])
 def test_failure_verdicts_equal_the_numpy_solver(measure: dict, key: str, values: list[float]) -> None:
-    """Kinematic and static dead centres and cannot-assemble (test_mechanics_errors' arm)."""
-    mech = mechanism_from_dict(_arm(measure))
+    """Kinematic and static dead centres and cannot-assemble (support.arm_mechanism's arm)."""
+    mech = mechanism_from_dict(arm_mechanism(measure))
     name = measure[key][0] if key == "cylinders" else measure[key][0]["name"]
     got = Solver(mech).solve_batch(**{key: {name: np.array(values)}})
     expected = NumpySolver(mech).solve_batch(**{key: {name: np.array(values)}})

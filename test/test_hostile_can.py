@@ -323,9 +323,8 @@ def test_live_bridge_refuses_two_sources(tmp_path: Path, ros: None, monkeypatch:
     import json
     import random
 
+    from support.can_bridge import bag_messages, cli_command, wait_for_frame_count, wait_for_log_line
     from support.ros_harness import node_bag, stop
-    from test_can_bridge import _cli as bridge_cli
-    from test_can_bridge import _messages, _wait_for, _wait_for_count
 
     log = tmp_path / "two.log"
     with can.CanutilsLogWriter(str(log), channel="can0") as writer:
@@ -335,22 +334,22 @@ def test_live_bridge_refuses_two_sources(tmp_path: Path, ros: None, monkeypatch:
     group = f"239.74.{chance.randint(0, 255)}.{chance.randint(1, 254)}"
     monkeypatch.setenv("CAN_CONFIG", json.dumps({"port": chance.randint(20000, 60000)}))
     bridge_log = tmp_path / "bridge.log"
-    bridge = subprocess.Popen(bridge_cli("can", "--map", str(MAP), "--bus", f"udp_multicast:{group}", "--ros-args",
-                                         "-p", f"record_dir:={tmp_path / 'bags'}"),
+    bridge = subprocess.Popen(cli_command("can", "--map", str(MAP), "--bus", f"udp_multicast:{group}", "--ros-args",
+                                          "-p", f"record_dir:={tmp_path / 'bags'}"),
                               stdout=bridge_log.open("w"), stderr=subprocess.STDOUT)
     try:
-        _wait_for(bridge_log, "CAN frames from", bridge)
+        wait_for_log_line(bridge_log, "CAN frames from", bridge)
         sent = subprocess.run([sys.executable, str(ROOT / "test" / "support" / "can_sender.py"), "bus",
                                f"udp_multicast:{group}", str(log), "100"], capture_output=True, text=True, timeout=60)
         assert sent.returncode == 0, sent.stderr
         # the 20 frames of the two ECUs, then the sender's error frame, bus-off and 'not available' position
-        status = _wait_for_count(23)
+        status = wait_for_frame_count(23)
     finally:
         code = stop(bridge)
     assert code == 0, bridge_log.read_text()
     assert status.startswith("23 frames: 1 decoded, 0 ignored, 22 refused; RearHitchStatus sent by 2 sources (0xF0, "
                              "0x80)"), status
     bag = node_bag(tmp_path / "bags")
-    findings = [s.message for m in _messages(bag, "/diagnostics") for s in m.status]
+    findings = [s.message for m in bag_messages(bag, "/diagnostics") for s in m.status]
     assert any("0xF0 and 0x80 both send PGN 65093" in text for text in findings)
-    assert len(_messages(bag, "/joint_states")) == 1   # the first frame's, before the second source was heard
+    assert len(bag_messages(bag, "/joint_states")) == 1   # the first frame's, before the second source was heard

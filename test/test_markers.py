@@ -27,8 +27,8 @@ from linkage_monitor.wire.markers import FRAME, MARKER_ARRAY, LinkageMarkers
 from linkage_monitor.wire.cdr import stamp_ns
 from linkage_monitor.viz.drawing import ARROW_LENGTH, body_outline
 from oracles import markers as oracle_markers
+from support.messages import assert_same_message
 from support.ros_harness import node_bag, read_bag_rosbags, settle, stop
-from test_output_cdr import _same
 
 T0 = (time.time_ns() // 10**9) * 10**9
 JOINTS = ["lift_cylinder", "lift_arm_angle"]
@@ -44,14 +44,14 @@ def _markers_mcap(bag) -> list:
 def test_node_publishes_and_records_the_linkage_as_markers(node):
     client, proc, tmp_path = node
     mech = load_preset("belarus_1221")
-    from test_node_recording import _pose   # a consistent (stroke, angle) pair from the offline kinematics
+    from support.lift_pose import lift_pose   # a consistent (stroke, angle) pair from the offline kinematics
 
     strokes = [0.54, 0.58, 0.62, 0.66, 0.70]
     for k, stroke in enumerate(strokes):   # 150 ms apart: every pose is due at the default 10 Hz
         stamp = T0 + k * 150_000_000
         client.publish_pressure(PRESSURE_TOPIC, stamp, 9e6 + ATMOSPHERIC_PRESSURE)
         client.spin_until(lambda: False, 0.2)
-        client.publish_joint_state(stamp + 1000, JOINTS, list(_pose(stroke)))
+        client.publish_joint_state(stamp + 1000, JOINTS, list(lift_pose(stroke)))
     assert client.spin_until(lambda: len(client.received["hinge_reactions"]) >= len(strokes), 20)
     settle(client, "diagnostics", quiet=0.5)
     assert stop(proc) == 0
@@ -112,7 +112,7 @@ def test_marker_bytes_are_what_rclpy_builds(name):
         data, msg = ours.markers(stamp + k, result), theirs.markers(stamp + k, result)
         assert isinstance(data, bytes)
         wire = serialize_message(msg)   # what a subscriber of the oracle gets (float32 colours rounded)
-        _same(deserialize_message(data, MarkerArray), deserialize_message(wire, MarkerArray), "markers")
+        assert_same_message(deserialize_message(data, MarkerArray), deserialize_message(wire, MarkerArray), "markers")
         assert len(data) == len(exact_cdr(MARKER_ARRAY, wire))
 
 
@@ -157,6 +157,6 @@ def test_labels_of_any_length_are_spliced_as_rclpy_builds(exponents, sign):
         scaled = dataclasses.replace(result, hinge_force=result.hinge_force * factor[:, None])
         data, msg = ours.markers(1_700_000_000_000_000_000 + k, scaled), theirs.markers(1_700_000_000_000_000_000 + k,
                                                                                         scaled)
-        _same(deserialize_message(data, MarkerArray), deserialize_message(serialize_message(msg), MarkerArray),
-              "markers")
+        assert_same_message(deserialize_message(data, MarkerArray),
+                            deserialize_message(serialize_message(msg), MarkerArray), "markers")
         assert len(data) == len(exact_cdr(MARKER_ARRAY, serialize_message(msg)))

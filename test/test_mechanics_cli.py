@@ -17,7 +17,7 @@ from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Monitor
 from linkage_monitor.monitoring.events import JointStateEvent, PressureEvent
-from test_mechanics_oracles import FIXTURES
+from support.fixtures import FIXTURES
 
 HITCH = str(FIXTURES / "hitch.yaml")
 PYTHON = sys.executable   # the venv of the distribution under test (.venv or .venv-kilted)

@@ -12,7 +12,8 @@ from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
 from linkage_monitor.mechanics import Inputs, Solver, UnobservableError, load_mechanism, mechanism_from_dict
-from test_mechanics_oracles import FIXTURES, body_point, contact_direction, moment, mount, spring_forces, virtual_work
+from support.fixtures import FIXTURES
+from support.statics_oracle import body_point, contact_direction, moment, mount, spring_forces, virtual_work
 
 
 def free_body_forces(mech, batch) -> dict[str, list[tuple[np.ndarray, np.ndarray]]]:

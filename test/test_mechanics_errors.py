@@ -10,25 +10,12 @@ import pytest
 
 from linkage_monitor.mechanics import (AssemblyError, DeadCentreError, InputError, Inputs, MechanismFileError,
                                        Solver, UnobservableError, apply_overrides, load_mechanism, mechanism_from_dict)
-from test_mechanics_oracles import FIXTURES
-
-
-def _arm(measure: dict) -> dict:
-    """Arm pivoted at O = (0, 0), tip T = (0, 1) in the reference pose; cylinder from E = (−1, 0) to T."""
-    return {
-        "name": "arm",
-        "points": {"O": [0.0, 0.0], "T": [0.0, 1.0], "E": [-1.0, 0.0]},
-        "bodies": [{"name": "frame", "ground": True, "points": ["O", "E"]},
-                   {"name": "arm", "points": ["O", "T"], "mass": 10.0, "cg": "T"}],
-        "hinges": [{"name": "O", "bodies": ["frame", "arm"]}],
-        "cylinders": [{"name": "cyl", "base": {"point": "E", "body": "frame"},
-                       "rod_end": {"point": "T", "body": "arm"}, "bore": 0.1, "rod": 0.05}],
-        "measurements": measure,
-    }
+from support.arm_mechanism import arm_mechanism
+from support.fixtures import FIXTURES
 
 
 def test_unassemblable_says_by_how_much() -> None:
-    solver = Solver(mechanism_from_dict(_arm({"cylinders": ["cyl"]})))
+    solver = Solver(mechanism_from_dict(arm_mechanism({"cylinders": ["cyl"]})))
     # longest possible cylinder: |EO| + |OT| = 2 m, so 2.1 m misses by 100 mm (triangle inequality)
     with pytest.raises(AssemblyError, match=r"cyl.*100\.0 mm"):
         solver.solve(Inputs(cylinders={"cyl": 2.1}))
@@ -44,7 +31,7 @@ def test_unassemblable_says_by_how_much() -> None:
 def test_static_dead_centre_names_the_lost_transmission() -> None:
     # angle −π/2 puts T at (1, 0): the cylinder E-T passes through the pivot O, its moment arm is 0:
     # the cylinder's force (the load the angle-driven step leaves free) has no transmission left
-    solver = Solver(mechanism_from_dict(_arm({"angles": [{"name": "arm_angle", "hinge": "O"}]})))
+    solver = Solver(mechanism_from_dict(arm_mechanism({"angles": [{"name": "arm_angle", "hinge": "O"}]})))
     with pytest.raises(DeadCentreError, match=r"transmission angle \S+ deg at cylinder 'cyl' force through "
                                               r"arm_angle about O < 1 deg"):
         solver.solve(Inputs(angles={"arm_angle": -math.pi / 2}))
@@ -59,14 +46,14 @@ def test_static_dead_centre_names_the_lost_transmission() -> None:
 def test_kinematic_dead_centre() -> None:
     # stroke 2 m = fully stretched (E, O, T collinear): dL/dθ = 0, the input cannot drive the arm;
     # the cylinder's step has lost its transmission (its line passes through the pivot O)
-    solver = Solver(mechanism_from_dict(_arm({"cylinders": ["cyl"]})))
+    solver = Solver(mechanism_from_dict(arm_mechanism({"cylinders": ["cyl"]})))
     with pytest.raises(DeadCentreError, match=r"transmission angle \S+ deg at cyl about O"):
         solver.solve(Inputs(cylinders={"cyl": 2.0}))
 
 
 def test_unobservable_kinematics_names_free_dof() -> None:
     with pytest.raises(UnobservableError, match="1 free DOF"):
-        Solver(mechanism_from_dict(_arm({})))
+        Solver(mechanism_from_dict(arm_mechanism({})))
 
 
 def test_unobservable_statics_names_null_space() -> None:

@@ -17,7 +17,8 @@ from linkage_monitor.mechanics.machine import MachineModel
 from linkage_monitor.mechanics.results import Status
 from linkage_monitor.mechanics.programs import ROW_SCALARS, ValueRow
 from linkage_monitor.mechanics import kernels
-from test_mechanics_oracles import FIXTURES, virtual_work
+from support.fixtures import FIXTURES
+from support.statics_oracle import virtual_work
 
 H = 1e-5  # m, finite-difference step in the stroke
 

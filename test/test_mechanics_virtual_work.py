@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from linkage_monitor.mechanics import Solver, load_mechanism
-from test_mechanics_oracles import FIXTURES, external_loads, virtual_work
+from support.fixtures import FIXTURES
+from support.statics_oracle import external_loads, virtual_work
 
 H = 1e-5  # m, finite-difference step in the stroke
 

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,6 +21,7 @@ from linkage_monitor.mechanics.machine import MachineModel
 from linkage_monitor.mechanics.results import angle_readings
 from linkage_monitor.wire.cdr import stamp_ns
 from linkage_monitor.offline.replay import replay
+from support.fixtures import FIXTURES
 from support.ros_harness import MonitorClient, node_bag, start_node, stop
 
 T0 = (time.time_ns() // 10**9) * 10**9  # ns, now (whole s): the node refuses stamps far from its clock
@@ -181,9 +181,6 @@ def test_bytes_that_are_not_the_input_type_are_an_error_recorded_as_they_came_an
     with AnyReader([tmp_path / "replayed"], default_typestore=get_typestore(Stores.EMPTY)) as reader:
         copied = [raw for c, _, raw in reader.messages() if c.topic in ("/joint_states", f"/{PRESSURE_TOPIC}")]
     assert copied == recorded
-
-
-FIXTURES = Path(__file__).resolve().parent / "fixtures"
 
 
 def test_dead_centre_over_a_topic_is_an_error_and_the_node_goes_on(ros, tmp_path):

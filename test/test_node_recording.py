@@ -12,7 +12,6 @@ import signal
 import time
 from pathlib import Path
 
-import numpy as np
 import rclpy
 import yaml
 from mcap.reader import make_reader
@@ -20,10 +19,9 @@ from mcap_ros2.decoder import DecoderFactory
 
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
 from linkage_monitor.monitoring.config import CONFIG_TOPIC
-from linkage_monitor.mechanics import Solver, load_preset
-from linkage_monitor.mechanics.capacity import stroke_mechanism
 from linkage_monitor.wire.cdr import stamp_ns
 from linkage_monitor.bag.writer import MECHANISM_TOPIC
+from support.lift_pose import lift_pose
 from support.ros_harness import MonitorClient, node_bag, read_bag_rosbags, settle, stop
 
 T0 = (time.time_ns() // 10**9) * 10**9  # ns, now (whole s): the node refuses stamps far from its clock
@@ -32,16 +30,6 @@ PRESSURE_TOPIC = "pressure/lift_cap_pressure"
 INPUT_TOPICS = ("/joint_states", "/" + PRESSURE_TOPIC)
 OUTPUT_TOPICS = ("/hinge_reactions", "/hitch_state", "/steerability", "/diagnostics", "/linkage_markers")
 FLUSH_PERIOD_S = 1.0  # s, the node's BagWriter flushes this often (recording.BagWriter default)
-
-
-def _pose(stroke: float) -> tuple[float, float]:
-    """A consistent (stroke m, lift-arm angle rad) pair from the offline kinematics."""
-    mech = load_preset("belarus_1221")
-    batch = Solver(stroke_mechanism(mech)).solve_batch(cylinders={"lift_cylinder": np.array([stroke])})
-    sensor = mech.measurements.angles[0]
-    hinge = next(h for h in mech.hinges if h.name == sensor.hinge)
-    theta = lambda body: batch.body_poses[body][0, 2] if body in batch.body_poses else 0.0  # noqa: E731
-    return stroke, sensor.reference + theta(hinge.bodies[1]) - theta(hinge.bodies[0])
 
 
 def _stop_and_read(client: MonitorClient, proc, tmp_path: Path) -> tuple[Path, list]:
@@ -56,7 +44,7 @@ def test_bag_holds_every_topic_and_three_readers_decode_it(node):
     client, proc, tmp_path = node
     sent = []   # (topic, stamp, values)
     for k, (stroke, gauge) in enumerate([(0.54, 9.9e6), (0.62, 8.7e6), (0.70, 9.2e6)]):
-        s, angle = _pose(stroke)
+        s, angle = lift_pose(stroke)
         stamp = T0 + k * 100_000_000
         client.publish_pressure(PRESSURE_TOPIC, stamp, gauge + ATMOSPHERIC_PRESSURE)
         client.spin_until(lambda: False, 0.3)   # two DDS writers keep no order between them
@@ -121,7 +109,7 @@ def test_bag_holds_every_topic_and_three_readers_decode_it(node):
 
 def test_input_is_recorded_even_when_its_solve_fails(node):
     client, proc, tmp_path = node
-    s, angle = _pose(0.60)
+    s, angle = lift_pose(0.60)
     client.publish_pressure(PRESSURE_TOPIC, T0, 9.0e6 + ATMOSPHERIC_PRESSURE)
     client.spin_until(lambda: False, 0.3)
     client.publish_joint_state(T0 + 1000, JOINTS, [s, math.nan])
@@ -180,7 +168,7 @@ def test_killed_node_leaves_a_readable_bag(node):
     """SIGKILL while inputs stream in at 25 Hz: the bag opens and holds everything up to at most
     one flush period (+ 1 s slack for a busy 2-core machine) before the kill."""
     client, proc, tmp_path = node
-    s, angle = _pose(0.60)
+    s, angle = lift_pose(0.60)
     sent: dict[str, list[tuple[int, tuple]]] = {t: [] for t in INPUT_TOPICS}
     period_ns = 40_000_000   # 25 Hz: 50 inputs/s, each ~7 ms of node CPU (bench_node.py), headroom on 2 busy cores
     start = time.time_ns()

@@ -6,14 +6,13 @@ rclpy's message classes), for every preset and fixture, OK and WARN steps, NaN f
 How each check compares: rclpy's ``deserialize_message`` of our bytes equals the oracle
 message field by field (NaN equal to NaN, floats bit for bit), and our length equals the
 message's exact CDR length (rclpy's buffer cut by rosbags' decoder, wire.definitions.exact_cdr), and
-the bytes are rclpy's serialization but for the alignment padding (test_wire.assert_rclpy_bytes).
+the bytes are rclpy's serialization but for the alignment padding (support.rclpy_bytes.assert_rclpy_bytes).
 """
 
 from __future__ import annotations
 
 import math
 import struct
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -28,26 +27,11 @@ from linkage_monitor.msg import HitchState
 from linkage_monitor.wire.outputs import OutputEncoder, per_step
 from linkage_monitor.sim.telemetry import Noise, simulate
 from oracles.output_messages import outputs as oracle_outputs
-from test_wire import assert_rclpy_bytes
+from support.fixtures import FIXTURES
+from support.messages import assert_same_message
+from support.rclpy_bytes import assert_rclpy_bytes
 
-FIXTURES = Path(__file__).parent / "fixtures"
 FIELDS = ("hinge_reactions", "hitch_state", "steerability")
-
-
-def _same(a: object, b: object, where: str = "msg") -> None:
-    """Field-by-field equality of two rclpy messages; floats bit for bit (NaN == NaN)."""
-    if isinstance(a, float):
-        assert struct.pack("<d", a) == struct.pack("<d", b) or (math.isnan(a) and math.isnan(b)), (where, a, b)
-    elif hasattr(a, "get_fields_and_field_types"):
-        for name in a.get_fields_and_field_types():
-            _same(getattr(a, name), getattr(b, name), f"{where}.{name}")
-    elif isinstance(a, (list, tuple)) or hasattr(a, "tolist"):
-        a, b = list(a), list(b)
-        assert len(a) == len(b), (where, len(a), len(b))
-        for k, (x, y) in enumerate(zip(a, b)):
-            _same(x, y, f"{where}[{k}]")
-    else:
-        assert a == b, (where, a, b)
 
 
 def _check(monitor: Monitor, encoder: OutputEncoder, step) -> int:
@@ -58,7 +42,7 @@ def _check(monitor: Monitor, encoder: OutputEncoder, step) -> int:
     for name in FIELDS:
         data, msg = getattr(ours, name), getattr(theirs, name)
         assert isinstance(data, bytes)
-        _same(deserialize_message(data, type(msg)), msg, name)
+        assert_same_message(deserialize_message(data, type(msg)), msg, name)
         assert len(data) == len(exact_cdr(message_type_name(msg), serialize_message(msg))), name
         assert_rclpy_bytes(message_type_name(msg), data, msg)   # and byte for byte, padding aside
     return 1

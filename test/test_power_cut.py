@@ -50,7 +50,7 @@ def _last_bag_input_ns(bag) -> int:
 
 
 def test_sigkill_at_200_hz_loses_at_most_about_a_second(ros, tmp_path):
-    from test_node_recording import _pose   # consistent (stroke, angle) pairs from the offline kinematics
+    from support.lift_pose import lift_pose   # consistent (stroke, angle) pairs from the offline kinematics
 
     rrd = tmp_path / "live.rrd"
     proc = start_node({"mechanism": "belarus_1221", "record_dir": str(tmp_path / "bags"), "rerun": "save",
@@ -59,7 +59,7 @@ def test_sigkill_at_200_hz_loses_at_most_about_a_second(ros, tmp_path):
     client = MonitorClient()
     try:
         client.wait_for_node()
-        poses = [_pose(0.54 + 0.16 * k / 1199) for k in range(1200)]
+        poses = [lift_pose(0.54 + 0.16 * k / 1199) for k in range(1200)]
         t0 = time.time_ns()
         for k, (stroke, angle) in enumerate(poses):   # up to 6 s at 200 Hz, the node killed while it works
             stamp = t0 + k * 5_000_000
@@ -92,7 +92,7 @@ def test_a_full_disk_under_the_rrd_is_an_error_and_a_clean_exit(ros, tmp_path, t
     """rerun=save onto a 64 KiB filesystem: the write fails within seconds; an ERROR `<node>: recording`
     names the .rrd on /diagnostics, solving and publishing go on (a dropped or closed failed Rerun sink
     would hang the node), Ctrl-C exits 0 with no traceback."""
-    from test_node_recording import _pose
+    from support.lift_pose import lift_pose
 
     rrd = tmpfs("size=64k") / "live.rrd"
     log = tmp_path / "node.log"
@@ -108,7 +108,7 @@ def test_a_full_disk_under_the_rrd_is_an_error_and_a_clean_exit(ros, tmp_path, t
         client.wait_for_node()
         t0 = time.time_ns()
         for k in range(2000):
-            stroke, angle = _pose(0.54 + 0.16 * (k % 200) / 199)
+            stroke, angle = lift_pose(0.54 + 0.16 * (k % 200) / 199)
             stamp = t0 + k * 5_000_000
             client.publish_pressure(PRESSURE_TOPIC, stamp, 9e6 + ATMOSPHERIC_PRESSURE)
             client.publish_joint_state(stamp, JOINTS, [stroke, angle])
@@ -118,7 +118,7 @@ def test_a_full_disk_under_the_rrd_is_an_error_and_a_clean_exit(ros, tmp_path, t
         assert client.spin_until(failed, 10.0), "no ERROR about the full disk under the .rrd"
         solved = len(client.received["hinge_reactions"])
         stamp += 5_000_000   # after the last (the newest stamp of each sensor wins)
-        stroke, angle = _pose(0.6)
+        stroke, angle = lift_pose(0.6)
         client.publish_pressure(PRESSURE_TOPIC, stamp, 9e6 + ATMOSPHERIC_PRESSURE)
         client.publish_joint_state(stamp, JOINTS, [stroke, angle])
         assert client.spin_until(lambda: len(client.received["hinge_reactions"]) > solved, 10), \

@@ -23,7 +23,7 @@ from linkage_monitor.mechanics import Solver, kernels, load_mechanism, load_pres
 from linkage_monitor.mechanics.chain import BODY, CYLINDER, CYLINDER_INPUT, KIND, RRR, STEP_HINGE, STEP_HINGE2, STEP_JOINT
 from linkage_monitor.mechanics.limits import input_limits
 from linkage_monitor.mechanics.reduced import DEAD_CENTRE_TRANSMISSION_DEG, ReducedStatics, transmission
-from test_mechanics_oracles import FIXTURES
+from support.fixtures import FIXTURES
 from transmission_sweep import sweep, table   # tools/transmission_sweep.py
 
 MECHANISMS = {m.name: m for m in [load_preset(name) for name in preset_names()]

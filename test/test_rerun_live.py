@@ -21,7 +21,7 @@ PRESSURE_TOPIC = "pressure/lift_cap_pressure"
 
 @pytest.mark.timeout(300)
 def test_live_rrd_draws_the_linkage(ros, tmp_path):
-    from test_node_recording import _pose   # consistent (stroke, angle) pairs from the offline kinematics
+    from support.lift_pose import lift_pose   # consistent (stroke, angle) pairs from the offline kinematics
 
     rrd = tmp_path / "live.rrd"
     proc = start_node({"mechanism": "belarus_1221", "record": False, "rerun": "save", "rerun_path": str(rrd),
@@ -30,7 +30,7 @@ def test_live_rrd_draws_the_linkage(ros, tmp_path):
     try:
         client.wait_for_node()
         t0 = time.time_ns()
-        poses = [_pose(0.54 + 0.16 * k / 199) for k in range(200)]
+        poses = [lift_pose(0.54 + 0.16 * k / 199) for k in range(200)]
         for k, (stroke, angle) in enumerate(poses):
             stamp = t0 + k * 20_000_000 - (7_000_000 if k % 5 == 3 else 0)   # every 5th a little late
             client.publish_pressure(PRESSURE_TOPIC, stamp, 9e6 + ATMOSPHERIC_PRESSURE)

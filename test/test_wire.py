@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.serialization import deserialize_message
 
 from linkage_monitor.can.frame_msg import FRAME_TYPE, to_cdr
 from linkage_monitor.can.frames import Frame
@@ -30,7 +30,6 @@ from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Monitor
 from linkage_monitor.sim.telemetry import simulate
 from linkage_monitor.wire.compose import STAMP, Column, Composer, Flag, encode
-from linkage_monitor.wire.definitions import exact_cdr
 from linkage_monitor.wire.diagnostics import DIAGNOSTIC_ARRAY, diagnostic_array
 from linkage_monitor.wire.layout import PRIMITIVES, Field, LayoutError, layout
 from linkage_monitor.wire.markers import MARKER_ARRAY, LinkageMarkers
@@ -39,6 +38,7 @@ from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE
 from linkage_monitor.wire.template import Template
 from oracles.markers import LinkageMarkers as OracleMarkers
 from oracles.output_messages import outputs as oracle_outputs
+from support.rclpy_bytes import assert_rclpy_bytes
 
 # every message type the node publishes or the recorder writes (ros/node.py publishers, the replay's writes,
 # the CAN bridge's raw frames)
@@ -87,34 +87,6 @@ def _message(type_name: str, values: Any) -> Any:
             value = [bytes([v]) for v in value] if f.array is not None else bytes([value])
         setattr(msg, f.name, value)
     return msg
-
-
-def _rclpy_values(msg: Any, type_name: str) -> dict[str, Any]:
-    """The values of an rclpy message, by its layout (the inverse of ``_message``)."""
-    found: dict[str, Any] = {}
-    for f in layout(type_name).fields:
-        value = getattr(msg, f.name)
-        if f.nested:
-            value = [_rclpy_values(v, f.kind) for v in value] if f.array is not None else _rclpy_values(value, f.kind)
-        elif f.kind == "byte":
-            value = [v[0] for v in value] if f.array is not None else value[0]
-        elif f.array is not None:
-            value = list(value)
-        found[f.name] = value
-    return found
-
-
-def assert_rclpy_bytes(type_name: str, ours: bytes, msg: Any) -> None:
-    """``ours`` is serialize_message(msg) byte for byte, alignment padding aside (module docstring)."""
-    theirs = bytearray(exact_cdr(type_name, serialize_message(msg)))
-    composer = Composer().message(type_name, _rclpy_values(msg, type_name))
-    assert bytes(composer.data) == ours, f"{type_name}: the template's bytes are not the layout's"
-    for start, end in composer.writer.padding:
-        assert ours[start:end] == bytes(end - start), (type_name, "padding not zero", start)
-        theirs[start:end] = bytes(end - start)
-    assert len(ours) == len(theirs), (type_name, len(ours), len(theirs))
-    differ = [k for k in range(len(ours)) if ours[k] != theirs[k]]
-    assert not differ, f"{type_name}: bytes differ from rclpy's at {differ[:10]}"
 
 
 @pytest.mark.parametrize("type_name", WRITTEN)

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import importlib
+import math
 import random
+import struct
 from typing import Any
 
 CUSTOM_TYPES = ["HingeReaction", "HingeReactions", "CylinderState", "HitchState", "Steerability"]
@@ -60,3 +62,19 @@ def samples(seed: int = 7) -> dict[str, Any]:
     rng = random.Random(seed)
     return {name: sample_message(message_class(f"linkage_monitor/msg/{name}"), rng)
             for name in CUSTOM_TYPES}
+
+
+def assert_same_message(a: object, b: object, where: str = "msg") -> None:
+    """Field-by-field equality of two rclpy messages; floats bit for bit (NaN == NaN)."""
+    if isinstance(a, float):
+        assert struct.pack("<d", a) == struct.pack("<d", b) or (math.isnan(a) and math.isnan(b)), (where, a, b)
+    elif hasattr(a, "get_fields_and_field_types"):
+        for name in a.get_fields_and_field_types():
+            assert_same_message(getattr(a, name), getattr(b, name), f"{where}.{name}")
+    elif isinstance(a, (list, tuple)) or hasattr(a, "tolist"):
+        a, b = list(a), list(b)
+        assert len(a) == len(b), (where, len(a), len(b))
+        for k, (x, y) in enumerate(zip(a, b)):
+            assert_same_message(x, y, f"{where}[{k}]")
+    else:
+        assert a == b, (where, a, b)

@@ -1,16 +1,12 @@
-"""Independent oracles for the mechanics tests (no solver internals): rigid-body motion of
-load points from solved named points, virtual work by central finite differences, and free-body
-sums. Imported by the other test_mechanics_* files; holds no tests itself."""
+"""The statics a solved pose must satisfy, computed without the solver's internals: rigid-body
+motion of load points from solved named points, virtual work by central finite differences, and
+free-body sums. The mechanics tests check the solver against these."""
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 
 from linkage_monitor.mechanics import BatchResult, Mechanism
-
-FIXTURES = Path(__file__).parent / "fixtures"
 
 
 def body_point(mech: Mechanism, batch: BatchResult, body: str, ref_xz: np.ndarray) -> np.ndarray:
@@ -26,14 +22,6 @@ def body_point(mech: Mechanism, batch: BatchResult, body: str, ref_xz: np.ndarra
     r = np.asarray(ref_xz, float) - a0
     c, s = np.cos(theta), np.sin(theta)
     return a + np.column_stack([c * r[0] - s * r[1], s * r[0] + c * r[1]])
-
-
-def body_angle(mech: Mechanism, batch: BatchResult, body: str) -> np.ndarray:
-    """Rotation (N,) rad of ``body`` from the reference pose, from two of its named points."""
-    b = mech.body(body)
-    a0, b0 = mech.points[b.points[0]], mech.points[b.points[1]]
-    d = batch.points[b.points[1]] - batch.points[b.points[0]]
-    return np.unwrap(np.arctan2(d[:, 1], d[:, 0]) - np.arctan2(b0[1], b0[0]) * 0 - np.arctan2(b0[1] - a0[1], b0[0] - a0[0]))
 
 
 def external_loads(mech: Mechanism, batch: BatchResult, skip_implement_weight: bool = False
