@@ -1,5 +1,5 @@
 """The compiled solver (mechanics.kernels behind Solver) equals the frozen numpy solver
-(oracles.numpy_solver, the round-1/2 array implementation) to 1e-9 on every preset and test
+(oracles.numpy_solver, the same formulation as whole-array numpy code) to 1e-9 on every preset and test
 fixture: batched poses scattered around the reference inputs (many fail: off the branch, out of
 reach, NaN), a live sequence of warm-started single solves, kinetostatics from rates, springs and
 ground contacts, and the dead-centre and cannot-assemble verdicts of the failure fixtures.

@@ -2,9 +2,10 @@
 
 - every repository path that README.md and docs/*.md name (in backticks, or as a markdown link)
   exists in the working tree;
-- README, docs and the project's Python files speak of the software, not of the work that made
-  it: no work periods, numbered iterations, tracker numbers or commit hashes (CHANGELOG.md is where
-  history goes, by version);
+- README, docs (their prose and their fenced code blocks), the project's Python files and every
+  file under test/, bench/ and tools/ (this one too) speak of the software, not of the work that
+  made it: no work periods, numbered iterations, tracker numbers, numbered seeds, dates or commit
+  hashes (CHANGELOG.md is where history goes, by version);
 - package.xml and setup.py carry the version of the newest CHANGELOG.md entry;
 - the README's parameter table lists exactly the live node's parameters.
 
@@ -39,8 +40,10 @@ BARE_NAME_EXTENSIONS = {"py", "md", "msg", "sh"}
 WORKSPACE = ("src/", "install/", "build/", "log/", "share/")
 OUTSIDE_REPO = ("/work/", "/home/", "/root/", "/tmp/", "/mnt/")
 
-HISTORY = re.compile(r"\bsessions?\b|\bround \d|\bissue \d|\bissues? #\d|`[0-9a-f]{7,40}`"
-                     r"|\bmeasured on \d|\b20\d\d-[01]\d-[0-3]\d\b", re.IGNORECASE)
+# this file is one of those checked, so the list must not match itself: each word begins with \b,
+# which in the text here is the letter b glued to the word (no word boundary there)
+HISTORY = re.compile(r"\bsessions?\b|\bround[ -]\d|\bissue \d|\bissues? #\d|`[0-9a-f]{7,40}`"
+                     r"|\bmeasured on \d|\b20\d\d-[01]\d-[0-3]\d\b|\bseed 0\d\d\b", re.IGNORECASE)
 # a bare commit hash in prose ("on 27a08e0"): 7-12 lowercase hex characters, digits and letters mixed
 BARE_HASH = re.compile(r"(?<![\w.#/-])(?=[0-9a-f]*\d)(?=[0-9a-f]*[a-f])[0-9a-f]{7,12}(?![\w-])")
 
@@ -157,24 +160,34 @@ def test_the_path_check_sees_a_missing_path() -> None:
         "docs/a_page.md:2: link (no_such_page.md): no such path"]
 
 
+def _is_text(path: Path) -> bool:
+    """A file to read as text: no NUL byte (a recording such as test/fixtures/rerun/*.rrd has them)."""
+    return b"\0" not in path.read_bytes()
+
+
 def _history_files() -> list[Path]:
+    """The docs, every text file under test/, bench/ and tools/, the package's and the launch files'
+    code, the configs and the build files."""
     files = [*DOCS]
     for folder in ("test", "bench", "tools", "linkage_monitor", "launch"):
         for path in sorted((ROOT / folder).rglob("*")):
             rel = path.relative_to(ROOT)
-            if (path.is_file() and (path.suffix in {".py", ".sh"} or folder == "tools")
-                    and not any(rel.is_relative_to(g) for g in GENERATED) and "__pycache__" not in rel.parts
-                    and path != Path(__file__).resolve()):   # this file's own examples of history
+            if (path.is_file() and not SKIP_DIRS.intersection(rel.parts)
+                    and not any(rel.is_relative_to(g) for g in GENERATED)
+                    and (path.suffix in {".py", ".sh"} or folder in {"test", "bench", "tools"} and _is_text(path))):
                 files.append(path)
     files += [ROOT / "config" / p for p in sorted(os.listdir(ROOT / "config")) if p.endswith(".yaml")]
     files += [ROOT / "Makefile", ROOT / "setup.py", ROOT / "CMakeLists.txt", ROOT / "package.xml"]
     return files
 
 
-def _history_hits(path: Path) -> list[str]:
+def _history_hits(path: Path, text: str | None = None) -> list[str]:
+    """The history in the file ``path`` (its ``text``, read from it if not given), line by line; a
+    markdown file is checked whole, its fenced code blocks too, and for bare commit hashes besides."""
     hits = []
     prose = path.suffix == ".md"
-    for lineno, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+    text = path.read_text(encoding="utf-8") if text is None else text
+    for lineno, line in enumerate(text.splitlines(), 1):
         found = [m.group(0) for m in HISTORY.finditer(line)]
         if prose:
             found += [m.group(0) for m in BARE_HASH.finditer(line)]
@@ -190,11 +203,20 @@ def test_no_history_in_docs_and_code() -> None:
 
 
 def test_the_history_check_sees_history() -> None:
-    # the examples are put together here, so that this file itself holds no history words
-    lines = ["Measured in the ninth Ses" + "sion.", "As in rou" + "nd 2.", "See iss" + "ue 11.", "On `27a08e0`.",
-             "On 27a08e0 too.", "measured on 2026-11-24.",
-             "Clean: 0.5 M poses/s, 1e-9, 0x1cfe0b1, 101325 Pa, the issues a user meets."]
-    assert [bool(HISTORY.search(line) or BARE_HASH.search(line)) for line in lines] == [True] * 6 + [False]
+    # the examples are put together here, so that this file itself (one of the files checked) holds none
+    commit = "27a08" + "e0"
+    lines = ["Measured in the ninth Ses" + "sion.", "As in rou" + "nd 2.", "The rou" + "nd-1/2 solver.",
+             "See iss" + "ue 11.", f"On `{commit}`.", f"On {commit} too.", "meas" + "ured on 20" + "26-11-24.",
+             "As in se" + "ed 003.",
+             "Clean: 0.5 M poses/s, 1e-9, 0x1cfe0b1, 101325 Pa, the issues a user meets, round-trip, seed 0, "
+             "2026-01-01T00:00:00Z."]
+    assert [bool(HISTORY.search(line) or BARE_HASH.search(line)) for line in lines] == [True] * 8 + [False]
+
+
+def test_the_history_check_reads_fenced_code_blocks() -> None:
+    doc = ROOT / "docs" / "a_page.md"
+    text = "Prose.\n```sh\ngit checkout 27a08" + "e0   # as of rou" + "nd 3\n```\n"
+    assert _history_hits(doc, text) == ["docs/a_page.md:3: rou" + "nd 3, 27a08" + "e0"]
 
 
 def _newest_changelog_version() -> str:
