@@ -18,6 +18,7 @@ from linkage_monitor.monitoring.events import ConfigEvent, JointStateEvent, Pres
 from linkage_monitor.monitoring.findings import Code
 from linkage_monitor.offline.replay import Summary, _account
 from linkage_monitor.sim.telemetry import Noise, simulate
+from support.monitor_steps import step_by_step
 
 PRESSURE_TOPIC = "/pressure/lift_cap_pressure"
 # configurations that fire every check of a solved pose, with the factor on the measured lift
@@ -52,18 +53,6 @@ def _events():
         events.append(PressureEvent(PRESSURE_TOPIC, factor * float(stream.pressure_values[i, 0]), stamp, stamp))
         events.append(JointStateEvent("joint_states", names, positions, [], stamp, stamp))
     return mech, base, events
-
-
-def step_by_step(mech, config: MonitorConfig, events: list) -> list:
-    """The Steps of ``events`` through ``Monitor.step`` one at a time (a ConfigEvent reconfigures)."""
-    live = Monitor(mech, config)
-    stepped = []
-    for event in events:
-        if isinstance(event, ConfigEvent):
-            live.reconfigure(event.config)
-        else:
-            stepped.append(live.step(event))
-    return stepped
 
 
 def test_step_by_step_and_the_batched_run_give_the_same_steps() -> None:

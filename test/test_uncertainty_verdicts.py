@@ -22,7 +22,7 @@ from linkage_monitor.monitoring.findings import Code, Level
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.events import JointStateEvent, PressureEvent
 from linkage_monitor.sim.telemetry import Noise, simulate
-from test_monitor_paths import step_by_step
+from support.monitor_steps import step_by_step
 
 MECH = load_preset("belarus_1221")
 
