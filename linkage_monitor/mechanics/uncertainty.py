@@ -251,6 +251,13 @@ class UncertaintyModel:
         y0 = self.table.values(result, machine)
         sources: list[Source] = []
         columns: list[np.ndarray] = []
+        per_pascal: dict[str, np.ndarray] = {}   # ∂y/∂p of each pressure sensor, one solve each
+
+        def load_derivative(sensor: str) -> np.ndarray:
+            if sensor not in per_pascal:
+                per_pascal[sensor] = self._load_derivative(inputs, result, y0, "pressures", sensor)
+            return per_pascal[sensor]
+
         units = {"cylinders": "m", "angles": "rad", "pressures": "Pa"}
         for kind in ("cylinders", "angles", "pressures"):
             for name, value in getattr(inputs, kind).items():
@@ -258,7 +265,7 @@ class UncertaintyModel:
                 parts = {part: u for part, u in error.components().items() if u > 0.0}
                 if not parts:
                     continue
-                d = (self._load_derivative(inputs, result, y0, kind, name) if kind == "pressures"
+                d = (load_derivative(name) if kind == "pressures"
                      else self._pose_derivative(inputs, result, kind, name, value, pose_step(error.total)))
                 for part, u in parts.items():
                     sources.append(Source(f"{name} {part}", name, part, u, units[kind]))
@@ -266,7 +273,7 @@ class UncertaintyModel:
         used = {}
         for sensor, cylinder, u in self._friction(inputs, result, motions):
             used[cylinder] = motions[cylinder]
-            d = self._load_derivative(inputs, result, y0, "pressures", sensor) / force_per_pressure(self.mech, sensor)
+            d = load_derivative(sensor) / force_per_pressure(self.mech, sensor)
             sources.append(Source(f"{cylinder} seal friction", cylinder, "friction", u, "N"))
             columns.append(d * u)
         if self.sources.implement_mass > 0.0 and self.mech.implement is not None:
