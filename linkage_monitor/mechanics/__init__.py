@@ -15,11 +15,12 @@ from .errors import (AssemblyError, DeadCentreError, InputError, LinkageError, M
                      UnobservableError)
 
 if TYPE_CHECKING:
+    from .inputs import Inputs
     from .model import Mechanism
     from .presets import load_description, load_preset, preset_description, preset_names, preset_path
     from .results import BatchResult, ContactResult, CylinderResult, HingeResult, Result, Status
     from .schema import apply_overrides, load_mechanism, mechanism_from_dict, mechanism_from_text
-    from .solver import Inputs, Solver
+    from .solver import Solver
 
 _LAZY = {**dict.fromkeys(("Mechanism",), ".model"),
          **dict.fromkeys(("load_description", "load_preset", "preset_description", "preset_names", "preset_path"),
@@ -27,7 +28,7 @@ _LAZY = {**dict.fromkeys(("Mechanism",), ".model"),
          **dict.fromkeys(("BatchResult", "ContactResult", "CylinderResult", "HingeResult", "Result", "Status"),
                          ".results"),
          **dict.fromkeys(("apply_overrides", "load_mechanism", "mechanism_from_dict", "mechanism_from_text"), ".schema"),
-         **dict.fromkeys(("Inputs", "Solver"), ".solver")}
+         "Inputs": ".inputs", "Solver": ".solver"}
 
 
 def __getattr__(name: str) -> Any:

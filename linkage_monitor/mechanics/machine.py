@@ -19,11 +19,13 @@ import numpy as np
 
 from . import kernels
 from .capacity import capacity_force, capacity_points, lift_cylinder, reference_length
+from .inputs import ArrayMap, Inputs
 from .kinematics import KinematicState
 from .model import Mechanism, Tractor
 from .programs import ROW_SCALARS, MachineProgram, ValueRow
 from .results import BatchResult, Status, Result
-from .solver import ArrayMap, Inputs, Series, Solver
+from .series import Series
+from .solver import Solver
 
 _EMPTY = np.zeros(0)
 STEERABILITY_KEYS = kernels.STEERABILITY_COLUMNS   # front_axle_load, rear_axle_load, total_weight, wheelbase, ratio,

@@ -19,7 +19,8 @@ from .machine import MachineModel
 from .presets import load_preset, preset_names
 from .errors import LinkageError
 from .results import Status
-from .solver import Inputs, Solver
+from .inputs import Inputs
+from .solver import Solver
 
 
 def compiled_kernels() -> int:

@@ -1,0 +1,111 @@
+"""The general path of a solve: N poses as whole arrays (assembly by ``Kinematics.solve``, the
+statics along the chain of dyads or as one linear system), every verdict worded — a bad input, a
+pose that does not assemble, a dead centre, a contact lifting off.
+
+SI units (m, rad, N, Pa); frame x forward, z up, origin at the rear wheels' ground contact B.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from . import kernels
+from .inputs import ArrayMap
+from .kinematics import KinematicState
+from .model import Mechanism
+from .reduced import ReducedSolution, ReducedStatics, smallest_sine
+from .results import BatchResult, Status
+from .statics import StaticsLayout, StaticsSolution
+
+if TYPE_CHECKING:
+    from .solver import Solver
+
+
+def solve_general(solver: Solver, previous: KinematicState | None, cylinders: ArrayMap, angles: ArrayMap,
+                  pressures: ArrayMap, rates: ArrayMap, accelerations: ArrayMap, *, reach: bool = True
+                  ) -> tuple[BatchResult, KinematicState]:
+    """N poses (arrays (N,), scalars broadcast) solved by ``solver``'s mechanism from ``previous`` (or
+    the reference pose): the BatchResult with each pose's verdict and message, and the kinematic
+    state a solve continues from. ``reach``: as ``Kinematics.solve``'s."""
+    mech, kin, checks = solver.mech, solver.kin, solver.checks
+    n_pose, arrays = checks.arrays(cylinders, angles, pressures, rates, accelerations)
+    s = checks.matrix(arrays, n_pose, "inputs")
+    problems, bad = checks.problems(s, arrays)
+    s_clean = np.where(bad[:, None], kin.reference_inputs(), s)
+    sensors = solver.sensors
+    force_known = frozenset(sensors[n].cylinder for n in arrays["pressures"])
+    reduced = solver.reduced[force_known]   # served: its transmission measure is the dead-centre verdict
+    ks = kin.solve(s_clean, previous, None if reduced.served else solver.dead_centre_cond, solver.consistency_tol,
+                   reach)
+    status, messages = ks.status.copy(), list(ks.messages)
+    for i in np.flatnonzero(bad):
+        status[i], messages[i] = Status.INPUT, problems[i]
+    p, rel = kin.positions(ks.q)
+    accel = None
+    input_rates = checks.rate_matrices(arrays, n_pose)
+    if input_rates is not None:
+        q_dot, q_ddot = kin.rates(ks.q, *input_rates)
+        linear, _ = kin.point_rates(q_ddot, rel)
+        _, centripetal = kin.point_rates(q_dot, rel)
+        accel = (linear + centripetal, q_ddot[:, 2::3])
+    cap_pressures, rod_pressures = solver.chamber_pressures(arrays["pressures"], n_pose)
+    measured_force = kernels.measured_forces(cap_pressures, rod_pressures, solver.force_areas)
+    measured_force[:, [k for k, c in enumerate(mech.cylinders) if c.name not in force_known]] = np.nan
+    cap = {c.name: cap_pressures[:, k] for k, c in enumerate(mech.cylinders)}
+    rod = {c.name: rod_pressures[:, k] for k, c in enumerate(mech.cylinders)}
+    layout = solver.statics_layout(force_known)
+    sol: StaticsSolution | ReducedSolution
+    if reduced.served:   # along the chain of dyads; a dead centre where the transmission is lost
+        sol = reduced.solve(p, measured_force, accel)
+        sine, weakest = sol.transmission.sine, sol.transmission.weakest
+        smallest = smallest_sine(sine, weakest)
+        names = weakest_names(reduced, weakest)
+        for i in np.flatnonzero((status == Status.OK) & ~(smallest >= solver.dead_centre_sine)):
+            status[i] = Status.DEAD_CENTRE
+            messages[i] = (f"dead centre at {kin.describe_inputs(s[i])}: transmission angle "
+                           f"{math.degrees(math.asin(smallest[i])):.3g} deg at {names[i]} < "
+                           f"{solver.dead_centre_transmission_deg:g} deg (the linkage cannot hold a load there; "
+                           f"forces would be unbounded)")
+        angle, statics_condition = np.arcsin(smallest), np.full(n_pose, np.nan)
+    else:   # one linear system; a dead centre where it is near-singular
+        general = sol = layout.solve(p, measured_force, accel)
+        for i in np.flatnonzero((status == Status.OK) & ~(general.condition <= solver.dead_centre_cond)):
+            status[i] = Status.DEAD_CENTRE
+            messages[i] = (f"static dead centre at {kin.describe_inputs(s[i])}: equilibrium matrix condition "
+                           f"number {general.condition[i]:.3g} > {solver.dead_centre_cond:.3g} (a member is "
+                           f"aligned with a hinge; forces would be unbounded)")
+        angle, names, statics_condition = np.full(n_pose, np.nan), [""] * n_pose, general.condition
+    u = sol.unknowns
+    lift_off_verdicts(mech, layout, u, status, messages)
+    failed = status >= Status.INPUT
+    q = np.where(failed[:, None], np.nan, ks.q)   # a copy: the state's q is where a solve continues
+    if failed.any():   # no values of a failed pose (u and p are this solve's own arrays)
+        u[failed], p[failed] = np.nan, np.nan
+        names = np.where(failed, "", np.array(names, dtype=object)).tolist()
+    batch = solver.result_layout.batch(n_pose, q, p, u, sol, layout, measured_force, cap, rod, failed)
+    batch.status, batch.messages = status, messages
+    batch.consistency_residual = np.where(failed, np.nan, np.linalg.norm(ks.phi, axis=1))
+    batch.condition = np.fmax(statics_condition, ks.condition)
+    batch.transmission_angle = np.where(failed, np.nan, angle)
+    batch.weakest_transmission = names
+    return batch, ks
+
+
+def lift_off_verdicts(mech: Mechanism, layout: StaticsLayout, u: np.ndarray, status: np.ndarray,
+                      messages: list[str]) -> None:
+    """Status LIFT_OFF and its message, in place, for each pose still OK where a contact's normal
+    force (N, from the unknowns u (N, n_unknowns) in ``layout``) would pull."""
+    for contact in mech.contacts:
+        normal = u[:, layout.contact_col[contact.name]]
+        for i in np.flatnonzero((status == Status.OK) & (normal < 0.0)):
+            status[i] = Status.LIFT_OFF
+            messages[i] = f"contact '{contact.name}' lifts off: its normal force would be {normal[i]:.1f} N (pulling)"
+
+
+def weakest_names(reduced: ReducedStatics, weakest: np.ndarray) -> list[str]:
+    """The name of each pose's weakest transmission measure (``ReducedStatics.measure_names``; '' for −1)."""
+    names = np.array([*reduced.measure_names, ""], dtype=object)   # index −1: ''
+    return names[weakest].tolist()

@@ -1,0 +1,178 @@
+"""The live path of a solve: the usual pose in one compiled call (``kernels.live_series`` of one
+pose), its rows written straight into a ``Result``; and the programs that call takes, built once
+per statics layout and machine program.
+
+SI units (m, rad, N, Pa); frame x forward, z up, origin at the rear wheels' ground contact B.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, NamedTuple
+
+import numpy as np
+
+from . import kernels
+from .constants import ATMOSPHERIC_PRESSURE   # a gauge pressure below −1 atm is a negative absolute pressure
+from .inputs import Inputs
+from .kinematics import KinematicState
+from .programs import POSE_VALUES, LivePrograms, MachineProgram, OutputsProgram, fields
+from .results import Result, Status
+from .row_pool import RowPool
+from .statics import StaticsLayout
+
+if TYPE_CHECKING:
+    from .solver import Solver
+
+_SOLVED = np.zeros(1, dtype=int)   # KinematicState.status of one solved pose (shared, read-only)
+_SOLVED.flags.writeable = False
+POSE_NAMES: tuple[str, ...] = POSE_VALUES.names or ()   # LiveRows.pose's fields
+_OK = Status.OK.label
+
+
+class SolvedPose(NamedTuple):
+    """``Solver.solve_with_machine``'s answer: the pose, and when the compiled call solved it its
+    machine-level rows in ``MachineModel``'s key order and its value row (``programs.ValueRow``)
+    (None: the general path solved the pose; ``MachineModel.evaluate`` gives the machine-level rows)."""
+
+    result: Result
+    steerability: np.ndarray | None
+    capacity: np.ndarray | None
+    values: np.ndarray | None
+
+
+class PlainLive(NamedTuple):
+    """What ``LivePath.solve`` takes for one set of pressure sensors and one machine program: the
+    machine program (kept: the cache's key holds its id), the ``LivePrograms``, the transmission
+    measures' names (then '' for none, index −1), the rows it solves into."""
+
+    machine: MachineProgram
+    programs: LivePrograms
+    measure_names: list[str]
+    rows: RowPool
+
+
+class LivePath:
+    """The compiled live path of ``solver``'s mechanism, with the programs and rows it builds once."""
+
+    def __init__(self, solver: Solver) -> None:
+        self._solver = solver
+        mech, kin = solver.mech, solver.kin
+        self._angle_reference = kin.angle_reference.tolist()   # rad, the angle inputs' readings in the reference pose
+        self._cylinder_index = {c.name: k for k, c in enumerate(mech.cylinders)}
+        self._per_cap_area = np.array([1.0 / (c.count * c.cap_area) for c in mech.cylinders])
+        self._friction = np.array([c.friction for c in mech.contacts])
+        self._outputs_programs: dict[frozenset[str], OutputsProgram] = {}
+        self._plain: dict[tuple[tuple[str, ...], int], PlainLive] = {}   # (pressure sensors, id(machine)) -> solve's
+        self._live_programs: dict[tuple[frozenset[str], int], tuple[MachineProgram, LivePrograms]] = {}
+
+    def outputs_program(self, layout: StaticsLayout) -> OutputsProgram:
+        """What ``kernels.live_series`` needs, beyond the layout's own program, to write a Result's
+        arrays for poses solved with ``layout`` (its ``outputs``; built once per layout)."""
+        program = self._outputs_programs.get(layout.force_known)
+        if program is None:
+            solver = self._solver
+            mech, results = solver.mech, solver.result_layout
+            imp = mech.implement
+            reduced = solver.reduced[layout.force_known]
+            program = OutputsProgram(
+                n_unknowns=layout.n_unknowns, spring_stiffness=layout.spring_stiffness.astype(float),
+                spring_free_length=layout.spring_free_length.astype(float),
+                spring_preload=layout.spring_preload.astype(float),
+                hinge_cols=np.ascontiguousarray(layout.hinge_cols, dtype=np.int64),
+                force_measured=layout.force_measured.astype(np.bool_), cylinder_cols=layout.cylinder_cols.astype(np.int64),
+                contact_cols=layout.contact_cols.astype(np.int64),
+                implement_col=layout.implement_col if layout.implement_col is not None else -1,
+                implement_weight=float(imp.mass * mech.gravity if imp is not None else math.nan),
+                per_cap_area=self._per_cap_area, force_areas=solver.force_areas, friction=self._friction.astype(float),
+                point_rows=results.point_rows.astype(np.int64),
+                cg_att=results.cg_att if results.cg_att is not None else -1,
+                frame_att=results.frame_att.astype(np.int64),
+                frame_hinge_index=results.frame_hinge_index.astype(np.int64),
+                frame_hinge_sign=results.frame_hinge_sign.ravel().astype(float),
+                frame_member_index=results.frame_member_index.astype(np.int64),
+                frame_member_sign=results.frame_member_sign.ravel().astype(float),
+                reduced=reduced.served, dead_centre_sine=solver.dead_centre_sine,
+                measure_count=len(reduced.measure_names))
+            self._outputs_programs[layout.force_known] = program
+        return program
+
+    def live_programs(self, layout: StaticsLayout, machine: MachineProgram) -> LivePrograms:
+        """The ``LivePrograms`` ``kernels.live_series`` takes for poses solved with ``layout`` and the
+        machine-level rows of ``machine`` (``MachineModel.program`` or ``kernels.NO_MACHINE``), built
+        once per layout and machine program."""
+        key = (layout.force_known, id(machine))
+        held = self._live_programs.get(key)
+        if held is None or held[0] is not machine:   # the machine kept with it: its id is not reused
+            solver = self._solver
+            programs = kernels.live_programs(fields(solver.kin.program), fields(layout.program),
+                                             fields(self.outputs_program(layout)),
+                                             fields(solver.reduced[layout.force_known].program), fields(machine))
+            held = self._live_programs[key] = (machine, programs)
+        return held[1]
+
+    def solve(self, inputs: Inputs, start: KinematicState | None, machine: MachineProgram) -> SolvedPose | None:
+        """The usual live pose in one compiled call (``kernels.live_series`` of one pose): every input given, finite
+        and in range, no rates, assembled on the reference branch from ``start`` (or the reference
+        pose), no dead centre, no contact lifting off. None for anything else: the general path then
+        solves the pose and words what is wrong. Gives what it and ``MachineModel.evaluate`` would
+        (test_mechanics_fast_paths.py)."""
+        solver = self._solver
+        kin = solver.kin
+        if inputs.rates or inputs.accelerations or len(inputs.cylinders) + len(inputs.angles) != kin.n_inputs:
+            return None
+        nc = kin.cyl_att.shape[1]
+        sensors = solver.sensors
+        try:
+            values = [float(inputs.cylinders[n]) if j < nc else float(inputs.angles[n])
+                      for j, n in enumerate(kin.input_names)]
+            pressures = [(sensors[n], float(v)) for n, v in inputs.pressures.items()]
+        except (KeyError, TypeError, ValueError):
+            return None
+        if not (all(math.isfinite(v) for v in values) and all(v > 0.0 for v in values[:nc])
+                and all(math.isfinite(v) and v >= -ATMOSPHERIC_PRESSURE for _, v in pressures)):
+            return None
+        for j, reference in enumerate(self._angle_reference, start=nc):   # kin.wrap_angles on floats
+            values[j] = reference + ((values[j] - reference + math.pi) % (2.0 * math.pi) - math.pi)
+        cylinders = solver.mech.cylinders
+        cap, rod = [math.nan] * len(cylinders), [math.nan] * len(cylinders)
+        for ps, value in pressures:
+            (cap if ps.chamber == "cap" else rod)[self._cylinder_index[ps.cylinder]] = value
+        live = self._plain_live(tuple(inputs.pressures), machine)
+        block, i = live.rows.take()
+        rows, s = block.rows, block.s
+        s[i] = values
+        block.pressures[i] = cap, rod
+        start = start if start is not None else kin.reference
+        kernels.live_series(live.programs, block.buffer, start.q[-1:], start.s[-1:], solver.assembly_limit,
+                            solver.dead_centre_cond, i, i + 1)
+        if not rows.plain[i]:
+            return None
+        q = rows.q[i:i + 1]
+        state = KinematicState(s=s[i:i + 1], q=q, phi=rows.phi[i:i + 1], status=_SOLVED, messages=[""],
+                               condition=rows.kinematic_condition[i:i + 1])
+        pose = dict(zip(POSE_NAMES, rows.pose[i].item()))   # Python floats by name, in one call
+        return SolvedPose(Result(solver.names, rows.point_xz[i], q[0].reshape(-1, 3), rows.hinge_force[i],
+                                 rows.cylinder_values[i], rows.contact_values[i], pose["implement_load"],
+                                 rows.implement_cg[i], rows.frame_load_points[i], rows.frame_load_forces[i],
+                                 pose["residual"], pose["consistency_residual"], pose["condition"],
+                                 pose["largest_force"], _OK, state=state,
+                                 transmission_angle=pose["transmission_angle"],
+                                 weakest_transmission=live.measure_names[pose["weakest"]]),
+                          rows.steerability[i], rows.capacity[i], rows.values[i])
+
+    def _plain_live(self, sensors: tuple[str, ...], machine: MachineProgram) -> PlainLive:
+        """``solve``'s programs and rows for the pressure sensors ``sensors`` (in the order the inputs
+        give them) and ``machine``, built once for each."""
+        key = (sensors, id(machine))
+        live = self._plain.get(key)
+        if live is None or live.machine is not machine:   # the machine kept with it: its id is not reused
+            solver = self._solver
+            layout = solver.statics_layout(frozenset(solver.sensors[n].cylinder for n in sensors))
+            outputs, kin = self.outputs_program(layout), solver.kin
+            live = self._plain[key] = PlainLive(
+                machine=machine, programs=self.live_programs(layout, machine),
+                measure_names=[*solver.reduced[layout.force_known].measure_names, ""],
+                rows=RowPool(lambda n_pose: kernels.live_rows(n_pose, kin.n, kin.m, outputs, machine),
+                             kin.n_inputs, len(solver.mech.cylinders)))
+        return live

@@ -1,0 +1,118 @@
+"""Where a solved pose's numbers go in its result: the attachments of the named points and the
+implement cg, the frame loads (frame-side hinges and member mounts), the result's names; and the
+``BatchResult`` of poses whose unknowns a statics solve gave.
+
+SI units (m, N, Pa); frame x forward, z up, origin at the rear wheels' ground contact B.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from . import kernels
+from .model import Mechanism
+from .reduced import ReducedSolution
+from .results import BatchResult, ResultNames
+from .statics import StaticsLayout, StaticsSolution
+
+
+class Attaching(Protocol):
+    """What the layout takes of a kinematics: the index of a point fixed on a body."""
+
+    def attach(self, body: str, key: str, position: np.ndarray | None = None) -> int: ...
+
+
+class ResultLayout:
+    """The result layout of one mechanism, built once: attachments of ``mech.points`` and the
+    implement cg, the frame loads (``frame_load_names``: frame-side hinges, then the frame-side ends
+    of springs and cylinders) and the names of a ``Result``'s rows; the same as index arrays for the
+    compiled outputs (``Solver.outputs_program``)."""
+
+    def __init__(self, mech: Mechanism, kin: Attaching) -> None:
+        self.mech = mech
+        self.point_att: dict[str, int] = {}
+        for name in mech.points:
+            owner = next((b for b in mech.moving_bodies if name in b.points), mech.ground)
+            self.point_att[name] = kin.attach(owner.name, name)
+        self.cg_att = kin.attach(mech.implement.body, f"cg of {mech.implement.body}") if mech.implement else None
+        ground = mech.ground.name
+        self.frame_load_names: list[str] = []
+        self.frame_hinges: list[tuple[int, int, float]] = []   # (hinge index, attachment, sign of the force on the ground)
+        for i, h in enumerate(mech.hinges):
+            if ground in h.bodies:
+                self.frame_hinges.append((i, kin.attach(ground, h.point), 1.0 if h.bodies[1] == ground else -1.0))
+                self.frame_load_names.append(f"hinge {h.name}")
+        self.frame_members: list[tuple[int, int, float]] = []   # (member index: springs then cylinders, attachment, sign)
+        members = [(s.name, s.a, s.b) for s in mech.springs] + [(c.name, c.base, c.rod_end) for c in mech.cylinders]
+        for m, (name, a, b) in enumerate(members):
+            for end, sign in ((a, -1.0), (b, 1.0)):
+                if end.body == ground:
+                    self.frame_members.append((m, kin.attach(ground, end.point), sign))
+                    self.frame_load_names.append(f"{name} {end.point}")
+        self.point_rows = np.array(list(self.point_att.values()), dtype=np.intp)   # attachments of mech.points
+        # the frame loads of one pose as index arrays: hinges, then member ends
+        self.frame_att = np.array([a for _, a, _ in self.frame_hinges] + [a for _, a, _ in self.frame_members],
+                                  dtype=np.intp)
+        self.frame_hinge_index = np.array([i for i, _, _ in self.frame_hinges], dtype=np.intp)
+        self.frame_hinge_sign = np.array([[sg] for _, _, sg in self.frame_hinges]).reshape(-1, 1)
+        self.frame_member_index = np.array([m for m, _, _ in self.frame_members], dtype=np.intp)
+        self.frame_member_sign = np.array([[sg] for _, _, sg in self.frame_members]).reshape(-1, 1)
+        self.names = ResultNames(tuple(self.point_att), tuple(b.name for b in mech.moving_bodies),
+                                 tuple((h.name, h.bodies[1], h.bodies[0]) for h in mech.hinges),
+                                 tuple(c.name for c in mech.cylinders), tuple(c.name for c in mech.contacts))
+
+    def batch(self, n_pose: int, q: np.ndarray, p: np.ndarray, u: np.ndarray,
+              sol: StaticsSolution | ReducedSolution, layout: StaticsLayout, measured_force: np.ndarray,
+              cap: dict[str, np.ndarray], rod: dict[str, np.ndarray], failed: np.ndarray) -> BatchResult:
+        """The ``BatchResult`` of N poses: body coordinates q (N, n), attachment positions p (N, K, 2) m,
+        the statics' unknowns u (N, n_unknowns) and solution ``sol`` in ``layout``, the measured
+        cylinder forces (N, C) N, the chambers' gauge pressures (N,) Pa by cylinder, which poses
+        failed (N,). Verdicts, messages, residuals and transmission angles are the caller's to set."""
+        mech = self.mech
+        cyl_force = {}
+        for k, c in enumerate(mech.cylinders):
+            f = measured_force[:, k] if c.name in layout.force_known else u[:, layout.cyl_col[c.name]]
+            cyl_force[c.name] = np.where(failed, np.nan, f)
+        hinge_force = {h.name: u[:, layout.hinge_cols[i]] for i, h in enumerate(mech.hinges)}
+        contact_n = {c.name: u[:, layout.contact_col[c.name]] for c in mech.contacts}
+        imp = mech.implement
+        if layout.implement_col is not None:
+            imp_load = u[:, layout.implement_col]
+        elif imp is not None:
+            imp_load = np.where(failed, np.nan, imp.mass * mech.gravity)
+        else:
+            imp_load = np.full(n_pose, np.nan)
+        member_force = np.concatenate([sol.spring_force, np.column_stack(list(cyl_force.values()))
+                                       if cyl_force else np.zeros((n_pose, 0))], axis=1)
+        axes = np.concatenate([sol.spring_axis, sol.cylinder_axis], axis=1)
+        fl_points, fl_forces = [], []
+        for i, att, sign in self.frame_hinges:
+            fl_points.append(p[:, att])
+            fl_forces.append(sign * hinge_force[mech.hinges[i].name])
+        for m, att, sign in self.frame_members:
+            fl_points.append(p[:, att])
+            fl_forces.append(sign * member_force[:, m, None] * axes[:, m])
+        shape = (n_pose, 0, 2)
+        hinges = np.stack(list(hinge_force.values()), axis=1) if hinge_force else np.zeros(shape)
+        largest = kernels.largest_forces(hinges, np.ascontiguousarray(member_force[:, sol.spring_force.shape[1]:]))
+        return BatchResult(
+            points={n: p[:, a] for n, a in self.point_att.items()},
+            body_poses={b.name: q[:, 3 * i:3 * i + 3] for i, b in enumerate(mech.moving_bodies)},
+            hinge_force=hinge_force, hinge_bodies={h.name: h.bodies for h in mech.hinges},
+            cylinder_length={c.name: np.where(failed, np.nan, sol.cylinder_length[:, k]) for k, c in enumerate(mech.cylinders)},
+            cylinder_force=cyl_force,
+            cap_pressure_predicted={c.name: cyl_force[c.name] / (c.count * c.cap_area) for c in mech.cylinders},
+            cap_pressure_measured=cap, rod_pressure_measured=rod,
+            contact_normal=contact_n,
+            contact_tangential={c.name: c.friction * contact_n[c.name] for c in mech.contacts},
+            implement_load=imp_load,
+            implement_cg=p[:, self.cg_att] if self.cg_att is not None else np.full((n_pose, 2), np.nan),
+            frame_load_names=list(self.frame_load_names),
+            frame_load_points=np.stack(fl_points, axis=1) if fl_points else np.zeros(shape),
+            frame_load_forces=np.stack(fl_forces, axis=1) if fl_forces else np.zeros(shape),
+            residual=np.where(failed, np.nan, sol.residual), consistency_residual=np.zeros(n_pose),
+            condition=np.zeros(n_pose), largest_force=largest, status=np.zeros(n_pose, dtype=int),
+            messages=[""] * n_pose,
+            transmission_angle=np.full(n_pose, np.nan), weakest_transmission=[""] * n_pose)
