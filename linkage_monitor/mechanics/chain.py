@@ -70,7 +70,7 @@ def decompose(mech: Mechanism, body_index: dict[str, int], hinge_att: np.ndarray
     """The chain of ``mech`` from its measured inputs: (int table (S, CHAIN_INT), float table
     (S, CHAIN_FLOAT), a line per step for people). Empty tables when some body stays unplaced.
 
-    Rules, applied until none does (cylinders before angles, as ``Kinematics._driving_system``
+    Rules, applied until none does (cylinders before angles, as ``KinematicLayout.driving_rows``
     chooses the driving inputs): a body hinged to a placed body, turned by a measured cylinder from
     a placed body or by an angle sensor on that hinge; two bodies hinged to each other and each to a
     placed body. ``hinge_att`` (2, H) and ``cyl_att`` (2, C) are the attachments of the hinges'

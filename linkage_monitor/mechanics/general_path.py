@@ -14,6 +14,7 @@ import numpy as np
 
 from . import kernels
 from .inputs import ArrayMap
+from .kinematic_layout import KinematicLayout
 from .kinematics import KinematicState
 from .model import Mechanism
 from .reduced import ReducedSolution, ReducedStatics, smallest_sine
@@ -72,11 +73,7 @@ def solve_general(solver: Solver, previous: KinematicState | None, cylinders: Ar
         angle, statics_condition = np.arcsin(smallest), np.full(n_pose, np.nan)
     else:   # one linear system; a dead centre where it is near-singular
         general = sol = layout.solve(p, measured_force, accel)
-        for i in np.flatnonzero((status == Status.OK) & ~(general.condition <= solver.dead_centre_cond)):
-            status[i] = Status.DEAD_CENTRE
-            messages[i] = (f"static dead centre at {kin.describe_inputs(s[i])}: equilibrium matrix condition "
-                           f"number {general.condition[i]:.3g} > {solver.dead_centre_cond:.3g} (a member is "
-                           f"aligned with a hinge; forces would be unbounded)")
+        static_dead_centre_verdicts(kin, s, general.condition, solver.dead_centre_cond, status, messages)
         angle, names, statics_condition = np.full(n_pose, np.nan), [""] * n_pose, general.condition
     u = sol.unknowns
     lift_off_verdicts(mech, layout, u, status, messages)
@@ -92,6 +89,17 @@ def solve_general(solver: Solver, previous: KinematicState | None, cylinders: Ar
     batch.transmission_angle = np.where(failed, np.nan, angle)
     batch.weakest_transmission = names
     return batch, ks
+
+
+def static_dead_centre_verdicts(kin: KinematicLayout, s: np.ndarray, condition: np.ndarray, limit: float,
+                                status: np.ndarray, messages: list[str]) -> None:
+    """Status DEAD_CENTRE and its message, in place, for each pose still OK (inputs s (N, n_inputs))
+    whose equilibrium matrix's condition number (N,) is above ``limit``."""
+    for i in np.flatnonzero((status == Status.OK) & ~(condition <= limit)):
+        status[i] = Status.DEAD_CENTRE
+        messages[i] = (f"static dead centre at {kin.describe_inputs(s[i])}: equilibrium matrix condition "
+                       f"number {condition[i]:.3g} > {limit:.3g} (a member is aligned with a hinge; forces "
+                       f"would be unbounded)")
 
 
 def lift_off_verdicts(mech: Mechanism, layout: StaticsLayout, u: np.ndarray, status: np.ndarray,

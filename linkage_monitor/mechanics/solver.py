@@ -26,7 +26,7 @@ from .reduced import DEAD_CENTRE_TRANSMISSION_DEG, ReducedStatics
 from .result_layout import ResultLayout
 from .results import BatchResult, Result, Status
 from .series import Series
-from .statics import StaticsLayout
+from .statics import StaticsLayout, layouts_by_measured_forces
 
 __all__ = ["ArrayMap", "Inputs", "Series", "SolvedPose", "Solver"]
 
@@ -51,11 +51,7 @@ class Solver:
         self.kin = kin = Kinematics(mech)
         check_observable(mech, kin)
         self.checks = InputChecks(mech, kin)
-        # one statics layout per set of force-measured cylinders, all built now (attachments fixed)
-        gauged = sorted({ps.cylinder for ps in mech.measurements.pressures})
-        self._layouts = {frozenset(c for k, c in enumerate(gauged) if bits >> k & 1):
-                         StaticsLayout(mech, kin, frozenset(c for k, c in enumerate(gauged) if bits >> k & 1))
-                         for bits in range(2 ** len(gauged))}
+        self._layouts = layouts_by_measured_forces(mech, kin)
         # the reduced-coordinate statics of each layout; ``served`` says whether it takes the layout's poses
         self.reduced: dict[frozenset[str], ReducedStatics] = {
             known: ReducedStatics(kin, layout) for known, layout in self._layouts.items()}
@@ -146,10 +142,7 @@ class Solver:
 
     def statics_layout(self, force_known: frozenset[str]) -> StaticsLayout:
         """The equilibrium layout with the forces of these cylinders measured (UnobservableError if it is not determined)."""
-        layout = self._layouts[force_known]
-        if layout.null_space_error is not None:
-            raise layout.null_space_error
-        return layout
+        return self._layouts[force_known].determined()
 
     def chamber_pressures(self, pressures: Mapping[str, np.ndarray], n_pose: int) -> tuple[np.ndarray, np.ndarray]:
         """The cap and rod gauge pressures (N, C) Pa of every cylinder from the pressure sensors'

@@ -113,6 +113,12 @@ class StaticsLayout:
         self.t_sign[cyl_t] = cyl_s
         self.null_space_error: UnobservableError | None = self._check_observable()
 
+    def determined(self) -> StaticsLayout:
+        """This layout, where its statics determine every unknown; else its UnobservableError raised."""
+        if self.null_space_error is not None:
+            raise self.null_space_error
+        return self
+
     # ---- known loads --------------------------------------------------------------------------
     def _build_known_terms(self) -> None:
         """Attachments and bodies of gravity, constant loads, springs and measured cylinders."""
@@ -247,3 +253,13 @@ class StaticsLayout:
             f"{self.mech.file}: the statics leave {null.shape[0]} load(s) undetermined ({self.n_unknowns} unknowns, "
             f"{self.n_eq} equations, rank {self.n_unknowns - null.shape[0]}); unknowns in the null space: "
             f"{', '.join(names)}. Measure a cylinder force (pressures; measured now: {known}) or remove a member.")
+
+
+def layouts_by_measured_forces(mech: Mechanism, kin: Kinematics, layout: type[StaticsLayout] = StaticsLayout
+                               ) -> dict[frozenset[str], StaticsLayout]:
+    """One ``layout`` per set of force-measured cylinders — every subset of the cylinders with a
+    pressure sensor, keyed by their names — all built at once (so the attachments they add are fixed)."""
+    gauged = sorted({ps.cylinder for ps in mech.measurements.pressures})
+    subsets = [frozenset(c for k, c in enumerate(gauged) if bits >> k & 1) for bits in range(2 ** len(gauged))]
+    return {known: layout(mech, kin, known) for known in subsets}
+

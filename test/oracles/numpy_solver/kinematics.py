@@ -1,10 +1,7 @@
-"""Test oracle (frozen numpy implementation, see __init__). Batched position, velocity and acceleration analysis of a planar linkage.
-
-Coordinates: (x, z, θ) per moving body: (x, z) the position (m) of the body's origin (the
-centroid of its points in the reference pose), θ its rotation from the reference pose (rad,
-from +x towards +z). Constraints (rows, all in metres): hinge coincidence (2 per hinge),
-measured cylinder lengths, measured relative angles (scaled by the length scale ``lc``).
-Every function works on a stack of N poses.
+"""Test oracle (the numpy implementation, see __init__): batched position, velocity and acceleration
+analysis of a planar linkage — its own equations, in complex numbers, over the package's index
+structure (``KinematicLayout``: coordinates, attachments, constraint rows, the loops' structure,
+the verdicts' wording). Every function works on a stack of N poses.
 """
 
 from __future__ import annotations
@@ -12,31 +9,23 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components, maximum_bipartite_matching
 
-from .linalg import condition_1, det_sign_and_condition, solve_square
+from linkage_monitor.mechanics import kinematics
+from linkage_monitor.mechanics.kinematic_layout import KinematicLayout, as_xz, wrap_angle
 from linkage_monitor.mechanics.model import Mechanism
-from linkage_monitor.mechanics.results import Status
-
+from .linalg import condition_1, det_sign_and_condition, solve_square
 
 
 @dataclass
-class KinematicState:
-    """Solved poses for inputs s (N, n_inputs): q (N, n), constraint residual phi (N, m) m and
-    Jacobian jac (N, m, n) at q, status (N,), messages, condition (N,)."""
+class KinematicState(kinematics.KinematicState):
+    """The package's solved poses with the constraint Jacobian jac (N, m, n) at q (the tangent a
+    warm start predicts along)."""
 
-    s: np.ndarray
-    q: np.ndarray
-    phi: np.ndarray
     jac: np.ndarray
-    status: np.ndarray
-    messages: list[str]
-    condition: np.ndarray
 
 
-class Kinematics:
-    """Constraint equations of one mechanism; index structure built once.
+class Kinematics(KinematicLayout):
+    """Constraint equations of one mechanism over its index structure (``KinematicLayout``).
 
     Inside, points are complex numbers x + i·z: rotating an offset by θ is a multiplication by
     e^{iθ}, which keeps the per-pose work to a few whole-array operations (what makes a single
@@ -45,67 +34,29 @@ class Kinematics:
     """
 
     def __init__(self, mech: Mechanism) -> None:
-        self.mech = mech
-        moving = mech.moving_bodies
-        self.body_index = {b.name: i for i, b in enumerate(moving)}
-        self.body_index[mech.ground.name] = -1
-        self.n = 3 * len(moving)
-        origins = np.array([np.mean([mech.points[p] for p in b.points], axis=0) for b in moving])
-        allp = np.array(list(mech.points.values()))
-        self.lc = max(float(np.sqrt(np.mean(np.sum((allp - allp.mean(0)) ** 2, axis=1)))), 1e-3)
-        self.q_ref = np.column_stack([origins, np.zeros(len(moving))]).ravel()
-        self._origins = origins
-        self._att: dict[tuple[str, str], int] = {}
-        self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
-        self._att_body: list[int] = []
-        self._att_ref: list[np.ndarray] = []
-        # constraint rows
-        hinge_a, hinge_b = [], []
-        for h in mech.hinges:
-            hinge_a.append(self.attach(h.bodies[0], h.point))
-            hinge_b.append(self.attach(h.bodies[1], h.point))
-        self.hinge_att = np.array([hinge_a, hinge_b], dtype=int).reshape(2, -1)
-        cyls = [mech.cylinder(c) for c in mech.measurements.cylinders]
-        self.cyl_att = np.array([[self.attach(c.base.body, c.base.point) for c in cyls],
-                                 [self.attach(c.rod_end.body, c.rod_end.point) for c in cyls]], dtype=int).reshape(2, -1)
-        hinges = {h.name: h for h in mech.hinges}
-        self.angle_bodies = np.array([[self.body_index[hinges[a.hinge].bodies[k]] for a in mech.measurements.angles]
-                                      for k in (0, 1)], dtype=int).reshape(2, -1)
-        self.angle_reference = np.array([a.reference for a in mech.measurements.angles])
-        nh, nc, na = len(mech.hinges), len(cyls), len(mech.measurements.angles)
-        self.m = 2 * nh + nc + na
-        self.n_inputs = nc + na
-        self.row_names = ([f"hinge '{h.name}' gap" for h in mech.hinges for _ in (0, 1)]
-                          + [f"cylinder '{c.name}' length" for c in cyls]
-                          + [f"angle '{a.name}'" for a in mech.measurements.angles])
-        self.input_names = [c.name for c in cyls] + [a.name for a in mech.measurements.angles]
+        super().__init__(mech)
+        nh, nc = self.hinge_att.shape[1], self.cyl_att.shape[1]
         self._angle_theta = np.where(self.angle_bodies >= 0, 3 * self.angle_bodies + 2, self.n + 2)
         self._constraint_arrays = self._attachment_arrays()  # only these enter Φ: Newton skips the rest
         self._build_jacobian_template(nh, nc)
-        self._column_scale = np.tile([1.0, 1.0, 1.0 / self.lc], self.n // 3)
         p, _ = self._complex_positions(self._padded(self.q_ref[None]), self._constraint_arrays)
         self._s_ref = np.concatenate([np.abs(p[0, self.cyl_att[1]] - p[0, self.cyl_att[0]]), self.angle_reference])
         phi_ref, jac_ref = self.residual_jacobian(self.q_ref[None], self._s_ref[None])
         # redundant sensors: the hinge rows hold exactly (constraints of the least squares) when independent
         self._n_hard = 2 * nh if nh and np.linalg.matrix_rank(jac_ref[0, :2 * nh]) == 2 * nh else 0
         _, ref_cond = self._branch_and_condition(jac_ref)
-        self._loops = self._loop_blocks(jac_ref[0])
+        pattern = np.zeros((self.m, self.n), dtype=bool)   # the Jacobian's structural non-zeros
+        pattern.flat[self._jac_flat] = True
+        pattern |= self._jac0 != 0.0
+        self._loops = self.loop_blocks(self.driving_rows(jac_ref[0])[0].tolist(), pattern)
         self._ref_branch = self.branch(jac_ref)[0]   # the assembly branch (one sign per loop) every pose keeps
         self._reference = KinematicState(s=self._s_ref[None], q=self.q_ref[None], phi=phi_ref, jac=jac_ref,
                                          status=np.zeros(1, dtype=int), messages=[""], condition=ref_cond)
 
-    # ---- attachments: points fixed on bodies ------------------------------------------------
-    def attach(self, body: str, key: str, position: np.ndarray | None = None) -> int:
-        """Index of the point ``key`` (a point name, or a tag with ``position``) fixed on ``body``."""
-        ident = (body, key)
-        if ident not in self._att:
-            pos = self.mech.points[key] if position is None else np.asarray(position, dtype=float)
-            bi = self.body_index[body]
-            self._att[ident] = len(self._att_body)
-            self._att_body.append(bi)
-            self._att_ref.append(pos - self._origins[bi] if bi >= 0 else pos.copy())
-            self._arrays = None
-        return self._att[ident]
+    def _attachments_changed(self) -> None:
+        """Forget the attachments' arrays (``_attachment_arrays``) with the layout's geometry."""
+        super()._attachments_changed()
+        self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
 
     def _attachment_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Columns of each attachment's body x, z, θ in the padded q (K,) each, and its reference
@@ -116,10 +67,6 @@ class Kinematics:
             col = np.where(body >= 0, 3 * body, self.n)
             self._arrays = (col, col + 1, col + 2, ref[:, 0] + 1j * ref[:, 1])
         return self._arrays
-
-    def _padded(self, q: np.ndarray) -> np.ndarray:
-        """q (N, n) with the ground's (x, z, θ) = 0 appended as columns n..n+2."""
-        return np.concatenate([q, np.zeros((q.shape[0], 3))], axis=1)
 
     @staticmethod
     def _complex_positions(qp: np.ndarray, arrays: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -211,10 +158,6 @@ class Kinematics:
             [hinge_theta.reshape(n_pose, 2 * t_att.size), uc.real, uc.imag, cyl_theta], axis=1)
         return jac
 
-    def reference_inputs(self) -> np.ndarray:
-        """Inputs (cylinder lengths m, angles rad) that the reference pose satisfies, shape (n_inputs,)."""
-        return self._s_ref.copy()
-
     # ---- solving --------------------------------------------------------------------------
     def newton(self, q: np.ndarray, s: np.ndarray, max_iter: int = 25) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Newton / Gauss-Newton iterations from q (N, n).
@@ -244,61 +187,13 @@ class Kinematics:
             idx = idx[np.abs(phi[idx]).max(axis=1) > tol]
         return q, phi, jac
 
-    def reachable_fraction(self, s: np.ndarray, steps: int = 30) -> np.ndarray:
-        """Largest t in [0, 1] (N,) such that inputs s_ref + t·(s − s_ref) still assemble (bisection)."""
-        s_ref = self._s_ref
-        n_pose = s.shape[0]
-        lo, hi = np.zeros(n_pose), np.ones(n_pose)
-        q_lo = np.broadcast_to(self.q_ref, (n_pose, self.n)).copy()
-        tol = 1e-9 * self.lc
-        for _ in range(steps):
-            mid = 0.5 * (lo + hi)
-            q, phi, _ = self.newton(q_lo, s_ref + mid[:, None] * (s - s_ref))
-            ok = np.max(np.abs(phi), axis=1) <= tol
-            lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
-            q_lo[ok] = q[ok]
-        return lo
-
     def _branch_and_condition(self, jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Sign of det ∂Φ/∂q (1 when overdetermined) (N,) and the 1-norm condition number (N,) of the
         Jacobian made dimensionless (θ columns / lc; positive scaling keeps the sign)."""
-        js = jac * self._column_scale
+        js = jac * self.column_scale
         if self.m != self.n:
             return np.ones(jac.shape[0]), np.sqrt(condition_1(np.swapaxes(js, 1, 2) @ js))
         return det_sign_and_condition(js)
-
-    # ---- assembly branch: one sign per loop ------------------------------------------------------
-    def _loop_blocks(self, jac_ref: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-        """(rows, columns) of each loop of the linkage: the diagonal blocks of the block-triangular
-        form of the square driving system (hinge rows + as many input rows, cylinders first, as
-        close the degrees of freedom), found from its structure (a maximum matching of rows to
-        columns, then the strongly connected components of the matched graph). A chain of dyads
-        gives one block per dyad; the sign of each block's determinant is that loop's assembly
-        branch (the sign of one global determinant would miss two loops flipping together)."""
-        nh2 = 2 * self.hinge_att.shape[1]
-        rows = list(range(nh2))
-        for r in range(nh2, self.m):          # input rows in order (cylinders, then angles), while they add rank
-            if len(rows) == self.n:
-                break
-            if np.linalg.matrix_rank(jac_ref[rows + [r]]) == len(rows) + 1:
-                rows.append(r)
-        if len(rows) != self.n or np.linalg.matrix_rank(jac_ref[rows]) < self.n:
-            return []                         # not closable by a square subsystem: no branch to keep
-        pattern = np.zeros((self.m, self.n), dtype=bool)
-        pattern.flat[self._jac_flat] = True
-        pattern |= self._jac0 != 0.0
-        sub = csr_matrix(pattern[rows].astype(np.int8))
-        match = maximum_bipartite_matching(sub, perm_type="column")   # match[row] = its column
-        if np.any(match < 0):
-            return []
-        order = np.argsort(match)            # row matched to each column
-        graph = csr_matrix(pattern[rows][order].astype(np.int8))    # column j -> columns of its matched row
-        count, label = connected_components(graph, directed=True, connection="strong")
-        blocks = []
-        for b in range(count):
-            cols = np.flatnonzero(label == b)
-            blocks.append((np.array(rows)[order[cols]], cols))
-        return blocks
 
     def branch(self, jac: np.ndarray) -> np.ndarray:
         """Sign of the determinant of each loop's block (N, n_loops): +1, −1, or 0 at a dead centre."""
@@ -335,107 +230,67 @@ class Kinematics:
         passes its last one, 2 iterations for a slowly moving stroke) or off the reference pose;
         poses that fail or land on another branch are redone by continuation from the reference pose.
         """
-        n_pose = s.shape[0]
-        nc = self.cyl_att.shape[1]
-        s = s.copy()   # angles as the nearest equivalent (modulo 2π) of the reference pose's: a sensor
-        s[:, nc:] = self.angle_reference + wrap_angle(s[:, nc:] - self.angle_reference)  # in [−π, π) or [0, 2π)
+        s = self.wrap_angles(s)
         start = self._reference if previous is None else previous
         q, phi, jac = self.newton(self.predict(start, s), s)
         _, cond = self._branch_and_condition(jac)
         limit = 1e-9 * self.lc if self.m == self.n else consistency_tol
         retry = np.flatnonzero(~self.on_branch(jac) | ~self._assembled(phi, limit))
-        still = np.zeros(0, dtype=int)
+        mirrored = unreached = np.zeros(0, dtype=int)
         if retry.size:  # continuation from the reference pose along a straight input path
-            s_ref = self._s_ref
-            qr = np.broadcast_to(self.q_ref, (retry.size, self.n)).copy()
-            for t in np.linspace(0.1, 1.0, 10):
-                qr, _, _ = self.newton(qr, s_ref + t * (s[retry] - s_ref), max_iter=12)
-            qr, phir, jacr = self.newton(qr, s[retry])
-            q[retry], phi[retry], jac[retry] = qr, phir, jacr
-            cond[retry] = self._branch_and_condition(jacr)[1]
-            closed = self._assembled(phir, limit)
-            still = retry[~closed]
-            off = retry[~self.on_branch(jacr) & closed]
-        status = np.zeros(n_pose, dtype=int)
-        messages = [""] * n_pose
-        if retry.size:
-            for i in off:
-                status[i] = Status.ASSEMBLY
-                messages[i] = (f"cannot assemble the linkage for {self.describe_inputs(s[i])} on the reference "
-                               "pose's assembly branch: the inputs fit only a mirrored assembly of a loop (check the "
-                               "sensors and their zero offsets)")
-        if still.size and self.m == self.n:  # say how far the inputs are out of reach
-            reach = self.reachable_fraction(s[still])
-            for i, t in zip(still, reach):
-                status[i], messages[i] = Status.ASSEMBLY, self.reach_message(s[i], t)
-        for i in np.flatnonzero(~self._assembled(phi, limit) & (status == Status.OK)):
-            status[i] = Status.ASSEMBLY
-            messages[i] = self.assembly_message(phi[i], s[i])
-        for i in np.flatnonzero((status == Status.OK) & ~(cond <= dead_centre_cond)):
-            status[i] = Status.DEAD_CENTRE
-            messages[i] = (f"kinematic dead centre at {self.describe_inputs(s[i])}: constraint Jacobian "
-                           f"condition number {cond[i]:.3g} > {dead_centre_cond:.3g}")
+            q[retry], phi[retry], jac[retry] = self.continuation(s[retry])
+            cond[retry] = self._branch_and_condition(jac[retry])[1]
+            closed = self._assembled(phi[retry], limit)
+            unreached = retry[~closed]
+            mirrored = retry[~self.on_branch(jac[retry]) & closed]
+        status, messages = self.verdicts(s, phi, cond, self._assembled(phi, limit), mirrored, unreached,
+                                         dead_centre_cond, reach=True)
         return KinematicState(s=s, q=q, phi=phi, jac=jac, status=status, messages=messages, condition=cond)
-
-    def describe_inputs(self, s: np.ndarray) -> str:
-        """``lift_cylinder = 0.6100 m, ...`` for messages."""
-        nc = self.cyl_att.shape[1]
-        return ", ".join(f"{n} = {v:.4f} {'m' if i < nc else 'rad'}" for i, (n, v) in enumerate(zip(self.input_names, s)))
-
-    def reach_message(self, s: np.ndarray, t: float) -> str:
-        """Which inputs are out of reach and by how much (mm, deg), given the reachable fraction t."""
-        s_ref = self._s_ref
-        nc = self.cyl_att.shape[1]
-        miss = (1.0 - t) * (s - s_ref)
-        parts = [f"{name} by {1e3 * abs(d):.1f} mm" if j < nc else f"{name} by {np.degrees(abs(d)):.2f} deg"
-                 for j, (name, d) in enumerate(zip(self.input_names, miss)) if abs(d) > 0.0]
-        return (f"cannot assemble the linkage for {self.describe_inputs(s)}: going there from the reference pose "
-                f"it assembles only up to {self.describe_inputs(s_ref + t * (s - s_ref))}; out of reach: "
-                f"{', '.join(parts)} (check the sensor or the geometry)")
-
-    def assembly_message(self, phi: np.ndarray, s: np.ndarray) -> str:
-        """Which constraint stays open, and by how much (mm), at the pose closest to assembly."""
-        nh = self.hinge_att.shape[1]
-        size = np.abs(phi.copy())
-        size[: 2 * nh] = np.repeat(np.hypot(phi[0:2 * nh:2], phi[1:2 * nh:2]), 2)
-        k = int(np.nanargmax(size)) if np.isfinite(size).any() else 0
-        return (f"cannot assemble the linkage for {self.describe_inputs(s)}: at best {self.row_names[k]} "
-                f"is off by {1e3 * size[k]:.1f} mm (total constraint residual {1e3 * np.linalg.norm(phi):.1f} mm)")
 
     # ---- rates ----------------------------------------------------------------------------
     def rates(self, q: np.ndarray, s_dot: np.ndarray, s_ddot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Body velocities q̇ and accelerations q̈ (N, n) from input rates ṡ and s̈ (Naumenko et al. 2021, φ', φ'')."""
+        """Body velocities q̇ and accelerations q̈ (N, n) from input rates ṡ and s̈ (Naumenko et al. 2021, φ', φ''):
+        J·q̇ = ṡ and J·q̈ = s̈ − J̇·q̇ on the input rows (angles × lc), where J̇·q̇ is, in complex numbers,
+        a hinge's −θ̇²·rel of its two sides and a cylinder's Re(ū·Δa) + Im(ū·Δv)²/L (ū its unit
+        axis, Δv and Δa the relative velocity and centripetal acceleration of its ends, L its length)."""
         n_pose = q.shape[0]
-        nh, nc = self.hinge_att.shape[1], self.cyl_att.shape[1]
+        nh = self.hinge_att.shape[1]
         _, jac = self.residual_jacobian(q, np.zeros((n_pose, self.n_inputs)))
-        p, rel = self.positions(q)
-        rhs = np.zeros((n_pose, self.m))
-        rhs[:, 2 * nh:2 * nh + nc] = s_dot[:, :nc]
-        rhs[:, 2 * nh + nc:] = self.lc * s_dot[:, nc:]
-        q_dot = self._solve_linear(jac, rhs)
-        v, centripetal = self.point_rates(q_dot, rel)
-        gamma = np.zeros((n_pose, self.m))
-        gamma[:, :2 * nh] = (centripetal[:, self.hinge_att[0]] - centripetal[:, self.hinge_att[1]]).reshape(n_pose, 2 * nh)
-        d = p[:, self.cyl_att[1]] - p[:, self.cyl_att[0]]
-        length = np.linalg.norm(d, axis=-1)
-        u = d / length[..., None]
-        dv = v[:, self.cyl_att[1]] - v[:, self.cyl_att[0]]
-        dc = centripetal[:, self.cyl_att[1]] - centripetal[:, self.cyl_att[0]]
-        along = np.sum(u * dv, axis=-1)
-        gamma[:, 2 * nh:2 * nh + nc] = np.sum(u * dc, axis=-1) + (np.sum(dv * dv, axis=-1) - along**2) / length
-        rhs2 = np.zeros((n_pose, self.m))
-        rhs2[:, 2 * nh:2 * nh + nc] = s_ddot[:, :nc]
-        rhs2[:, 2 * nh + nc:] = self.lc * s_ddot[:, nc:]
-        return q_dot, self._solve_linear(jac, rhs2 - gamma)
+        cx, cz, ct, _ = arrays = self._attachment_arrays()
+        p, rel = self._complex_positions(self._padded(q), arrays)
+        q_dot = self._solve_linear(jac, self._input_rows(s_dot))
+        qp_dot = self._padded(q_dot)
+        w = qp_dot.take(ct, axis=1)                             # θ̇ of each attachment's body
+        v = qp_dot.take(cx, axis=1) + 1j * qp_dot.take(cz, axis=1) + 1j * w * rel
+        centripetal = -w * w * rel
+        base, rod_end = self.cyl_att
+        axis = p[:, rod_end] - p[:, base]
+        length = np.abs(axis)
+        unit_conj = np.conj(axis / length)
+        dv, da = v[:, rod_end] - v[:, base], centripetal[:, rod_end] - centripetal[:, base]
+        hinge_gap = centripetal[:, self.hinge_att[0]] - centripetal[:, self.hinge_att[1]]
+        bias = np.zeros((n_pose, self.m))
+        bias[:, :2 * nh] = as_xz(hinge_gap).reshape(n_pose, 2 * nh)
+        bias[:, 2 * nh:2 * nh + length.shape[1]] = (unit_conj * da).real + (unit_conj * dv).imag ** 2 / length
+        return q_dot, self._solve_linear(jac, self._input_rows(s_ddot) - bias)
 
-    def point_rates(self, q_dot: np.ndarray, rel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Velocities (N, K, 2) of all attachments and their centripetal accelerations −θ̇²·rel."""
-        cx, cz, ct, _ = self._attachment_arrays()
-        qp = self._padded(q_dot)        # the ground's rates are the appended zeros
-        w = qp[:, ct]
-        relc = rel[..., 0] + 1j * rel[..., 1]
-        v = qp[:, cx] + 1j * qp[:, cz] + 1j * w * relc
-        return as_xz(v), as_xz(-w * w * relc)
+    def _input_rows(self, rate: np.ndarray) -> np.ndarray:
+        """(N, m) with the input rates (N, n_inputs) on the input rows (angles × lc), 0 on the hinge rows."""
+        nc = self.cyl_att.shape[1]
+        out = np.zeros((rate.shape[0], self.m))
+        r0 = self.m - self.n_inputs
+        out[:, r0:r0 + nc] = rate[:, :nc]
+        out[:, r0 + nc:] = self.lc * rate[:, nc:]
+        return out
+
+    def accelerations(self, q: np.ndarray, q_dot: np.ndarray, q_ddot: np.ndarray) -> np.ndarray:
+        """Accelerations (N, K, 2) m/s² of all attachments at body coordinates q, rates q̇, q̈ (N, n):
+        (ẍ + i·z̈) + (i·θ̈ − θ̇²)·rel."""
+        cx, cz, ct, _ = arrays = self._attachment_arrays()
+        _, rel = self._complex_positions(self._padded(q), arrays)
+        qp_ddot, w = self._padded(q_ddot), self._padded(q_dot).take(ct, axis=1)
+        return as_xz(qp_ddot.take(cx, axis=1) + 1j * qp_ddot.take(cz, axis=1)
+                     + (1j * qp_ddot.take(ct, axis=1) - w * w) * rel)
 
     def _solve_linear(self, jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         """x (N, n) with jac·x = rhs (N, m); overdetermined: the hinge rows C exactly and the input
@@ -459,12 +314,3 @@ class Kinematics:
         return (np.abs(phi[:, :2 * self.hinge_att.shape[1]]).max(axis=1, initial=0.0) <= 1e-9 * self.lc) & (
             np.abs(phi).max(axis=1) <= limit)
 
-
-def wrap_angle(a: np.ndarray) -> np.ndarray:
-    """Angles (rad) taken modulo 2π into [−π, π)."""
-    return np.remainder(a + np.pi, 2.0 * np.pi) - np.pi
-
-
-def as_xz(z: np.ndarray) -> np.ndarray:
-    """(..., 2) real array [x, z] of a complex array x + i·z (a view when z is C-contiguous)."""
-    return np.ascontiguousarray(z).view(np.float64).reshape(z.shape + (2,))
