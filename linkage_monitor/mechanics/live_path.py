@@ -59,7 +59,7 @@ class LivePath:
         self._solver = solver
         mech, kin = solver.mech, solver.kin
         self._angle_reference = kin.angle_reference.tolist()   # rad, the angle inputs' readings in the reference pose
-        self._cylinder_index = {c.name: k for k, c in enumerate(mech.cylinders)}
+        self._cylinder_index = solver.cylinder_index
         self._per_cap_area = np.array([1.0 / (c.count * c.cap_area) for c in mech.cylinders])
         self._friction = np.array([c.friction for c in mech.contacts])
         self._outputs_programs: dict[frozenset[str], OutputsProgram] = {}

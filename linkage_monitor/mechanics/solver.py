@@ -62,7 +62,7 @@ class Solver:
         # count·cap area and count·rod area (2, C) m²: the measured force of the chambers' pressures
         self.force_areas = np.array([[c.count * c.cap_area for c in mech.cylinders],
                                      [c.count * c.rod_area for c in mech.cylinders]]).reshape(2, -1)
-        self._cylinder_index = {c.name: k for k, c in enumerate(mech.cylinders)}
+        self.cylinder_index = {c.name: k for k, c in enumerate(mech.cylinders)}   # mech.cylinders' order
         # largest constraint residual (m) of an assembled pose (kin.solve's): 1e-9·lc when closed exactly
         self.assembly_limit = 1e-9 * kin.lc if kin.m == kin.n else consistency_tol
         self._live = LivePath(self)
@@ -151,7 +151,7 @@ class Solver:
         rod = cap.copy()
         for name, values in pressures.items():
             ps = self.sensors[name]
-            (cap if ps.chamber == "cap" else rod)[:, self._cylinder_index[ps.cylinder]] = values
+            (cap if ps.chamber == "cap" else rod)[:, self.cylinder_index[ps.cylinder]] = values
         return cap, rod
 
     def outputs_program(self, layout: StaticsLayout) -> OutputsProgram:
