@@ -30,11 +30,12 @@ import numpy as np
 
 from .error_sources import ErrorSources, Motion
 from .errors import LinkageError
+from .inputs import Inputs
 from .machine import STEERABILITY_KEYS, MachineModel, MachineResult
 from .model import Mechanism
 from .results import Result
 from .schema import apply_overrides
-from .solver import Inputs, Solver
+from .solver import Solver
 
 LOAD_STEP_PRESSURE = 1.0e5   # Pa: the pressure step of a load derivative (any step: the outputs are linear)
 LOAD_STEP_MASS = 100.0       # kg: the implement-mass step of a load derivative (likewise)
