@@ -20,8 +20,8 @@ from typing import NamedTuple
 import numpy as np
 
 from linkage_monitor.mechanics.error_sources import ErrorSources, Motion
+from linkage_monitor.mechanics.inputs import Inputs
 from linkage_monitor.mechanics.model import Mechanism
-from linkage_monitor.mechanics.solver import Inputs
 from linkage_monitor.mechanics.uncertainty import Budget
 
 from .checks import Check
