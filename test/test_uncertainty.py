@@ -160,11 +160,13 @@ def test_first_order_agrees_with_monte_carlo(preset) -> None:
     rng = np.random.default_rng(51)
     sampled = sample_poses(preset, 3, rng)
     um = UncertaintyModel(sampled.model)
+    measured = 0
     for inputs, pose in sampled.poses:
         budget = um.budget(inputs, pose.result, pose.machine, Motion.STANDING)
         mc = monte_carlo(um, inputs, budget, 2000, rng)
         if mc.truncated:   # a reading near the end of its range: no measure of u (bench: counted)
             continue
+        measured += 1
         compared = comparable(budget, mc)
         ratio = budget.u[compared] / mc.u[compared]
         assert compared.sum() >= 0.5 * len(budget.outputs)
@@ -172,6 +174,7 @@ def test_first_order_agrees_with_monte_carlo(preset) -> None:
         # the others: negligible both ways (an extremum along the stroke: first order tends to 0)
         small = ~compared & np.isfinite(budget.u) & np.isfinite(mc.u)
         assert np.all(budget.u[small] <= 2 * NEGLIGIBLE * np.maximum(1.0, np.abs(budget.values[small])))
+    assert measured >= 2, preset
 
 
 def test_seal_friction_band_by_motion() -> None:
