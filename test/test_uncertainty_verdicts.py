@@ -7,6 +7,7 @@ give the same verdicts and budgets; without the option the verdicts are today's.
 from __future__ import annotations
 
 from collections import Counter
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,6 +20,7 @@ from linkage_monitor.monitoring.bounds import COVERAGE_FACTOR, MotionTracker, ba
 from linkage_monitor.monitoring.core import Monitor
 from linkage_monitor.monitoring.events import ConfigEvent
 from linkage_monitor.monitoring.findings import Code, Level
+from linkage_monitor.offline.replay import replay
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.events import JointStateEvent, PressureEvent
 from linkage_monitor.sim.telemetry import Noise, simulate
@@ -117,3 +119,18 @@ def test_the_cylinder_moves_beyond_its_deadband() -> None:
     assert tracker.motions(Inputs(cylinders={"lift_cylinder": 0.5355})) == {"lift_cylinder": Motion.STANDING}
     assert tracker.motions(Inputs(cylinders={"lift_cylinder": 0.540})) == {"lift_cylinder": Motion.LIFTING}
     assert tracker.motions(Inputs(cylinders={"lift_cylinder": 0.530})) == {"lift_cylinder": Motion.LOWERING}
+
+
+@pytest.mark.slow
+def test_a_bag_recorded_without_it_replays_with_the_default_sources() -> None:
+    """The bundled overload bag (recorded without the option): replayed with it, the steps below a
+    limit are the same as the recording's verdicts, and some of those above it become uncertain."""
+    bag = Path(__file__).resolve().parent.parent / "bags" / "belarus_1221_overload"
+    plain = replay(bag, progress=None).summary.kinds
+    bounded = replay(bag, progress=None, uncertainty=True)
+    kinds = bounded.summary.kinds
+    assert bounded.config.uncertainty and any("95 %" in note for note in bounded.summary.notes)
+    for code in ("steerability_low", "lift_reserve_low", "sensors_disagree"):
+        assert kinds[("WARN", code)] == plain[("WARN", code)] > 0, code
+    assert kinds[("WARN", "steerability_uncertain")] > 0 and kinds[("WARN", "lift_reserve_uncertain")] > 0
+    assert ("WARN", "steerability_uncertain") not in plain

@@ -32,6 +32,9 @@ def add_replay_parser(subparsers: argparse._SubParsersAction) -> argparse.Argume
                         help="write a Rerun recording (open with `rerun FILE`)")
     parser.add_argument("--rate", type=bounded(0.0, 1e6, "times real time", lo_open=True), metavar="X",
                         help="write at X times real time (default: as fast as possible)")
+    parser.add_argument("--uncertainty", action="store_true",
+                        help="judge the limits on their 95 %% intervals (each pose's error budget from the "
+                             "mechanism's declared error sources, docs/accuracy.md), whatever the bag recorded")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--spectra", action="store_true",
                         help="print each hinge's rainflow load spectrum and damage-equivalent load (docs/fleet.md)")
@@ -50,7 +53,8 @@ def run_replay(args: argparse.Namespace) -> int:
 
 def _replay_bag(args: argparse.Namespace, bag: Path) -> int:
     replayed = replay_streaming(bag, mechanism_from_args(args), out_dir=args.out, rrd=args.rrd, rate=args.rate,
-                                progress=None if args.quiet else sys.stderr, history=args.spectra)
+                                progress=None if args.quiet else sys.stderr, history=args.spectra,
+                                uncertainty=args.uncertainty)
     summary = replayed.summary
     print(summary.table())
     if replayed.history is not None:

@@ -201,17 +201,19 @@ def _without_cyclic_gc(run: Callable[_P, _R]) -> Callable[_P, _R]:
 @_without_cyclic_gc
 def replay(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None, rrd: Path | None = None,
            rate: float | None = None, config: MonitorConfig | None = None,
-           progress: TextIO | None = sys.stderr) -> Replayed:
+           progress: TextIO | None = sys.stderr, uncertainty: bool = False) -> Replayed:
     """Re-run the monitor over ``bag``; write outputs to ``out_dir`` (a new bag) and/or ``rrd``; keep
     every Step (memory grows with the bag: ``replay_streaming`` keeps none).
 
     mech / config: use these instead of what the bag recorded (the summary's notes say so);
     default: the recorded ones, else the default configuration of the mechanism.
-    rate: write at this multiple of real time (None: as fast as possible).
+    rate: write at this multiple of real time (None: as fast as possible). uncertainty: every pose's
+    error budget, the limits judged on their 95 % intervals (``MonitorConfig.uncertainty``), whatever
+    the bag recorded (a bag recorded before it replays with the mechanism's default error sources).
     """
     kept = _KeptRun()
     replayer = _Replayer(bag, mech, config, out_dir, rrd, rate, progress, [kept.add],
-                         piece_steps=None if rrd is not None else ENCODE_BLOCK)
+                         piece_steps=None if rrd is not None else ENCODE_BLOCK, uncertainty=uncertainty)
     summary = replayer.replay()
     return Replayed(summary, kept.run(), replayer.config)
 
@@ -219,16 +221,17 @@ def replay(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None
 @_without_cyclic_gc
 def replay_streaming(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None, rrd: Path | None = None,
                      rate: float | None = None, config: MonitorConfig | None = None,
-                     progress: TextIO | None = sys.stderr, history: bool = False) -> Streamed:
+                     progress: TextIO | None = sys.stderr, history: bool = False, uncertainty: bool = False
+                     ) -> Streamed:
     """``replay`` keeping no Steps: the bag is read, solved, accounted and written ENCODE_BLOCK inputs
     at a time, each piece let go once written, so that memory stays flat in the bag's length
     (test_replay.py holds it). history: also the ``LoadHistory`` of the solved poses (its arrays,
     ~8 bytes per pose and series, grow with the bag). With ``rrd`` a configuration segment is
     replayed whole (the recording's hinge plot and force scale are chosen from the segment's
-    poses): memory grows with the longest segment."""
+    poses): memory grows with the longest segment. uncertainty: as ``replay``'s."""
     recorder = HistoryRecorder() if history else None
     replayer = _Replayer(bag, mech, config, out_dir, rrd, rate, progress, [recorder.add] if recorder else [],
-                         piece_steps=None if rrd is not None else ENCODE_BLOCK)
+                         piece_steps=None if rrd is not None else ENCODE_BLOCK, uncertainty=uncertainty)
     summary = replayer.replay()
     return Streamed(summary, replayer.config, recorder.history() if recorder else None)
 
@@ -255,7 +258,8 @@ class _Replayer:
 
     def __init__(self, bag: Path, mech: Mechanism | None, config: MonitorConfig | None, out_dir: Path | None,
                  rrd: Path | None, rate: float | None, progress: TextIO | None,
-                 consumers: list[Callable[[Run], None]], piece_steps: int | None = None) -> None:
+                 consumers: list[Callable[[Run], None]], piece_steps: int | None = None,
+                 uncertainty: bool = False) -> None:
         self.started = time.perf_counter()
         self.bag, self.out_dir, self.rrd, self.rate, self.progress = bag, out_dir, rrd, rate, progress
         self.consumers, self.piece_steps = consumers, piece_steps
@@ -276,6 +280,10 @@ class _Replayer:
                                           f"{', '.join(config.pressure_topics) or 'no pressures'}")
         else:
             self.summary.notes.append("note: configuration given instead of the recorded one")
+        if uncertainty and not config.uncertainty:
+            config = replace(config, uncertainty=True)
+            self.summary.notes.append("note: the limits judged on their 95 % intervals of the mechanism's declared "
+                                      "error sources (docs/accuracy.md)")
         self.description, self.config = description, config
 
     def replay(self) -> Summary:
