@@ -21,13 +21,14 @@ from rosbags.rosbag2 import Reader
 from linkage_monitor.bag.step_recorder import StepRecorder
 from linkage_monitor.bag.writer import MIN_SPLIT_SIZE, BagWriter, MessageRows
 from linkage_monitor.can.candump import RefusedLine, parse_candump, read_candump
-from linkage_monitor.can.decoder import OUTCOMES, CanDecoder, load_databases
+from linkage_monitor.can.decoder import CanDecoder, load_databases
 from linkage_monitor.can.frame_msg import FRAME_TYPE, frames_cdr, from_cdr, to_cdr
 from linkage_monitor.can.frames import Frame, FrameBlock, to_message
 from linkage_monitor.can.input_msg import (
     fluid_pressure_cdr, fluid_pressures_cdr, joint_state_cdr, joint_states_cdr)
 from linkage_monitor.can.j1939 import Raw, classify, is_value
 from linkage_monitor.can.mapping import load_mapping, mapping_from_text
+from linkage_monitor.can.outcomes import OUTCOMES
 from linkage_monitor.can.position_table import PositionTable
 from linkage_monitor.can.signals import raw_values, signal_layout, words
 from linkage_monitor.can.sources import read_log, read_log_blocks

@@ -12,10 +12,11 @@ import numpy as np
 import pytest
 import yaml
 
-from linkage_monitor.can.decoder import CanDecoder, Outcome, load_databases
+from linkage_monitor.can.decoder import CanDecoder, load_databases
 from linkage_monitor.can.frames import Frame
 from linkage_monitor.can.j1939 import Raw, classify, pgn
 from linkage_monitor.can.mapping import load_mapping, mapping_from_text
+from linkage_monitor.can.outcomes import Outcome
 from linkage_monitor.can.position_table import fit_table
 from linkage_monitor.mechanics import InputError, load_description
 from linkage_monitor.monitoring.config import MonitorConfig

@@ -14,9 +14,10 @@ import can
 import pytest
 
 from linkage_monitor.can.candump import read_candump
-from linkage_monitor.can.decoder import CanDecoder, Outcome, load_databases
+from linkage_monitor.can.decoder import CanDecoder, load_databases
 from linkage_monitor.can.frames import Frame, FrameBlock, to_message
 from linkage_monitor.can.mapping import load_mapping, mapping_from_text
+from linkage_monitor.can.outcomes import Outcome
 from linkage_monitor.can.sources import read_log_blocks
 from linkage_monitor.can.to_bag import blocks_to_bag
 from linkage_monitor.mechanics import InputError, load_description

@@ -1,14 +1,17 @@
-"""SAE J1939 conventions the decoder needs: a frame's parameter group number, and the
+"""SAE J1939 conventions the decoder needs: a frame's parameter group number and source address, and the
 'error indicator' / 'not available' ranges of a parameter's raw value (J1939-71, ISO 11783-7)."""
 
 from __future__ import annotations
 
 from enum import Enum
+from typing import TypeVar
 
 import numpy as np
 
 # socketcan error frames (linux/can/error.h): class bits in the identifier
 CAN_ERR_BUSOFF = 0x40
+
+_Ident = TypeVar("_Ident", int, np.ndarray)
 
 
 class Raw(Enum):
@@ -25,6 +28,11 @@ def pgn(arbitration_id: int) -> int:
     ps = (arbitration_id >> 8) & 0xFF
     page = (arbitration_id >> 24) & 0x3
     return (page << 16) | (pf << 8) | (ps if pf >= 240 else 0)
+
+
+def source_address(ident: _Ident) -> _Ident:
+    """The J1939 source address of a 29-bit identifier (its low byte; also of an array of them)."""
+    return ident & 0xFF
 
 
 def classify(raw: int, length: int) -> Raw:

@@ -1,7 +1,7 @@
 """The CAN mapping file: which DBC signal feeds which input of the monitor (docs/can-mapping.md).
 
 Validated whole when loaded; every error names the file and the key (``inputs.lift_arm_angle.unit``)
-and says what is expected. Checked against the DBC files and the mechanism by ``decoder``.
+and says what is expected. Checked against the DBC files and the mechanism by ``routes``.
 """
 
 from __future__ import annotations

@@ -30,10 +30,11 @@ from linkage_monitor.monitoring.events import InputEvent, JointStateEvent, Press
 from linkage_monitor.monitoring.findings import Code, Finding
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE
 
-from .decoder import BlockDecoded, CanDecoder, FrameCounts
+from .decoder import CanDecoder
 from .frame_msg import FRAME_TYPE, frames_cdr
 from .frames import Frame, FrameBlock, blocks_of
 from .input_msg import fluid_pressure_cdr, fluid_pressures_cdr, joint_state_cdr, joint_states_cdr
+from .outcomes import BlockDecoded, FrameCounts
 
 RAW_TOPIC = "/from_can_bus"
 """Topic of the raw frames (can_msgs/msg/Frame), ros2_socketcan's default."""

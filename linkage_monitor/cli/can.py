@@ -146,9 +146,10 @@ def run_can_calibrate(args: argparse.Namespace) -> int:
 
     from linkage_monitor.bag.reader import JointStateColumns, read_inputs
     from linkage_monitor.can.calibrate import fit_tables
-    from linkage_monitor.can.decoder import KIND_UNITS, SI_UNIT, input_kinds, load_databases
+    from linkage_monitor.can.decoder import load_databases
     from linkage_monitor.can.mapping import UNITS
     from linkage_monitor.can.sources import read_log
+    from linkage_monitor.can.units import KIND_UNITS, SI_UNIT, input_kinds
 
     mapping, mech, dbc = _setup(args)
     columns = read_inputs(args.truth).get(args.truth_topic)
