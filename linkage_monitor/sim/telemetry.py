@@ -8,7 +8,7 @@ cylinders are held at their reference length) through a scenario and gives, per 
 - the chamber pressures that hold the implement's vertical load at that instant (gauge Pa):
   the statics gives the cylinder force F (linear in the load: two batched solves with implement
   mass 0 and 1000 kg), the pressures follow from the schema's F = count·(p_cap·A_cap − p_rod·A_rod)
-  (see ``_chamber_pressure``),
+  (see ``chamber_pressure``),
 - the ground truth (noise-free values, implement load, implement cg, phase, steerability margin
   from ``mechanics.machine``).
 
@@ -211,7 +211,7 @@ class _Poses:
         return steer["margin"], steer["max_implement_mass"] * mech.gravity
 
 
-class _Plant:
+class Plant:
     """Forward model: cylinder lengths -> angles, implement cg, cylinder forces (affine in the load)."""
 
     def __init__(self, mech: Mechanism) -> None:
@@ -395,7 +395,7 @@ def _check_overload(mech: Mechanism, setting: _Setting) -> None:
 
 def find_stroke(mechanism: Mechanism) -> Stroke:
     """The driving cylinder's assemblable range, work and transport lengths (m) for ``mechanism``."""
-    return _Plant(mechanism).stroke()
+    return Plant(mechanism).stroke()
 
 
 def simulate(mechanism: Mechanism, scenario: str = "lift", rate_hz: float = 50.0, duration_s: float | None = None,
@@ -419,7 +419,7 @@ def simulate(mechanism: Mechanism, scenario: str = "lift", rate_hz: float = 50.0
     stamps = start_ns + np.round(np.arange(n) * (1e9 / rate_hz)).astype(np.int64)
     if scenario in GROUND_SCENARIOS:
         return _simulate_ground(mech, scenario, rate_hz, t, stamps, noise, rng_scenario, rng_noise)
-    plant = _Plant(mech)
+    plant = Plant(mech)
     stroke = plant.stroke()
     g = mech.gravity
     tractor = mech.tractor
@@ -437,7 +437,7 @@ def simulate(mechanism: Mechanism, scenario: str = "lift", rate_hz: float = 50.0
     except LinkageError as exc:
         raise LinkageError(f"scenario '{scenario}' leaves the assemblable stroke: {exc}") from exc
     load, cg, truth_angles = profile.load, poses.implement_cg, poses.angles
-    truth_pressures = np.column_stack([_chamber_pressure(mech, ps, poses.cylinder_force[ps.cylinder])
+    truth_pressures = np.column_stack([chamber_pressure(mech, ps, poses.cylinder_force[ps.cylinder])
                                        for ps in mech.measurements.pressures] or [np.zeros((n, 0))])
     cyl_names = tuple(mech.measurements.cylinders)
     lengths_all = plant.lengths(profile.length)
@@ -472,7 +472,7 @@ def _simulate_ground(mech: Mechanism, scenario: str, rate_hz: float, t: np.ndarr
     cyl_names = tuple(mech.measurements.cylinders)
     truth_lengths = np.array([[drive.lengths[c] for c in cyl_names]] * n).reshape(n, len(cyl_names))
     forces = drive.cylinder_forces(angle) if mech.measurements.pressures else {}
-    truth_pressures = np.column_stack([_chamber_pressure(mech, ps, forces[ps.cylinder])
+    truth_pressures = np.column_stack([chamber_pressure(mech, ps, forces[ps.cylinder])
                                        for ps in mech.measurements.pressures] or [np.zeros((n, 0))])
     truth_angles = angle[:, None]
     joints = np.concatenate([truth_angles + noise.angle * rng_noise.standard_normal(truth_angles.shape),
@@ -491,7 +491,7 @@ def _simulate_ground(mech: Mechanism, scenario: str, rate_hz: float, t: np.ndarr
         joint_velocities=rates)
 
 
-def _chamber_pressure(mech: Mechanism, sensor: PressureSensor, force: np.ndarray) -> np.ndarray:
+def chamber_pressure(mech: Mechanism, sensor: PressureSensor, force: np.ndarray) -> np.ndarray:
     """Gauge pressure (Pa) of ``sensor``'s chamber for the cylinder force (N, + = pushing).
 
     F = count·(p_cap·A_cap − p_rod·A_rod) (schema). Both chambers measured: the pushed side
