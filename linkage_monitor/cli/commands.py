@@ -38,6 +38,8 @@ COMMANDS = {c.name: c for c in (
             "add_simulate_parser", "run_simulate"),
     Command("replay", "re-run the monitor offline over a recorded bag", "linkage_monitor.cli.replay",
             "add_replay_parser", "run_replay", threads=True),
+    Command("weigh", "the implement's mass and cg, with their uncertainty, from a bag's lifts and lowers",
+            "linkage_monitor.cli.weigh", "add_weigh_parser", "run_weigh", threads=True),
     Command("fleet", "analyse many bags on Dask: load spectra, damage-equivalent loads, margins",
             "linkage_monitor.cli.fleet", "add_fleet_parser", "run_fleet_command"),
     Command("can", "the live monitor fed from a CAN bus or /from_can_bus (ros2_socketcan)",

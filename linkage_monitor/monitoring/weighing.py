@@ -32,7 +32,7 @@ import numpy as np
 from linkage_monitor.mechanics import Mechanism, Result
 from linkage_monitor.mechanics.constants import STANDARD_GRAVITY
 
-from .weighing_fit import SUMS, Fit, Priors, SensorErrors, fit
+from .weighing_fit import N, SUMS, Y, Fit, Priors, SensorErrors, fit
 from .weighing_model import ForceColumns, WeighingModel
 
 
@@ -242,11 +242,11 @@ class WeighingEstimator:
         """The stroke's load against the earlier strokes' in the same bins and direction (median
         relative difference of the bins' mean y); None where they share no bin."""
         minimum = self.settings.min_samples
-        both = (stroke[:, :, 0] >= minimum) & (self._sums[:, :, 0] >= minimum)
+        both = (stroke[:, :, N] >= minimum) & (self._sums[:, :, N] >= minimum)
         if not both.any():
             return None
-        new = stroke[both][:, 4] / stroke[both][:, 0]
-        old = self._sums[both][:, 4] / self._sums[both][:, 0]
+        new = stroke[both][:, Y] / stroke[both][:, N]
+        old = self._sums[both][:, Y] / self._sums[both][:, N]
         return float(np.median((new - old) / np.abs(old)))
 
     def finish(self, stamp_ns: int) -> None:

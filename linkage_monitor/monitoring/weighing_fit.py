@@ -13,10 +13,11 @@ over the pairs k (the unknowns θ = (W, W·dx, W·dz): linear). dx and dz are th
 the file's cg in the implement's frame (m, reference pose); each has a Gaussian prior around
 the file's cg (``Priors``), so that what the stroke does not identify (dz where the implement
 hardly turns, everything from one pair) stays at the file's value with its prior uncertainty
-instead of making the system singular. The rows' scatter σ² is the larger of what the declared
-pressure noise gives and the residuals' (RSS over the degrees of freedom left), the latter
-widened by a Student factor for few pairs. The sensors' calibration (a gain and an offset of
-the pressure, ``SensorErrors``) is common to all rows: it is propagated through the fit's gain
+instead of making the system singular. The rows' scatter is the larger of what the declared
+pressure noise gives and the residuals' own (a Newey & West 1987 covariance over neighbouring
+bins, whose residuals a bounce may correlate, scaled by the pairs over the degrees of freedom
+left and widened by a Student factor for them). The sensors' calibration (a gain and an offset
+of the pressure, ``SensorErrors``) is common to all rows: it is propagated through the fit's gain
 matrix and added. Units SI.
 """
 
@@ -52,7 +53,7 @@ class Priors:
 
 @dataclass(frozen=True)
 class Fit:
-    """θ = (W N, W·dx N·m, W·dz N·m), its covariance (3, 3), the pairs used, the rows' scatter σ (N),
+    """θ = (W N, W·dx N·m, W·dz N·m), its covariance (3, 3), the pairs used, the rows' RMS residual (N),
     the mean friction share (half the lifting-lowering difference over the mean, -)."""
 
     theta: np.ndarray
@@ -84,7 +85,7 @@ def fit(sums: np.ndarray, errors: SensorErrors, priors: Priors, min_samples: int
     y = 0.5 * (means[:, 0, Y] + means[:, 1, Y])
     force = 0.5 * (means[:, 0, FORCE] + means[:, 1, FORCE])
     half_gap = 0.5 * (means[:, 0, Y] - means[:, 1, Y])
-    n_eff = 4.0 / (1.0 / counts[paired, 0] + 1.0 / counts[paired, 1])   # the pair mean's variance is σ²/n_eff... ×4
+    n_eff = 4.0 / (1.0 / counts[paired, 0] + 1.0 / counts[paired, 1])   # a pair mean's variance: σ²/n_eff
     weight0 = float(rows[:, 0] @ y / (rows[:, 0] @ rows[:, 0]))
     prior_precision = np.diag([0.0, 1.0 / (weight0 * priors.x) ** 2, 1.0 / (weight0 * priors.z) ** 2])
     noise_var = errors.noise**2 / n_eff                                # per row, from the declared noise
