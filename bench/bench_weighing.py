@@ -43,8 +43,8 @@ from linkage_monitor.monitoring.weighing_model import WeighingModel  # noqa: E40
 from linkage_monitor.sim.friction import SealFriction  # noqa: E402
 from linkage_monitor.sim.road import Road  # noqa: E402
 from linkage_monitor.sim.telemetry import Noise  # noqa: E402
-from linkage_monitor.sim.work_cycle import (Implement, LoadChange, PressureErrors, WorkCycle, WorkRun,  # noqa: E402
-                                            simulate_work)
+from linkage_monitor.sim.work_cycle import (ImplementTruth, LoadChange, PressureErrors, WorkCycle,  # noqa: E402
+                                            WorkRun, simulate_work)
 from weighing_methods import lift_lower_pair, one_pose, two_poses  # noqa: E402
 
 NOISE = Noise(angle=0.0005, length=0.0002, pressure=2e4)
@@ -87,7 +87,7 @@ def _run(mech: Mechanism, model: WeighingModel, mass_range: tuple[float, float],
          change: float | None) -> Outcome:
     rng = np.random.default_rng([seed, 49])
     ref = np.asarray(mech.implement.cg)
-    implement = Implement(mass=float(rng.uniform(*mass_range)),
+    implement = ImplementTruth(mass=float(rng.uniform(*mass_range)),
                           cg=(float(ref[0] + rng.uniform(-0.3, 0.3)), float(ref[1] + rng.uniform(-0.2, 0.2))))
     change_at = CYCLE.period + CYCLE.work_s + CYCLE.raise_s + 0.5 * CYCLE.transport_s
     run = simulate_work(mech, implement, DURATION, RATE, CYCLE,
@@ -118,7 +118,8 @@ def _run(mech: Mechanism, model: WeighingModel, mass_range: tuple[float, float],
             detected = later[0] if (change and later) else math.nan
             if change:
                 after_change = _mass_at(mech, model, run, lengths, forces, accel, change_at + CYCLE.period)
-            for name, method in (("one pose", one_pose), ("two poses", two_poses), ("lift/lower pair", lift_lower_pair)):
+            for name, method in (("one pose", one_pose), ("two poses", two_poses),
+                                 ("lift/lower pair", lift_lower_pair)):
                 found = method(model, lengths, forces, phases)
                 methods[name] = (found.mass, found.cg_x)
     return Outcome(float(run.truth.mass[-1]), implement.cg[0], methods, outcome_u[0], outcome_u[1], detected, false,

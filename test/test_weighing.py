@@ -21,12 +21,12 @@ from linkage_monitor.monitoring.weighing_model import WeighingModel
 from linkage_monitor.sim.friction import SealFriction
 from linkage_monitor.sim.road import ImuNoise, Road
 from linkage_monitor.sim.telemetry import Noise
-from linkage_monitor.sim.work_cycle import Implement, LoadChange, WorkCycle, WorkRun, simulate_work
+from linkage_monitor.sim.work_cycle import ImplementTruth, LoadChange, WorkCycle, WorkRun, simulate_work
 
 ROOT = Path(__file__).resolve().parent.parent
 BELARUS = load_preset("belarus_1221")
 REF = np.asarray(BELARUS.implement.cg)
-TRUE = Implement(mass=1200.0, cg=(float(REF[0] + 0.2), float(REF[1] - 0.1)))
+TRUE = ImplementTruth(mass=1200.0, cg=(float(REF[0] + 0.2), float(REF[1] - 0.1)))
 CYCLE = WorkCycle(work_s=2.0, transport_s=4.0)   # 13.6 s: three cycles in 41 s
 NOISE = Noise(angle=0.0005, length=0.0002, pressure=2e4)
 

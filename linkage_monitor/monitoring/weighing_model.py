@@ -80,7 +80,8 @@ class WeighingModel:
         grid = np.linspace(0.5 * self.reference_length, 1.5 * self.reference_length, GRID_POINTS)
         forces = []
         cg = self.reference_cg
-        for mass, where in ((0.0, cg), (UNIT_MASS, cg), (UNIT_MASS, cg + (OFFSET, 0.0)), (UNIT_MASS, cg + (0.0, OFFSET))):
+        variants = ((0.0, cg), (UNIT_MASS, cg), (UNIT_MASS, cg + (OFFSET, 0.0)), (UNIT_MASS, cg + (0.0, OFFSET)))
+        for mass, where in variants:
             raw["implement"]["mass"] = mass
             raw["implement"]["cg"] = [float(where[0]), float(where[1])]
             solver = Solver(mechanism_from_dict(copy.deepcopy(raw), mechanism.file))

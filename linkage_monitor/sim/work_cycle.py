@@ -7,7 +7,7 @@ transport stretch driven on a road (the cylinder stands, the valve closed, the b
 ``sim.road``), a lower to work. The tractor drives slowly while lifting and lowering (a
 headland): the body bounces with ``headland_bounce`` of the transport's acceleration.
 
-The truth the estimator does not see: the implement's mass and cg (``Implement``, placed in a
+The truth the estimator does not see: the implement's mass and cg (``ImplementTruth``, placed in a
 copy of the mechanism), an optional change of its mass mid-run (``LoadChange``: coupling,
 filling; at the same cg), the seal friction (``sim.friction``), the pressure sensors'
 calibration errors (``PressureErrors``: a gain and an offset per run, on top of the noise) and
@@ -55,7 +55,7 @@ class WorkCycle:
 
 
 @dataclass(frozen=True)
-class Implement:
+class ImplementTruth:
     """The true implement: mass (kg) and cg (m, reference pose of the mechanism)."""
 
     mass: float
@@ -103,7 +103,7 @@ class WorkRun:
     truth: WorkTruth
 
 
-def with_implement(mechanism: Mechanism, implement: Implement) -> Mechanism:
+def with_implement(mechanism: Mechanism, implement: ImplementTruth) -> Mechanism:
     """A copy of ``mechanism`` whose implement has the given mass and cg."""
     raw = copy.deepcopy(dict(mechanism.raw))
     raw["implement"]["mass"] = float(implement.mass)
@@ -127,7 +127,7 @@ def _cycle(t: np.ndarray, cycle: WorkCycle) -> tuple[np.ndarray, np.ndarray]:
     return raised, phase.astype(str)
 
 
-def simulate_work(mechanism: Mechanism, implement: Implement, duration_s: float = 120.0, rate_hz: float = 50.0,
+def simulate_work(mechanism: Mechanism, implement: ImplementTruth, duration_s: float = 120.0, rate_hz: float = 50.0,
                   cycle: WorkCycle = WorkCycle(), friction: SealFriction = SealFriction(),
                   road: Road | None = Road(), noise: Noise = Noise(), imu_noise: ImuNoise = ImuNoise(),
                   pressure_errors: PressureErrors = PressureErrors(), change: LoadChange | None = None,
