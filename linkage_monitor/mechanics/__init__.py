@@ -19,7 +19,8 @@ if TYPE_CHECKING:
     from .model import Mechanism
     from .presets import load_description, load_preset, preset_description, preset_names, preset_path
     from .results import BatchResult, ContactResult, CylinderResult, HingeResult, Result, Status
-    from .schema import apply_overrides, load_mechanism, mechanism_from_dict, mechanism_from_text
+    from .overrides import apply_overrides
+    from .schema import load_mechanism, mechanism_from_dict, mechanism_from_text
     from .solver import Solver
 
 _LAZY = {**dict.fromkeys(("Mechanism",), ".model"),
@@ -27,8 +28,8 @@ _LAZY = {**dict.fromkeys(("Mechanism",), ".model"),
                          ".presets"),
          **dict.fromkeys(("BatchResult", "ContactResult", "CylinderResult", "HingeResult", "Result", "Status"),
                          ".results"),
-         **dict.fromkeys(("apply_overrides", "load_mechanism", "mechanism_from_dict", "mechanism_from_text"), ".schema"),
-         "Inputs": ".inputs", "Solver": ".solver"}
+         **dict.fromkeys(("load_mechanism", "mechanism_from_dict", "mechanism_from_text"), ".schema"),
+         "apply_overrides": ".overrides", "Inputs": ".inputs", "Solver": ".solver"}
 
 
 def __getattr__(name: str) -> Any:

@@ -121,7 +121,7 @@ NONE_DECLARED = ErrorSources(defaults=False, declared=True)   # every source 0: 
 
 
 class _Validator(Protocol):
-    """What the schema's reader offers (``schema._Reader``): named failures and checked numbers."""
+    """What the schema's reader offers (``schema_values.ValueReader``): named failures and checked numbers."""
 
     def fail(self, key: str, reason: str) -> Exception: ...
     def mapping(self, value: Any, key: str, allowed: set[str], required: frozenset[str] | set[str] = ...) -> dict: ...

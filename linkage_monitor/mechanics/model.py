@@ -176,7 +176,7 @@ class Tractor:
 class Mechanism:
     """A validated planar linkage; build it with ``load_mechanism`` / ``load_preset``.
 
-    ``raw`` keeps the description as read (a dict) so that ``schema.apply_overrides`` can re-validate.
+    ``raw`` keeps the description as read (a dict) so that ``overrides.apply_overrides`` can re-validate.
     """
 
     name: str

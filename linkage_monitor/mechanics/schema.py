@@ -7,31 +7,25 @@ Every problem raises :class:`MechanismFileError` naming the file, the key path
 from __future__ import annotations
 
 import copy
-import math
 import re
-import stat
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
-import yaml
 
 from .error_sources import read_error_sources
-from .errors import MechanismFileError
 from .model import (AngleSensor, Body, Contact, Cylinder, FrontBallast, Hinge, Implement, Load,
-                    Measurements, Mechanism, Mount, PressureSensor, Spring, Tractor)
+                    Measurements, Mechanism, PressureSensor, Spring, Tractor)
+from .safe_yaml import parse_yaml, read_file
+from .schema_values import ValueReader
 
 _TOP_KEYS = {"name", "description", "source", "gravity", "points", "bodies", "hinges", "cylinders",
              "springs", "contacts", "loads", "implement", "measurements", "reference_inputs",
              "tractor", "error_sources"}
 _NAME = re.compile(r"^[a-z0-9_]+$")
-MAX_FILE_BYTES = 1 << 20     # a mechanism description is a few kB; more is not a mechanism
-MAX_DEPTH = 32               # nesting of mappings/lists (the schema needs 5)
 MAX_POINTS = 10_000
-MAX_MAGNITUDE = 1e9          # no number of the schema (m, kg, N, Pa, N/m) is larger
 MAX_COORDINATE = 1e3         # m: a linkage point farther than 1 km from the wheels is a typo
 MAX_GRAVITY = 100.0          # m/s²
-_FLOAT = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
 
 def load_mechanism(path: str | Path) -> Mechanism:
@@ -40,93 +34,12 @@ def load_mechanism(path: str | Path) -> Mechanism:
     Only a regular file of at most MAX_FILE_BYTES is read (a FIFO or a device would block).
     """
     path = Path(path)
-    try:
-        info = path.stat()
-    except OSError as exc:
-        raise MechanismFileError(str(path), "", f"cannot read the file ({exc.strerror})") from exc
-    if not stat.S_ISREG(info.st_mode):
-        raise MechanismFileError(str(path), "", "not a regular file (a directory, FIFO or device): give a YAML file")
-    if info.st_size > MAX_FILE_BYTES:
-        raise MechanismFileError(str(path), "", f"{info.st_size} bytes: larger than the {MAX_FILE_BYTES} bytes a "
-                                 "mechanism description may have")
-    try:
-        with open(path, "rb") as stream:
-            data = stream.read(MAX_FILE_BYTES + 1)
-    except OSError as exc:
-        raise MechanismFileError(str(path), "", f"cannot read the file ({exc.strerror})") from exc
-    return mechanism_from_text(data, file=str(path))
-
-
-_LIBYAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)   # libyaml: ~9x faster than PyYAML's own parser
-_OPENS, _CLOSES = (yaml.MappingStartEvent, yaml.SequenceStartEvent), (yaml.MappingEndEvent, yaml.SequenceEndEvent)
-
-
-def _refuse_aliases_and_depth(text: str) -> None:
-    """Raise a YAML error at the first alias (``*name``: no expansion bombs) or at nesting deeper than
-    MAX_DEPTH, from the parser's events, before anything is composed."""
-    depth = 0
-    try:
-        for event in yaml.parse(text, Loader=_LIBYAML_LOADER):
-            if isinstance(event, yaml.AliasEvent):
-                raise yaml.constructor.ConstructorError(None, None, "aliases (*name) are not allowed in a mechanism "
-                                                        "description: write the value out", event.start_mark)
-            depth += isinstance(event, _OPENS) - isinstance(event, _CLOSES)
-            if depth > MAX_DEPTH:
-                raise yaml.constructor.ConstructorError(None, None, f"nesting deeper than {MAX_DEPTH} levels",
-                                                        event.start_mark)
-    except yaml.scanner.ScannerError as exc:   # libyaml stops at 1000 open brackets itself, scanning ahead
-        if "maximum nesting depth" not in str(exc.problem):
-            raise
-        raise yaml.constructor.ConstructorError(None, None, f"nesting deeper than {MAX_DEPTH} levels",
-                                                exc.problem_mark) from None
-
-
-class _StrictLoader(_LIBYAML_LOADER):   # type: ignore[misc,valid-type]  # CSafeLoader or SafeLoader
-    """Safe loader that refuses duplicate keys and absurdly long integers (aliases and deep nesting:
-    ``_refuse_aliases_and_depth``, first)."""
-
-    def construct_mapping(self, node, deep=False):
-        seen = set()
-        for key_node, _ in node.value:
-            key = self.construct_object(key_node, deep=deep)
-            if key in seen:
-                raise yaml.constructor.ConstructorError(None, None, f"duplicate key {key!r}", key_node.start_mark)
-            seen.add(key)
-        return super().construct_mapping(node, deep=deep)
-
-    def construct_yaml_int(self, node):
-        if len(str(node.value)) > 30:
-            raise yaml.constructor.ConstructorError(None, None, f"integer of {len(str(node.value))} digits: "
-                                                    "not a quantity of a linkage", node.start_mark)
-        return super().construct_yaml_int(node)
-
-
-_StrictLoader.add_constructor("tag:yaml.org,2002:int", _StrictLoader.construct_yaml_int)
-_StrictLoader.add_constructor("tag:yaml.org,2002:map", _StrictLoader.construct_yaml_map)
+    return mechanism_from_text(read_file(path), file=str(path))
 
 
 def mechanism_from_text(text: bytes | str, file: str = "<text>") -> Mechanism:
     """Parse and validate a mechanism description given as YAML text; ``file`` names it in errors."""
-    if isinstance(text, bytes):
-        if len(text) > MAX_FILE_BYTES:
-            raise MechanismFileError(file, "", f"larger than the {MAX_FILE_BYTES} bytes a mechanism description "
-                                     "may have")
-        try:
-            text = text.decode("utf-8")
-        except UnicodeDecodeError as exc:
-            raise MechanismFileError(file, "", f"not UTF-8 text (byte {exc.start}: {exc.reason}); save the file "
-                                     "as UTF-8") from exc
-    try:
-        _refuse_aliases_and_depth(text)
-        data = yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a safe loader's subclass
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark is not None else "YAML"
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise MechanismFileError(file, where, f"malformed YAML: {problem}") from exc
-    except RecursionError as exc:
-        raise MechanismFileError(file, "YAML", f"nesting deeper than {MAX_DEPTH} levels") from exc
-    return mechanism_from_dict(data, file=file)
+    return mechanism_from_dict(parse_yaml(text, file), file=file)
 
 
 def mechanism_from_dict(data: Any, file: str = "<dict>") -> Mechanism:
@@ -134,150 +47,9 @@ def mechanism_from_dict(data: Any, file: str = "<dict>") -> Mechanism:
     return _Reader(file).mechanism(data)
 
 
-def apply_overrides(mech: Mechanism, overrides: Mapping[str, Any]) -> Mechanism:
-    """Copy of ``mech`` with scalars set by dotted key (list items by name), re-validated."""
-    raw = copy.deepcopy(dict(mech.raw))
-    for key, value in overrides.items():
-        _set_dotted(raw, key, value, mech.file)
-    return mechanism_from_dict(raw, file=mech.file)
+class _Reader(ValueReader):
+    """Validating reader of the description's sections; ``self.file`` prefixes every error."""
 
-
-def _set_dotted(raw: dict, key: str, value: Any, file: str) -> None:
-    parts = key.split(".")
-    node: Any = raw
-    path = ""
-    for i, part in enumerate(parts):
-        last = i == len(parts) - 1
-        if isinstance(node, list):
-            matches = [item for item in node if isinstance(item, dict) and item.get("name") == part]
-            if not matches:
-                names = ", ".join(str(it.get("name")) for it in node if isinstance(it, dict))
-                raise MechanismFileError(file, key, f"no item named '{part}' in {path} ({names})")
-            if last:
-                raise MechanismFileError(file, key, "only scalars can be overridden, not a whole item")
-            node = matches[0]
-        elif isinstance(node, dict):
-            if last:
-                if isinstance(node.get(part), (dict, list)):
-                    raise MechanismFileError(file, key, "only scalars can be overridden, not a mapping/list")
-                if isinstance(value, (dict, list)) or value is None:
-                    raise MechanismFileError(file, key, f"override value {value!r} is not a scalar")
-                node[part] = value
-                return
-            if part not in node:
-                raise MechanismFileError(file, key, f"'{part}' is not set in {path or 'the file'}")
-            node = node[part]
-        else:
-            raise MechanismFileError(file, key, f"{path} is a scalar, it has no '{part}'")
-        path = f"{path}.{part}" if path else part
-
-
-class _Reader:
-    """Validating reader; ``self.file`` prefixes every error."""
-
-    def __init__(self, file: str) -> None:
-        self.file = file
-        self.points: dict[str, np.ndarray] = {}
-        self.bodies: dict[str, Body] = {}
-
-    def fail(self, key: str, reason: str) -> MechanismFileError:
-        return MechanismFileError(self.file, key, reason)
-
-    # ---- primitive readers -------------------------------------------------------------
-    def mapping(self, value: Any, key: str, allowed: set[str], required: frozenset[str] | set[str] = frozenset()) -> dict:
-        if not isinstance(value, dict):
-            raise self.fail(key, f"expected a mapping, got {type(value).__name__}")
-        unknown = sorted(set(map(str, value)) - allowed)
-        if unknown:
-            raise self.fail(f"{key}.{unknown[0]}" if key else unknown[0],
-                            f"unknown key (allowed: {', '.join(sorted(allowed))})")
-        missing = sorted(required - set(value))
-        if missing:
-            raise self.fail(key or missing[0], f"missing required key '{missing[0]}'")
-        return value
-
-    def seq(self, value: Any, key: str) -> list:
-        if value is None:
-            return []
-        if not isinstance(value, list):
-            raise self.fail(key, f"expected a list, got {type(value).__name__}")
-        return value
-
-    def number(self, value: Any, key: str, minimum: float | None = None, positive: bool = False,
-               maximum: float | None = None) -> float:
-        if isinstance(value, str) and _FLOAT.match(value.strip()):
-            value = float(value)  # YAML 1.1 reads 20e6 / 1.5e-3 (no sign in the exponent) as strings
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.fail(key, f"expected a number, got {value!r}")
-        try:
-            x = float(value)
-        except OverflowError:
-            raise self.fail(key, "a number too large to be a quantity of a linkage") from None
-        if not math.isfinite(x):
-            raise self.fail(key, f"{x} is not a finite number")
-        if abs(x) > MAX_MAGNITUDE:
-            raise self.fail(key, f"{x:.6g} is out of range (|value| <= {MAX_MAGNITUDE:.0e} in SI units)")
-        if positive and x <= 0.0:
-            raise self.fail(key, f"must be > 0, got {x}")
-        if minimum is not None and x < minimum:
-            raise self.fail(key, f"must be >= {minimum}, got {x}")
-        if maximum is not None and x > maximum:
-            raise self.fail(key, f"must be <= {maximum}, got {x}")
-        return x
-
-    def text(self, value: Any, key: str) -> str:
-        if not isinstance(value, str) or not value:
-            raise self.fail(key, f"expected a non-empty string, got {value!r}")
-        return value
-
-    def vector(self, value: Any, key: str, nonzero: bool = False) -> np.ndarray:
-        if not isinstance(value, list) or len(value) != 2:
-            raise self.fail(key, f"expected [x, z] (two numbers), got {value!r}")
-        v = np.array([self.number(value[0], f"{key}[0]"), self.number(value[1], f"{key}[1]")])
-        if nonzero and not np.any(v):
-            raise self.fail(key, "must not be the zero vector")
-        return v
-
-    def point_name(self, value: Any, key: str) -> str:
-        name = self.text(value, key)
-        if name not in self.points:
-            raise self.fail(key, f"point '{name}' is not defined in points")
-        return name
-
-    def position(self, value: Any, key: str) -> np.ndarray:
-        """A point name or literal [x, z] -> coordinates (m)."""
-        if isinstance(value, str):
-            return self.points[self.point_name(value, key)].copy()
-        return self.vector(value, key)
-
-    def body_name(self, value: Any, key: str, moving: bool = False) -> str:
-        name = self.text(value, key)
-        if name not in self.bodies:
-            raise self.fail(key, f"body '{name}' is not defined (bodies: {', '.join(self.bodies)})")
-        if moving and self.bodies[name].ground:
-            raise self.fail(key, f"body '{name}' is the ground; a moving body is needed here")
-        return name
-
-    def on_body(self, point: str, body: str, key: str) -> None:
-        if point not in self.bodies[body].points:
-            raise self.fail(key, f"point '{point}' is not on body '{body}' (its points: "
-                                 f"{', '.join(self.bodies[body].points)})")
-
-    def mount(self, value: Any, key: str) -> Mount:
-        m = self.mapping(value, key, {"point", "body"}, {"point", "body"})
-        body = self.body_name(m["body"], f"{key}.body")
-        point = self.point_name(m["point"], f"{key}.point")
-        self.on_body(point, body, f"{key}.point")
-        return Mount(point=point, body=body)
-
-    def unique(self, names: list[str], key: str) -> None:
-        seen: set[str] = set()
-        for i, n in enumerate(names):
-            if n in seen:
-                raise self.fail(f"{key}[{i}].name", f"duplicate name '{n}'")
-            seen.add(n)
-
-    # ---- sections ------------------------------------------------------------------------
     def mechanism(self, data: Any) -> Mechanism:
         top = self.mapping(data, "", _TOP_KEYS, {"name", "points", "bodies", "hinges", "measurements"})
         name = self.text(top["name"], "name")

@@ -33,8 +33,8 @@ from .errors import LinkageError
 from .inputs import Inputs
 from .machine import STEERABILITY_KEYS, MachineModel, MachineResult
 from .model import Mechanism
+from .overrides import apply_overrides
 from .results import Result
-from .schema import apply_overrides
 from .solver import Solver
 
 LOAD_STEP_PRESSURE = 1.0e5   # Pa: the pressure step of a load derivative (any step: the outputs are linear)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 from linkage_monitor.mechanics import InputError
-from linkage_monitor.mechanics.schema import MAX_MAGNITUDE
+from linkage_monitor.mechanics.schema_values import MAX_MAGNITUDE
 
 
 def name_value(text: str, option: str) -> tuple[str, str]:
