@@ -20,6 +20,7 @@ from linkage_monitor.monitoring.bounds import COVERAGE_FACTOR, MotionTracker, ba
 from linkage_monitor.monitoring.core import Monitor
 from linkage_monitor.monitoring.events import ConfigEvent
 from linkage_monitor.monitoring.findings import Code, Level
+from linkage_monitor.offline.fleet import analyse_bag
 from linkage_monitor.offline.replay import replay
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.events import JointStateEvent, PressureEvent
@@ -134,3 +135,21 @@ def test_a_bag_recorded_without_it_replays_with_the_default_sources() -> None:
         assert kinds[("WARN", code)] == plain[("WARN", code)] > 0, code
     assert kinds[("WARN", "steerability_uncertain")] > 0 and kinds[("WARN", "lift_reserve_uncertain")] > 0
     assert ("WARN", "steerability_uncertain") not in plain
+
+
+@pytest.mark.slow
+def test_the_fleet_row_gives_the_time_uncertain() -> None:
+    """``analyse_bag`` of the bundled overload bag: with the budget the time below each limit is the
+    same, and the time uncertain is the time its interval straddles the limit (walked pose by pose
+    from the replay's steps: each pose holds until the next)."""
+    bag = Path(__file__).resolve().parent.parent / "bags" / "belarus_1221_overload"
+    plain, bounded = analyse_bag(bag).row, analyse_bag(bag, uncertainty=True).row
+    assert "uncertain_margin_s" not in plain
+    assert bounded["below_margin_s"] == plain["below_margin_s"] > 0
+    assert bounded["below_reserve_s"] == plain["below_reserve_s"] > 0
+    steps = [s for s in replay(bag, progress=None, uncertainty=True).steps if s.pose is not None]
+    stamps = np.array([s.stamp_ns for s in steps], dtype=np.int64)
+    t = (stamps - stamps[0]) * 1e-9
+    straddling = np.array([any(f.code is Code.STEERABILITY_UNCERTAIN for f in s.findings) for s in steps])
+    assert bounded["uncertain_margin_s"] == pytest.approx(float(np.sum(np.diff(t)[straddling[:-1]])), rel=1e-9)
+    assert bounded["uncertain_margin_s"] > 0 and bounded["uncertain_reserve_s"] > 0

@@ -37,6 +37,9 @@ def add_fleet_parser(sub: argparse._SubParsersAction) -> None:
                         help=f"LocalCluster worker processes (default: the cores, here {os.cpu_count()})")
     add_mechanism_group(parser, required=False, default="the one recorded in each bag")
     add_spectrum_arguments(parser)
+    parser.add_argument("--uncertainty", action="store_true",
+                        help="replay with the error budget: the limits judged on their 95 %% intervals, and the "
+                             "time each margin was uncertain (docs/accuracy.md)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -57,7 +60,7 @@ def run_fleet_command(args: argparse.Namespace) -> int:
         return 2
     fleet = run_fleet(bags, mechanism_from_args(args), slope=args.slope, bin_width=args.bin,
                       scheduler=args.scheduler, workers=args.workers,
-                      progress=None if args.quiet else sys.stderr)
+                      progress=None if args.quiet else sys.stderr, uncertainty=args.uncertainty)
     bags_file, spectra_file = write_parquet(fleet, args.out)
     plot_fleet(fleet.rows, args.slope, args.out / "fleet.png")
     print(worst_table(fleet))

@@ -52,7 +52,7 @@ _STEER, _RESERVE = int(Check.STEERABILITY_UNCERTAIN), int(Check.LIFT_RESERVE_UNC
 _FRONT, _REAR = int(Check.FRONT_AXLE_UNCERTAIN), int(Check.REAR_AXLE_UNCERTAIN)
 
 
-def _straddles(value: float | np.ndarray, u: float | np.ndarray, limit: float) -> np.ndarray:
+def straddles(value: float | np.ndarray, u: float | np.ndarray, limit: float) -> np.ndarray:
     """True where a finite ``value`` clears ``limit`` (≥) but its 95 % interval does not, or u is
     unbounded (a NaN value fails no check; an infinite one, a reserve without load, clears); a 0-d
     array for one pose."""
@@ -65,10 +65,10 @@ def interval_checks(front_axle_load: float | np.ndarray, rear_axle_load: float |
                     margin: float | np.ndarray, reserve: float | np.ndarray, u: LimitUncertainties) -> np.ndarray:
     """The ``Check`` bits of the values whose interval straddles their limit: a 0-d int array for one
     pose, an int array (N,) for N poses (the limits of ``checks.pose_checks``: 0 N, 0, 1)."""
-    return (_straddles(front_axle_load, u.front_axle_load, 0.0) * _FRONT
-            + _straddles(rear_axle_load, u.rear_axle_load, 0.0) * _REAR
-            + _straddles(margin, u.margin, 0.0) * _STEER
-            + _straddles(reserve, u.reserve, 1.0) * _RESERVE)
+    return (straddles(front_axle_load, u.front_axle_load, 0.0) * _FRONT
+            + straddles(rear_axle_load, u.rear_axle_load, 0.0) * _REAR
+            + straddles(margin, u.margin, 0.0) * _STEER
+            + straddles(reserve, u.reserve, 1.0) * _RESERVE)
 
 
 def ballast_at_bound(mech: Mechanism, ratio: float, half_width: float, total_weight: float) -> float:

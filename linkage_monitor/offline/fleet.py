@@ -52,13 +52,15 @@ def find_bags(paths: Iterable[Path]) -> list[Path]:
 
 
 def analyse_bag(bag: Path, mech: Mechanism | None = None, slope: float = DEFAULT_SLOPE,
-                bin_width: float = DEFAULT_BIN_N) -> BagAnalysis:
+                bin_width: float = DEFAULT_BIN_N, uncertainty: bool = False) -> BagAnalysis:
     """Replay ``bag`` and reduce it (one Dask task). Never raises: an error becomes the row's ``error``;
     what of the bag could not be read (a cut-off file, a skipped chunk, a file metadata.yaml does not
-    list: the reader's ``ReadFault``s) the row's ``warning``, its messages counted there."""
+    list: the reader's ``ReadFault``s) the row's ``warning``, its messages counted there.
+    uncertainty: replayed with the error budget (``replay``'s), the row also gives the time the
+    margin and the reserve were uncertain (``uncertain_margin_s``, ``uncertain_reserve_s``)."""
     with read_faults() as faults:
         try:
-            replayed = replay(bag, mech, progress=None)
+            replayed = replay(bag, mech, progress=None, uncertainty=uncertainty)
         except Exception as exc:  # noqa: BLE001 - a task boundary: the bag's own row says what failed
             text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             return BagAnalysis({"bag": str(bag), "error": text, "warning": _warning(faults)})
@@ -76,6 +78,9 @@ def analyse_bag(bag: Path, mech: Mechanism | None = None, slope: float = DEFAULT
         "min_reserve_at_s": summary.min_reserve[1] if summary.min_reserve else math.nan,
         "below_reserve_s": history.time_below(history.reserve, RESERVE_LIMIT),
     }
+    if history.margin_u is not None and history.reserve_u is not None:
+        row["uncertain_margin_s"] = history.time_uncertain(history.margin, history.margin_u, MARGIN_LIMIT)
+        row["uncertain_reserve_s"] = history.time_uncertain(history.reserve, history.reserve_u, RESERVE_LIMIT)
     counts = {code.ident: 0 for code in Code}
     for (_, ident), count in summary.kinds.items():
         counts[ident] += count
@@ -107,9 +112,10 @@ class Fleet:
 
 def run_fleet(bags: list[Path], mech: Mechanism | None = None, slope: float = DEFAULT_SLOPE,
               bin_width: float = DEFAULT_BIN_N, scheduler: str | None = None, workers: int | None = None,
-              progress: TextIO | None = sys.stderr) -> Fleet:
+              progress: TextIO | None = sys.stderr, uncertainty: bool = False) -> Fleet:
     """Analyse ``bags`` as one Dask task each: on the cluster at ``scheduler`` (tcp://host:port), or
-    on a LocalCluster of ``workers`` processes (default: one per core) started and stopped here."""
+    on a LocalCluster of ``workers`` processes (default: one per core) started and stopped here;
+    ``uncertainty`` as ``analyse_bag``'s."""
     from dask.distributed import Client, LocalCluster, as_completed
     from tqdm import tqdm
 
@@ -118,7 +124,8 @@ def run_fleet(bags: list[Path], mech: Mechanism | None = None, slope: float = DE
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
     client = Client(scheduler or cluster)
     try:
-        futures = client.map(analyse_bag, bags, mech=mech, slope=slope, bin_width=bin_width, pure=False)
+        futures = client.map(analyse_bag, bags, mech=mech, slope=slope, bin_width=bin_width, uncertainty=uncertainty,
+                             pure=False)
         order = {f.key: i for i, f in enumerate(futures)}
         done: list[BagAnalysis | None] = [None] * len(bags)
         for future in tqdm(as_completed(futures), total=len(futures), desc="fleet", unit="bag", file=progress,

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from linkage_monitor.monitoring.bounds import straddles
 from linkage_monitor.monitoring.core import Run
 
 from .spectra import Spectrum, rainflow_spectrum
@@ -21,13 +22,17 @@ from .spectra import Spectrum, rainflow_spectrum
 class LoadHistory:
     """Solved poses of one run: t (N,) s; hinge[name] (N,) reaction magnitude N; margin (N,)
     and reserve (N,) (NaN where the machine model has none); duration_s from the first to the
-    last input stamp."""
+    last input stamp; margin_u and reserve_u (N,): their standard uncertainties where the run
+    computed the error budget (``MonitorConfig.uncertainty``; NaN at a pose whose u is unbounded),
+    None where it did not."""
 
     t: np.ndarray
     hinge: dict[str, np.ndarray]
     margin: np.ndarray
     reserve: np.ndarray
     duration_s: float
+    margin_u: np.ndarray | None = None
+    reserve_u: np.ndarray | None = None
 
     @classmethod
     def from_run(cls, run: Run) -> LoadHistory:
@@ -41,6 +46,13 @@ class LoadHistory:
             return 0.0
         dt = np.diff(self.t)
         return float(np.sum(np.where(values[:-1] < limit, dt, 0.0)))
+
+    def time_uncertain(self, values: np.ndarray, u: np.ndarray, limit: float) -> float:
+        """Seconds spent with ``values`` ≥ limit but their 95 % interval (± 1.96 ``u``) reaching below
+        it, or u unbounded (``monitoring.bounds.straddles``): each solved pose holds until the next one."""
+        if self.t.size < 2:
+            return 0.0
+        return float(np.sum(np.where(straddles(values[:-1], u[:-1], limit), np.diff(self.t), 0.0)))
 
     def spectra(self) -> dict[str, Spectrum]:
         """Rainflow spectrum of each hinge's reaction magnitude over the bag's duration."""
@@ -59,6 +71,8 @@ class HistoryRecorder:
         self._magnitudes: list[np.ndarray] = []
         self._margin: list[np.ndarray] = []
         self._reserve: list[np.ndarray] = []
+        self._u: list[np.ndarray] = []   # (n, 2): the margin's and the reserve's u, where budgets were computed
+        self._budgets = True             # every solved pose so far carried its error budget
 
     def add(self, run: Run) -> None:
         """The next piece of the run."""
@@ -77,6 +91,10 @@ class HistoryRecorder:
                                                                                           len(self._names)))
         self._margin.append(np.array([p.machine.value("margin") for _, p in poses]))
         self._reserve.append(np.array([p.machine.value("reserve") for _, p in poses]))
+        self._budgets = self._budgets and all(p.budget is not None for _, p in poses)
+        if self._budgets:
+            self._u.append(np.array([[p.budget.u_of("steerability_margin"), p.budget.u_of("lift_reserve")]
+                                     for _, p in poses if p.budget is not None]).reshape(len(poses), 2))
 
     def history(self) -> LoadHistory:
         """The ``LoadHistory`` of every piece added."""
@@ -85,9 +103,11 @@ class HistoryRecorder:
         names = self._names or []
         stamps = np.concatenate(self._stamps) if self._stamps else np.zeros(0, dtype=np.int64)
         magnitudes = np.concatenate(self._magnitudes) if self._magnitudes else np.zeros((0, len(names)))
+        u = (np.concatenate(self._u) if self._u else np.zeros((0, 2))) if self._budgets and self._u else None
         return LoadHistory((stamps - start) * 1e-9, {name: magnitudes[:, k] for k, name in enumerate(names)},
                            np.concatenate(self._margin) if self._margin else np.zeros(0),
-                           np.concatenate(self._reserve) if self._reserve else np.zeros(0), duration)
+                           np.concatenate(self._reserve) if self._reserve else np.zeros(0), duration,
+                           u[:, 0] if u is not None else None, u[:, 1] if u is not None else None)
 
 
 def spectra_table(history: LoadHistory, slope: float, bin_width: float) -> str:
