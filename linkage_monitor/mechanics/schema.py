@@ -66,8 +66,8 @@ class _Reader(ValueReader):
                 raise self.fail(f"points.{k}", f"{v.tolist()} m is farther than {MAX_COORDINATE:.0f} m from the "
                                 "origin (the rear wheels' ground contact): units are metres")
         bodies = self.read_bodies(top["bodies"])
-        hinges = self.read_hinges(top["hinges"])
-        cylinders = self.read_cylinders(top.get("cylinders"))
+        hinges = self.named_items(top["hinges"], "hinges", self.read_hinge)
+        cylinders = self.named_items(top.get("cylinders"), "cylinders", self.read_cylinder)
         implement = self.read_implement(top.get("implement"))
         measurements = self.read_measurements(top["measurements"], hinges, cylinders)
         mech = Mechanism(
@@ -75,8 +75,9 @@ class _Reader(ValueReader):
             measurements=measurements,
             description=str(top.get("description", "") or ""), source=str(top.get("source", "") or ""),
             gravity=self.number(top.get("gravity", 9.80665), "gravity", minimum=0.0, maximum=MAX_GRAVITY),
-            cylinders=cylinders, springs=self.read_springs(top.get("springs")),
-            contacts=self.read_contacts(top.get("contacts")), loads=self.read_loads(top.get("loads")),
+            cylinders=cylinders, springs=self.named_items(top.get("springs"), "springs", self.read_spring),
+            contacts=self.named_items(top.get("contacts"), "contacts", self.read_contact),
+            loads=self.named_items(top.get("loads"), "loads", self.read_load),
             implement=implement, reference_inputs=self.read_reference_inputs(top.get("reference_inputs"), measurements),
             tractor=self.read_tractor(top.get("tractor")),
             error_sources=read_error_sources(self, top.get("error_sources"), {c.name for c in cylinders}),
@@ -99,123 +100,96 @@ class _Reader(ValueReader):
                 raise self.fail(f"{section}.{name}", f"its ends {a} and {b} coincide: zero length in the reference pose")
 
     def read_bodies(self, value: Any) -> tuple[Body, ...]:
-        items = self.seq(value, "bodies")
-        out = []
-        for i, item in enumerate(items):
-            k = f"bodies[{i}]"
-            b = self.mapping(item, k, {"name", "ground", "points", "mass", "cg", "inertia"}, {"name", "points"})
-            name = self.text(b["name"], f"{k}.name")
-            ground = b.get("ground", False)
-            if not isinstance(ground, bool):
-                raise self.fail(f"{k}.ground", f"expected true/false, got {ground!r}")
-            pts = tuple(self.point_name(p, f"{k}.points[{j}]") for j, p in enumerate(self.seq(b["points"], f"{k}.points")))
-            if not pts:
-                raise self.fail(f"{k}.points", "a body needs at least one point")
-            mass = self.number(b.get("mass", 0.0), f"{k}.mass", minimum=0.0)
-            if mass > 0.0 and "cg" not in b:
-                raise self.fail(f"{k}.cg", f"required because mass is {mass} kg")
-            cg = self.position(b["cg"], f"{k}.cg") if "cg" in b else None
-            out.append(Body(name=name, ground=ground, points=pts, mass=mass, cg=cg,
-                            inertia=self.number(b.get("inertia", 0.0), f"{k}.inertia", minimum=0.0)))
-        self.unique([b.name for b in out], "bodies")
+        out = self.named_items(value, "bodies", self.read_body)
         grounds = [b.name for b in out if b.ground]
         if len(grounds) != 1:
             raise self.fail("bodies", f"exactly one body must have ground: true, found {len(grounds)} ({', '.join(grounds)})")
         if len(out) < 2:
             raise self.fail("bodies", "at least one moving body is needed")
         self.bodies = {b.name: b for b in out}
-        return tuple(out)
+        return out
 
-    def read_hinges(self, value: Any) -> tuple[Hinge, ...]:
-        out = []
-        for i, item in enumerate(self.seq(value, "hinges")):
-            k = f"hinges[{i}]"
-            h = self.mapping(item, k, {"name", "point", "bodies"}, {"name", "bodies"})
-            name = self.text(h["name"], f"{k}.name")
-            point = self.point_name(h.get("point", name), f"{k}.point")
-            pair = h["bodies"]
-            if not isinstance(pair, list) or len(pair) != 2:
-                raise self.fail(f"{k}.bodies", f"expected [body_a, body_b], got {pair!r}")
-            a = self.body_name(pair[0], f"{k}.bodies")
-            b = self.body_name(pair[1], f"{k}.bodies")
-            if a == b:
-                raise self.fail(f"{k}.bodies", f"a hinge joins two different bodies, got '{a}' twice")
-            self.on_body(point, a, f"{k}.bodies")
-            self.on_body(point, b, f"{k}.bodies")
-            out.append(Hinge(name=name, point=point, bodies=(a, b)))
-        self.unique([h.name for h in out], "hinges")
-        return tuple(out)
+    def read_body(self, item: Any, k: str) -> Body:
+        b = self.mapping(item, k, {"name", "ground", "points", "mass", "cg", "inertia"}, {"name", "points"})
+        name = self.text(b["name"], f"{k}.name")
+        ground = b.get("ground", False)
+        if not isinstance(ground, bool):
+            raise self.fail(f"{k}.ground", f"expected true/false, got {ground!r}")
+        pts = tuple(self.point_name(p, f"{k}.points[{j}]") for j, p in enumerate(self.seq(b["points"], f"{k}.points")))
+        if not pts:
+            raise self.fail(f"{k}.points", "a body needs at least one point")
+        mass = self.number(b.get("mass", 0.0), f"{k}.mass", minimum=0.0)
+        if mass > 0.0 and "cg" not in b:
+            raise self.fail(f"{k}.cg", f"required because mass is {mass} kg")
+        cg = self.position(b["cg"], f"{k}.cg") if "cg" in b else None
+        return Body(name=name, ground=ground, points=pts, mass=mass, cg=cg,
+                    inertia=self.number(b.get("inertia", 0.0), f"{k}.inertia", minimum=0.0))
 
-    def read_cylinders(self, value: Any) -> tuple[Cylinder, ...]:
-        out = []
-        for i, item in enumerate(self.seq(value, "cylinders")):
-            k = f"cylinders[{i}]"
-            c = self.mapping(item, k, {"name", "base", "rod_end", "bore", "rod", "count", "relief_pressure",
-                                        "efficiency"}, {"name", "base", "rod_end", "bore", "rod"})
-            base, rod_end = self.mount(c["base"], f"{k}.base"), self.mount(c["rod_end"], f"{k}.rod_end")
-            if base.body == rod_end.body:
-                raise self.fail(f"{k}.rod_end.body", f"base and rod end are both on '{base.body}'")
-            bore = self.number(c["bore"], f"{k}.bore", positive=True)
-            rod = self.number(c["rod"], f"{k}.rod", minimum=0.0)
-            if rod >= bore:
-                raise self.fail(f"{k}.rod", f"rod diameter {rod} m must be smaller than the bore {bore} m")
-            count = c.get("count", 1)
-            if isinstance(count, bool) or not isinstance(count, int) or count < 1:
-                raise self.fail(f"{k}.count", f"expected an integer >= 1, got {count!r}")
-            relief = c.get("relief_pressure")
-            out.append(Cylinder(
-                name=self.text(c["name"], f"{k}.name"), base=base, rod_end=rod_end, bore=bore, rod=rod,
-                count=count,
-                relief_pressure=None if relief is None else self.number(relief, f"{k}.relief_pressure", positive=True),
-                efficiency=self.number(c.get("efficiency", 1.0), f"{k}.efficiency", positive=True, maximum=1.0)))
-        self.unique([c.name for c in out], "cylinders")
-        return tuple(out)
+    def read_hinge(self, item: Any, k: str) -> Hinge:
+        h = self.mapping(item, k, {"name", "point", "bodies"}, {"name", "bodies"})
+        name = self.text(h["name"], f"{k}.name")
+        point = self.point_name(h.get("point", name), f"{k}.point")
+        pair = h["bodies"]
+        if not isinstance(pair, list) or len(pair) != 2:
+            raise self.fail(f"{k}.bodies", f"expected [body_a, body_b], got {pair!r}")
+        a = self.body_name(pair[0], f"{k}.bodies")
+        b = self.body_name(pair[1], f"{k}.bodies")
+        if a == b:
+            raise self.fail(f"{k}.bodies", f"a hinge joins two different bodies, got '{a}' twice")
+        self.on_body(point, a, f"{k}.bodies")
+        self.on_body(point, b, f"{k}.bodies")
+        return Hinge(name=name, point=point, bodies=(a, b))
 
-    def read_springs(self, value: Any) -> tuple[Spring, ...]:
-        out = []
-        for i, item in enumerate(self.seq(value, "springs")):
-            k = f"springs[{i}]"
-            s = self.mapping(item, k, {"name", "a", "b", "stiffness", "free_length", "preload"},
-                             {"name", "a", "b", "stiffness", "free_length"})
-            a, b = self.mount(s["a"], f"{k}.a"), self.mount(s["b"], f"{k}.b")
-            if a.body == b.body:
-                raise self.fail(f"{k}.b.body", f"both ends are on '{a.body}'")
-            out.append(Spring(name=self.text(s["name"], f"{k}.name"), a=a, b=b,
-                              stiffness=self.number(s["stiffness"], f"{k}.stiffness", minimum=0.0),
-                              free_length=self.number(s["free_length"], f"{k}.free_length", positive=True),
-                              preload=self.number(s.get("preload", 0.0), f"{k}.preload")))
-        self.unique([s.name for s in out], "springs")
-        return tuple(out)
+    def read_cylinder(self, item: Any, k: str) -> Cylinder:
+        c = self.mapping(item, k, {"name", "base", "rod_end", "bore", "rod", "count", "relief_pressure",
+                                    "efficiency"}, {"name", "base", "rod_end", "bore", "rod"})
+        base, rod_end = self.mount(c["base"], f"{k}.base"), self.mount(c["rod_end"], f"{k}.rod_end")
+        if base.body == rod_end.body:
+            raise self.fail(f"{k}.rod_end.body", f"base and rod end are both on '{base.body}'")
+        bore = self.number(c["bore"], f"{k}.bore", positive=True)
+        rod = self.number(c["rod"], f"{k}.rod", minimum=0.0)
+        if rod >= bore:
+            raise self.fail(f"{k}.rod", f"rod diameter {rod} m must be smaller than the bore {bore} m")
+        count = c.get("count", 1)
+        if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+            raise self.fail(f"{k}.count", f"expected an integer >= 1, got {count!r}")
+        relief = c.get("relief_pressure")
+        return Cylinder(
+            name=self.text(c["name"], f"{k}.name"), base=base, rod_end=rod_end, bore=bore, rod=rod,
+            count=count,
+            relief_pressure=None if relief is None else self.number(relief, f"{k}.relief_pressure", positive=True),
+            efficiency=self.number(c.get("efficiency", 1.0), f"{k}.efficiency", positive=True, maximum=1.0))
 
-    def read_contacts(self, value: Any) -> tuple[Contact, ...]:
-        out = []
-        for i, item in enumerate(self.seq(value, "contacts")):
-            k = f"contacts[{i}]"
-            c = self.mapping(item, k, {"name", "point", "body", "normal", "friction", "travel"},
-                             {"name", "point", "body", "normal"})
-            body = self.body_name(c["body"], f"{k}.body", moving=True)
-            point = self.point_name(c["point"], f"{k}.point")
-            self.on_body(point, body, f"{k}.point")
-            normal = self.vector(c["normal"], f"{k}.normal", nonzero=True)
-            travel = self.vector(c.get("travel", [1.0, 0.0]), f"{k}.travel", nonzero=True)
-            out.append(Contact(name=self.text(c["name"], f"{k}.name"), point=point, body=body,
-                               normal=normal / np.hypot(*normal),
-                               friction=self.number(c.get("friction", 0.0), f"{k}.friction", minimum=0.0),
-                               travel=travel / np.hypot(*travel)))
-        self.unique([c.name for c in out], "contacts")
-        return tuple(out)
+    def read_spring(self, item: Any, k: str) -> Spring:
+        s = self.mapping(item, k, {"name", "a", "b", "stiffness", "free_length", "preload"},
+                         {"name", "a", "b", "stiffness", "free_length"})
+        a, b = self.mount(s["a"], f"{k}.a"), self.mount(s["b"], f"{k}.b")
+        if a.body == b.body:
+            raise self.fail(f"{k}.b.body", f"both ends are on '{a.body}'")
+        return Spring(name=self.text(s["name"], f"{k}.name"), a=a, b=b,
+                      stiffness=self.number(s["stiffness"], f"{k}.stiffness", minimum=0.0),
+                      free_length=self.number(s["free_length"], f"{k}.free_length", positive=True),
+                      preload=self.number(s.get("preload", 0.0), f"{k}.preload"))
 
-    def read_loads(self, value: Any) -> tuple[Load, ...]:
-        out = []
-        for i, item in enumerate(self.seq(value, "loads")):
-            k = f"loads[{i}]"
-            ld = self.mapping(item, k, {"name", "body", "point", "force"}, {"name", "body", "point", "force"})
-            out.append(Load(name=self.text(ld["name"], f"{k}.name"),
-                            body=self.body_name(ld["body"], f"{k}.body", moving=True),
-                            position=self.position(ld["point"], f"{k}.point"),
-                            force=self.vector(ld["force"], f"{k}.force")))
-        self.unique([ld.name for ld in out], "loads")
-        return tuple(out)
+    def read_contact(self, item: Any, k: str) -> Contact:
+        c = self.mapping(item, k, {"name", "point", "body", "normal", "friction", "travel"},
+                         {"name", "point", "body", "normal"})
+        body = self.body_name(c["body"], f"{k}.body", moving=True)
+        point = self.point_name(c["point"], f"{k}.point")
+        self.on_body(point, body, f"{k}.point")
+        normal = self.vector(c["normal"], f"{k}.normal", nonzero=True)
+        travel = self.vector(c.get("travel", [1.0, 0.0]), f"{k}.travel", nonzero=True)
+        return Contact(name=self.text(c["name"], f"{k}.name"), point=point, body=body,
+                       normal=normal / np.hypot(*normal),
+                       friction=self.number(c.get("friction", 0.0), f"{k}.friction", minimum=0.0),
+                       travel=travel / np.hypot(*travel))
+
+    def read_load(self, item: Any, k: str) -> Load:
+        ld = self.mapping(item, k, {"name", "body", "point", "force"}, {"name", "body", "point", "force"})
+        return Load(name=self.text(ld["name"], f"{k}.name"),
+                    body=self.body_name(ld["body"], f"{k}.body", moving=True),
+                    position=self.position(ld["point"], f"{k}.point"),
+                    force=self.vector(ld["force"], f"{k}.force"))
 
     def read_implement(self, value: Any) -> Implement | None:
         if value is None:
@@ -249,26 +223,9 @@ class _Reader(ValueReader):
             if c in cyls:
                 raise self.fail(f"{k}.cylinders[{i}]", f"cylinder '{c}' is listed twice")
             cyls.append(c)
-        angles = []
-        for i, a in enumerate(self.seq(m.get("angles"), f"{k}.angles")):
-            ka = f"{k}.angles[{i}]"
-            am = self.mapping(a, ka, {"name", "hinge", "reference"}, {"name", "hinge"})
-            if am["hinge"] not in hinge_names:
-                raise self.fail(f"{ka}.hinge", f"hinge '{am['hinge']}' is not defined (hinges: {', '.join(hinge_names)})")
-            angles.append(AngleSensor(name=self.text(am["name"], f"{ka}.name"), hinge=am["hinge"],
-                                      reference=self.number(am.get("reference", 0.0), f"{ka}.reference")))
-        self.unique([a.name for a in angles], f"{k}.angles")
-        pressures = []
-        for i, p in enumerate(self.seq(m.get("pressures"), f"{k}.pressures")):
-            kp = f"{k}.pressures[{i}]"
-            pm = self.mapping(p, kp, {"name", "cylinder", "chamber"}, {"name", "cylinder", "chamber"})
-            if pm["cylinder"] not in cyl_names:
-                raise self.fail(f"{kp}.cylinder", f"cylinder '{pm['cylinder']}' is not defined (cylinders: {', '.join(cyl_names)})")
-            if pm["chamber"] not in ("cap", "rod"):
-                raise self.fail(f"{kp}.chamber", f"expected 'cap' or 'rod', got {pm['chamber']!r}")
-            pressures.append(PressureSensor(name=self.text(pm["name"], f"{kp}.name"), cylinder=pm["cylinder"],
-                                            chamber=pm["chamber"]))
-        self.unique([p.name for p in pressures], f"{k}.pressures")
+        angles = self.named_items(m.get("angles"), f"{k}.angles", lambda a, ka: self.read_angle(a, ka, hinge_names))
+        pressures = self.named_items(m.get("pressures"), f"{k}.pressures",
+                                     lambda p, kp: self.read_pressure(p, kp, cyl_names))
         measured = set(cyls) | {a.name for a in angles} | {p.name for p in pressures}
         limits = {}
         lm = m.get("limits") or {}
@@ -284,7 +241,22 @@ class _Reader(ValueReader):
             if not lo < hi:
                 raise self.fail(kl, f"min {lo} must be below max {hi}")
             limits[str(name)] = (lo, hi)
-        return Measurements(cylinders=tuple(cyls), angles=tuple(angles), pressures=tuple(pressures), limits=limits)
+        return Measurements(cylinders=tuple(cyls), angles=angles, pressures=pressures, limits=limits)
+
+    def read_angle(self, a: Any, ka: str, hinge_names: list[str]) -> AngleSensor:
+        am = self.mapping(a, ka, {"name", "hinge", "reference"}, {"name", "hinge"})
+        if am["hinge"] not in hinge_names:
+            raise self.fail(f"{ka}.hinge", f"hinge '{am['hinge']}' is not defined (hinges: {', '.join(hinge_names)})")
+        return AngleSensor(name=self.text(am["name"], f"{ka}.name"), hinge=am["hinge"],
+                           reference=self.number(am.get("reference", 0.0), f"{ka}.reference"))
+
+    def read_pressure(self, p: Any, kp: str, cyl_names: list[str]) -> PressureSensor:
+        pm = self.mapping(p, kp, {"name", "cylinder", "chamber"}, {"name", "cylinder", "chamber"})
+        if pm["cylinder"] not in cyl_names:
+            raise self.fail(f"{kp}.cylinder", f"cylinder '{pm['cylinder']}' is not defined (cylinders: {', '.join(cyl_names)})")
+        if pm["chamber"] not in ("cap", "rod"):
+            raise self.fail(f"{kp}.chamber", f"expected 'cap' or 'rod', got {pm['chamber']!r}")
+        return PressureSensor(name=self.text(pm["name"], f"{kp}.name"), cylinder=pm["cylinder"], chamber=pm["chamber"])
 
     def read_reference_inputs(self, value: Any, meas: Measurements) -> dict[str, dict[str, float]]:
         k = "reference_inputs"

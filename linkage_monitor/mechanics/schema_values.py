@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Any
+from typing import Any, Callable, Protocol, TypeVar
 
 import numpy as np
 
@@ -16,6 +16,14 @@ from .model import Body, Mount
 
 MAX_MAGNITUDE = 1e9          # no number of the schema (m, kg, N, Pa, N/m) is larger
 _FLOAT = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
+class _HasName(Protocol):
+    @property
+    def name(self) -> str: ...
+
+
+_Named = TypeVar("_Named", bound=_HasName)
 
 
 class ValueReader:
@@ -115,6 +123,12 @@ class ValueReader:
         point = self.point_name(m["point"], f"{key}.point")
         self.on_body(point, body, f"{key}.point")
         return Mount(point=point, body=body)
+
+    def named_items(self, value: Any, key: str, read: Callable[[Any, str], _Named]) -> tuple[_Named, ...]:
+        """The list ``key`` (None: empty) read item by item, ``read(item, f"{key}[i]")``; names unique."""
+        items = tuple(read(item, f"{key}[{i}]") for i, item in enumerate(self.seq(value, key)))
+        self.unique([item.name for item in items], key)
+        return items
 
     def unique(self, names: list[str], key: str) -> None:
         seen: set[str] = set()
