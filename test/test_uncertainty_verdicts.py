@@ -16,7 +16,9 @@ from linkage_monitor.cli.verdict import judge
 from linkage_monitor.mechanics import Inputs, Solver, apply_overrides, load_preset
 from linkage_monitor.mechanics.error_sources import Motion
 from linkage_monitor.mechanics.machine import MachineModel
-from linkage_monitor.monitoring.bounds import COVERAGE_FACTOR, MotionTracker, ballast_at_bound
+from linkage_monitor.monitoring.bounds import (COVERAGE_FACTOR, LimitUncertainties, MotionTracker, ballast_at_bound,
+                                               interval_checks, uncertain_findings)
+from linkage_monitor.monitoring.checks import Check
 from linkage_monitor.monitoring.core import Monitor
 from linkage_monitor.monitoring.events import ConfigEvent
 from linkage_monitor.monitoring.findings import Code, Level
@@ -153,3 +155,32 @@ def test_the_fleet_row_gives_the_time_uncertain() -> None:
     straddling = np.array([any(f.code is Code.STEERABILITY_UNCERTAIN for f in s.findings) for s in steps])
     assert bounded["uncertain_margin_s"] == pytest.approx(float(np.sum(np.diff(t)[straddling[:-1]])), rel=1e-9)
     assert bounded["uncertain_margin_s"] > 0 and bounded["uncertain_reserve_s"] > 0
+
+
+def test_the_interval_rule_one_pose_and_many_alike() -> None:
+    """``interval_checks``: a value clearing its limit by less than 1.96 u, or of unbounded u, straddles;
+    one clearing by more, one beyond the limit (its own finding), NaN (not computed) and an infinite
+    reserve (no load) do not; a pose's floats and a segment's arrays give the same bits."""
+    margin = np.array([0.05, 0.005, -0.01, np.nan, 0.05])
+    u_margin = np.array([0.004, 0.004, 0.004, 0.004, np.nan])
+    reserve = np.array([1.5, 1.01, np.inf, 0.9, 1.2])
+    u_reserve = np.array([0.04, 0.04, np.nan, 0.04, 0.01])
+    axle = np.array([1e4, 50.0, 1e4, -5.0, 1e4])
+    u_axle = np.array([100.0, 100.0, 100.0, 100.0, 100.0])
+    u = LimitUncertainties(u_axle, u_axle, u_margin, u_reserve)
+    bits = interval_checks(axle, axle, margin, reserve, u)
+    steer, res = int(Check.STEERABILITY_UNCERTAIN), int(Check.LIFT_RESERVE_UNCERTAIN)
+    front, rear = int(Check.FRONT_AXLE_UNCERTAIN), int(Check.REAR_AXLE_UNCERTAIN)
+    assert bits.tolist() == [0, steer + res + front + rear, 0, 0, steer]
+    one = [int(interval_checks(axle[k], axle[k], margin[k], reserve[k], LimitUncertainties(*(a[k] for a in u))))
+           for k in range(len(margin))]
+    assert one == bits.tolist()
+
+
+def test_an_axle_load_whose_interval_reaches_below_zero_names_the_machine_tipping() -> None:
+    step = _judged(10.132e6)
+    findings = uncertain_findings(Check.REAR_AXLE_UNCERTAIN, step.pose.budget, MECH,
+                                  step.pose.machine.value("total_weight"))
+    assert [f.code for f in findings] == [Code.AXLE_LOAD_UNCERTAIN]
+    assert "rear axle load" in findings[0].text and "tip over its front axle" in findings[0].text
+    assert "dominant source lift_cylinder seal friction" in findings[0].text
