@@ -49,6 +49,23 @@ def _fresh(stream) -> dict[str, np.ndarray]:
     return batch.hinge_force
 
 
+def _burst(client: MonitorClient, stream) -> int:
+    """One joint state the node takes (1 ms before the stream), then the stream's joint states ten times
+    over as fast as the client publishes, stamps 1 ns apart from the stream's on; returns how many the
+    burst published. The input taken first: losses before the first message the node takes from a
+    publisher are invisible to sequence-gap counting (monitoring/loss.py), the burst's are not."""
+    names = list(stream.joint_names)
+    first = int(stream.stamps_ns[0]) - 1_000_000
+    client.publish_joint_state(first, names, stream.joint_positions[0].tolist())
+    assert client.spin_until(lambda: client.outputs_at("hinge_reactions", first), 10)
+    sent = 0
+    for _ in range(10):
+        for i, stamp in enumerate(stream.stamps_ns.tolist()):
+            client.publish_joint_state(stamp + sent + 1, names, stream.joint_positions[i].tolist())
+            sent += 1
+    return sent
+
+
 def _play(client: MonitorClient, stream, angle_of, pace: float = 0.02) -> None:
     """Pressure at stamp, then the joint state at stamp + 1 µs (which triggers the solve)."""
     names = list(stream.joint_names)
@@ -187,21 +204,10 @@ def test_inputs_the_node_could_not_take_are_counted_and_reported(ros, tmp_path):
     client = MonitorClient(pressure_topics=())
     try:
         client.wait_for_node()
-        stream = _lift(time.time_ns())
-        names = list(stream.joint_names)
-        # one input taken before the burst: losses before the first message the node takes from a
-        # publisher are invisible to sequence-gap counting (monitoring/loss.py), the burst's are not
-        first = int(stream.stamps_ns[0]) - 1_000_000
-        client.publish_joint_state(first, names, stream.joint_positions[0].tolist())
-        assert client.spin_until(lambda: client.outputs_at("hinge_reactions", first), 10)
-        sent = 1
-        for _ in range(10):
-            for i, stamp in enumerate(stream.stamps_ns.tolist()):
-                client.publish_joint_state(stamp + sent, names, stream.joint_positions[i].tolist())
-                sent += 1
+        sent = 1 + _burst(client, _lift(time.time_ns()))   # the input taken first, then the burst
         settle(client, "hinge_reactions", quiet=2.0)
         client.spin_until(lambda: False, 2.5)   # the next heartbeats carry the loss report
-        reported = [s for m in client.received["diagnostics"] for s in m.status if s.name.endswith(": inputs")]
+        reported = client.statuses(": inputs")
     finally:
         client.close()
         assert stop(proc) == 0
@@ -227,23 +233,13 @@ def test_losses_are_reported_on_the_steady_clock_with_sim_time_stopped(ros, tmp_
     clock = client.node.create_publisher(Clock, "/clock", 10)
 
     def reported() -> list:
-        return [s for m in client.received["diagnostics"] for s in m.status
-                if s.name.endswith(": inputs") and s.level == b"\x01"]
+        return client.statuses(": inputs", b"\x01")
     try:
         client.wait_for_node()
         for _ in range(10):   # the simulation's clock, then it stops
             clock.publish(Clock(clock=Time(sec=sim_ns // 10**9)))
             client.spin_until(lambda: False, 0.05)
-        stream = _lift(sim_ns)
-        names = list(stream.joint_names)
-        first = int(stream.stamps_ns[0]) - 1_000_000
-        client.publish_joint_state(first, names, stream.joint_positions[0].tolist())
-        assert client.spin_until(lambda: client.outputs_at("hinge_reactions", first), 10)
-        sent = 0
-        for _ in range(10):
-            for i, stamp in enumerate(stream.stamps_ns.tolist()):
-                client.publish_joint_state(stamp + sent + 1, names, stream.joint_positions[i].tolist())
-                sent += 1
+        _burst(client, _lift(sim_ns))
         burst_end = time.monotonic()
         assert client.spin_until(reported, 3.0), "no loss report within 3 s of wall time with /clock stopped"
         waited = time.monotonic() - burst_end
@@ -267,8 +263,7 @@ def test_a_publisher_the_node_cannot_hear_is_named_on_diagnostics(ros, tmp_path)
     client = MonitorClient()
 
     def warned() -> list:
-        return [s for m in client.received["diagnostics"] for s in m.status
-                if s.name.endswith(": inputs") and s.level == b"\x01"]
+        return client.statuses(": inputs", b"\x01")
     try:
         client.wait_for_node()
         client.node.create_publisher(JointState, "joint_states", QoSProfile(depth=5,
@@ -378,8 +373,7 @@ def test_a_second_monitor_with_the_same_name_is_reported_at_start(ros, tmp_path)
     client = MonitorClient()
 
     def warned() -> list:
-        return [s for m in client.received["diagnostics"] for s in m.status
-                if s.name.endswith(": node name") and s.level == b"\x01"]
+        return client.statuses(": node name", b"\x01")
     second = None
     try:
         client.wait_for_node()

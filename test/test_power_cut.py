@@ -102,8 +102,7 @@ def test_a_full_disk_under_the_rrd_is_an_error_and_a_clean_exit(ros, tmp_path, t
     client = MonitorClient()
 
     def failed() -> list:
-        return [s for m in client.received["diagnostics"] for s in m.status
-                if s.name.endswith(": recording") and s.level == b"\x02"]
+        return client.statuses(": recording", b"\x02")
     try:
         client.wait_for_node()
         t0 = time.time_ns()

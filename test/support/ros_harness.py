@@ -97,6 +97,12 @@ class MonitorClient:
     def diagnostics_at(self, stamp: int) -> list:
         return [s for m in self.received["diagnostics"] if stamp_ns(m.header) == stamp for s in m.status]
 
+    def statuses(self, name_end: str, level: bytes | None = None) -> list:
+        """The DiagnosticStatus entries received whose name ends with ``name_end`` (``": inputs"``), of
+        ``level`` (``b"\\x01"``: WARN) when given, in the order received."""
+        return [s for m in self.received["diagnostics"] for s in m.status
+                if s.name.endswith(name_end) and (level is None or s.level == level)]
+
     def close(self) -> None:
         self.node.destroy_node()
 
