@@ -61,6 +61,14 @@ def add_mechanism_group(parser: argparse.ArgumentParser, required: bool = True, 
                        + (f"; default: {default}" if default else ""))
 
 
+def add_recorded_bag(parser: argparse.ArgumentParser) -> None:
+    """The positional ``BAG`` (a rosbag2 bag: its directory or one file) and the ``--preset NAME |
+    --mechanism FILE`` pair, whose default is the mechanism the bag recorded."""
+    parser.add_argument("bag", metavar="BAG",
+                        help="bag directory (metadata.yaml + .mcap or .db3 files) or one .mcap / .db3 file")
+    add_mechanism_group(parser, required=False, default="the one recorded in the bag")
+
+
 def mechanism_from_args(args: argparse.Namespace) -> Mechanism | None:
     """The mechanism the ``--preset/--mechanism`` group names (None when neither was given)."""
     from linkage_monitor.mechanics import load_mechanism, load_preset

@@ -8,7 +8,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from linkage_monitor.cli.arguments import add_mechanism_group, bounded, mechanism_from_args, new_directory, output_file
+from linkage_monitor.cli.arguments import add_recorded_bag, bounded, mechanism_from_args, new_directory, output_file
 from linkage_monitor.cli.can import add_redecode_arguments, redecoded
 from linkage_monitor.cli.commands import COMMANDS
 from linkage_monitor.cli.fleet import add_spectrum_arguments
@@ -23,9 +23,7 @@ def add_replay_parser(subparsers: argparse._SubParsersAction) -> argparse.Argume
         description="Replay the JointState + FluidPressure messages of a rosbag2 bag (MCAP or sqlite3, one file "
                     "or split; ours or from `ros2 bag record`) through the monitor, batched, and write the "
                     "outputs to a new bag and/or a Rerun .rrd; prints a summary.")
-    parser.add_argument("bag", metavar="BAG",
-                        help="bag directory (metadata.yaml + .mcap or .db3 files) or one .mcap / .db3 file")
-    add_mechanism_group(parser, required=False, default="the one recorded in the bag")
+    add_recorded_bag(parser)
     parser.add_argument("--out", metavar="DIR", type=new_directory,
                         help="write inputs + outputs + /diagnostics to this new bag directory")
     parser.add_argument("--rrd", metavar="FILE", type=output_file,

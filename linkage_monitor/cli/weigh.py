@@ -13,7 +13,7 @@ import json
 import sys
 from pathlib import Path
 
-from linkage_monitor.cli.arguments import add_mechanism_group, mechanism_from_args
+from linkage_monitor.cli.arguments import add_recorded_bag, mechanism_from_args
 from linkage_monitor.cli.commands import COMMANDS
 from linkage_monitor.monitoring.weighing import USED, WeighingEstimate, WeighingEstimator
 from linkage_monitor.offline.replay import mechanism_in_bag, replay
@@ -26,9 +26,7 @@ def add_weigh_parser(subparsers: argparse._SubParsersAction) -> argparse.Argumen
         description="Replay a bag through the monitor and weigh the implement from its lifts and lowers: the "
                     "mass and the cg the strokes identify, with their 95 % intervals, the phases used and the "
                     "implement changes found. Best from a few full lifts and lowers at a steady speed.")
-    parser.add_argument("bag", metavar="BAG",
-                        help="bag directory (metadata.yaml + .mcap or .db3 files) or one .mcap / .db3 file")
-    add_mechanism_group(parser, required=False, default="the one recorded in the bag")
+    add_recorded_bag(parser)
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     return parser
 
