@@ -190,7 +190,6 @@ def test_seal_friction_band_by_motion() -> None:
     default = SealFriction(share=0.03, breakaway=1.5)
     assert friction.u == pytest.approx(default.band(force, Motion.STANDING) / SQRT3)
     assert {s.part: s for s in lifting.sources}["friction"].u == pytest.approx(friction.u / 1.5)
-    # friction enters like the cap pressure it hides: its contribution to the implement load is u_F/(count·A_cap) · ∂W/∂p
     line = standing.line("lift_cylinder.force")
     assert line.dominant == "lift_cylinder seal friction"
     assert sum(line.shares.values()) == pytest.approx(1.0)
@@ -235,3 +234,16 @@ def test_the_budget_picture_is_a_real_image(tmp_path) -> None:
     image = matplotlib.image.imread(png)
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and image.ndim == 3 and image.shape[0] > 300
     assert image[..., :3].std() > 0.05   # not a blank canvas
+
+
+def test_an_implement_mass_tolerance_enters_the_configured_weight() -> None:
+    """Without a pressure the implement load is the configured weight m·g: a tolerance of 40 kg gives it
+    u = 40 kg · g exactly (closed form), the whole of it from the mass."""
+    mech = _belarus_with({"implement": {"mass": 40}, "defaults": False})
+    model = _model(mech)
+    inputs = replace(_reference(mech), pressures={})
+    pose = model.solve(inputs)
+    line = UncertaintyModel(model).budget(inputs, pose.result, pose.machine).line("implement_load")
+    assert line.value == pytest.approx(mech.implement.mass * mech.gravity)
+    assert line.u == pytest.approx(40 * mech.gravity, rel=1e-9)
+    assert line.shares == {"implement mass": pytest.approx(1.0)}

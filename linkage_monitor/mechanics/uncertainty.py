@@ -324,9 +324,9 @@ class UncertaintyModel:
             assert self.mech.implement is not None
             heavier = apply_overrides(self.mech, {"implement.mass": self.mech.implement.mass + LOAD_STEP_MASS})
             solver = self.model.solver
-            self._heavier = MachineModel(heavier, Solver(heavier, dead_centre_cond=solver.dead_centre_cond,
-                                                         consistency_tol=solver.consistency_tol,
-                                                         dead_centre_transmission_deg=solver.dead_centre_transmission_deg))
+            self._heavier = MachineModel(heavier, Solver(
+                heavier, dead_centre_cond=solver.dead_centre_cond, consistency_tol=solver.consistency_tol,
+                dead_centre_transmission_deg=solver.dead_centre_transmission_deg))
         return self._linear.derivative(y0, self._solved(self._heavier, inputs, None), LOAD_STEP_MASS)
 
     def _solved(self, model: MachineModel, inputs: Inputs, previous: Result | None) -> np.ndarray:

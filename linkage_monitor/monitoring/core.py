@@ -59,7 +59,7 @@ class Pose:
     result: Result
     machine: MachineResult
     values: np.ndarray | None = None   # its value row (mechanics.programs.ValueRow) when the compiled call wrote one
-    budget: Budget | None = None       # its error budget, when the configuration asks for it (MonitorConfig.uncertainty)
+    budget: Budget | None = None       # its error budget, with MonitorConfig.uncertainty
 
 
 # built per input event: a plain dataclass, not a frozen one (docs/architecture.md, One pipeline)

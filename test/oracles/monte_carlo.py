@@ -101,8 +101,8 @@ def sample_poses(preset: str, count: int, rng: np.random.Generator) -> SampledPo
     """``count`` random poses of ``preset`` that solve by the monitor's solver: samples of the simulator's
     scenario for it (its noise-free inputs at 100 Hz; a chamber at exactly 0 gauge, e.g. ttz1080's rod
     chamber at tank, is not given — the schema then takes it at tank — since its sensor's errors would
-    read below vacuum in a share of the draws, which the monitor refuses; a pose the monitor refuses, e.g. a negative chamber pressure or a dead
-    centre, has no budget and is passed over)."""
+    read below vacuum in a share of the draws, which the monitor refuses; a pose the monitor refuses,
+    e.g. a negative chamber pressure or a dead centre, has no budget and is passed over)."""
     mech = load_preset(preset)
     model = MachineModel(mech, Solver(mech, consistency_tol=ASSEMBLY_LIMIT_M))   # the monitor's solver
     stream = simulate(mech, SCENARIO.get(preset, "lift"), rate_hz=100.0)
