@@ -33,6 +33,7 @@ ROOT = Path(__file__).resolve().parent.parent
 LOG = ROOT / "bags" / "can" / "belarus_1221_lift.log"
 MAP = ROOT / "config" / "can" / "belarus_1221.yaml"
 TICK = os.sysconf("SC_CLK_TCK")
+sys.path.insert(0, str(ROOT / "test"))   # test/support: the bridge's recording one frame at a time
 HEARTBEAT_S = 1.0   # the bridge repeats its frame counts this often (ros/node.py HEARTBEAT_S)
 
 
@@ -63,24 +64,6 @@ def _long_log(path: Path, n: int) -> int:
     return count
 
 
-def _one_frame_at_a_time(frames, decoder, mech, config, out: Path) -> None:
-    """The conversion as the live bridge records a frame: ``decode`` and a bag ``write`` per message."""
-    from linkage_monitor.bag.step_recorder import StepRecorder
-    from linkage_monitor.bag.writer import BagWriter
-    from linkage_monitor.can.frame_msg import FRAME_TYPE, to_cdr
-    from linkage_monitor.can.to_bag import RAW_TOPIC, input_record
-
-    with BagWriter(out) as writer:
-        recorder = StepRecorder(writer, config.topics)
-        for k, frame in enumerate(frames):
-            if k == 0:
-                recorder.begin(mech, config, frame.stamp_ns)
-            recorder.input(RAW_TOPIC, FRAME_TYPE, to_cdr(frame), frame.stamp_ns, frame.stamp_ns)
-            for event in decoder.decode(frame, frame.stamp_ns).events:
-                type_name, data = input_record(event)
-                recorder.input(event.topic, type_name, data, event.stamp_ns, frame.stamp_ns)
-
-
 def bench_log_to_bag(n: int, per_frame: bool = False) -> None:
     from linkage_monitor.can.decoder import CanDecoder, load_databases
     from linkage_monitor.can.mapping import load_mapping
@@ -88,6 +71,7 @@ def bench_log_to_bag(n: int, per_frame: bool = False) -> None:
     from linkage_monitor.can.to_bag import blocks_to_bag, can_to_bag
     from linkage_monitor.mechanics import load_description
     from linkage_monitor.monitoring.config import MonitorConfig
+    from support.can_per_frame import per_frame_bag
 
     mapping, mech = load_mapping(MAP), load_description("belarus_1221")
     config = MonitorConfig.default("belarus_1221", mech)
@@ -123,7 +107,7 @@ def bench_log_to_bag(n: int, per_frame: bool = False) -> None:
             timed["python-can's frames in blocks (.asc, .blf)"] = time.perf_counter() - t0
             decoder = CanDecoder(db, mapping, mech, config, "bench")
             t0 = time.perf_counter()
-            _one_frame_at_a_time(read_log(log), decoder, mech, config, Path(tmp) / "bag_per_frame")
+            per_frame_bag(read_log(log), decoder, mech, Path(tmp) / "bag_per_frame")
             timed["one frame at a time (decode, write)"] = time.perf_counter() - t0
     assert read == read_blocks == count == converted.counts.received
     print(f"log -> bag, {count} frames ({converted.counts.summary()})")

@@ -18,7 +18,6 @@ from mcap.reader import NonSeekingReader, make_reader
 from mcap.writer import CompressionType
 from rosbags.rosbag2 import Reader
 
-from linkage_monitor.bag.step_recorder import StepRecorder
 from linkage_monitor.bag.writer import MIN_SPLIT_SIZE, BagWriter, MessageRows
 from linkage_monitor.can.candump import RefusedLine, parse_candump, read_candump
 from linkage_monitor.can.decoder import CanDecoder, load_databases
@@ -32,10 +31,11 @@ from linkage_monitor.can.outcomes import OUTCOMES
 from linkage_monitor.can.position_table import PositionTable
 from linkage_monitor.can.signals import raw_values, signal_layout, words
 from linkage_monitor.can.sources import read_log, read_log_blocks
-from linkage_monitor.can.to_bag import RAW_TOPIC, blocks_to_bag, input_record
+from linkage_monitor.can.to_bag import RAW_TOPIC, blocks_to_bag
 from linkage_monitor.mechanics import InputError, load_description
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.events import JointStateEvent
+from support.can_per_frame import per_frame_bag
 
 ROOT = Path(__file__).resolve().parent.parent
 LOG = ROOT / "bags" / "can" / "belarus_1221_lift.log"
@@ -520,21 +520,6 @@ def test_rows_on_a_full_disk_are_reported_and_the_bag_stays_readable(tmpfs) -> N
 
 
 # ---- a whole conversion against the per-frame recording ------------------------------------------------------
-def _per_frame_bag(frames: list[Frame], decoder: CanDecoder, out: Path) -> None:
-    """What the live bridge records of ``frames`` (the raw frame, then each input it gave), one at a time."""
-    mech = load_description("belarus_1221")
-    config = decoder.config
-    with BagWriter(out) as writer:
-        recorder = StepRecorder(writer, config.topics)
-        for k, frame in enumerate(frames):
-            if k == 0:
-                recorder.begin(mech, config, frame.stamp_ns)
-            recorder.input(RAW_TOPIC, FRAME_TYPE, to_cdr(frame), frame.stamp_ns, frame.stamp_ns)
-            for event in decoder.decode(frame, frame.stamp_ns).events:
-                record = input_record(event)
-                recorder.input(event.topic, record.type_name, record.data, event.stamp_ns, frame.stamp_ns)
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("case", ["shipped", "numpy", "one by one"])
 def test_can_to_bag_in_blocks_records_what_the_bridge_records(tmp_path: Path, case: str) -> None:
@@ -551,7 +536,7 @@ def test_can_to_bag_in_blocks_records_what_the_bridge_records(tmp_path: Path, ca
     converted = blocks_to_bag(read_log_blocks(log, []), decoder, load_description("belarus_1221"), decoder.config,
                               tmp_path / "blocks")
     reference = _decoder(text, tmp_path)
-    _per_frame_bag(frames, reference, tmp_path / "frames")
+    per_frame_bag(frames, reference, load_description("belarus_1221"), tmp_path / "frames")
     assert _mcap_messages(tmp_path / "blocks") == [(n.replace("frames_", "blocks_"), *rest) for n, *rest in
                                                    _mcap_messages(tmp_path / "frames")]
     assert _rosbags_messages(tmp_path / "blocks") == _rosbags_messages(tmp_path / "frames")
