@@ -19,6 +19,7 @@ RELIEF = Relief(h=2 * 0.049, l=0.2)  # Naumenko et al. 2021: l = 0.2 m, A = 0.04
 ANGLE = "upper_link_angle"            # reads -phi (the preset's convention)
 
 
+# the preset and its solver, once per module: the same two fixtures in each paper's test, of its own preset
 @pytest.fixture(scope="module")
 def mech():
     return load_preset("drill_coulter")

@@ -30,6 +30,7 @@ F_ROLL = 0.018  # rolling resistance coefficient on concrete (Akhmetov & Usmanov
 F_H_PAPER = 12560.0 * KGF  # N, cylinder push (Akhmetov & Usmanov 2018, eq. 6)
 
 
+# the preset and its solver, once per module: the same two fixtures in each paper's test, of its own preset
 @pytest.fixture(scope="module")
 def mech():
     return load_preset("ttz1080_base_change")

@@ -81,6 +81,7 @@ joint_states = st.builds(_joint_state, texts, stamps, st.lists(texts, max_size=5
 fluid_pressures = st.builds(_fluid_pressure, texts, stamps, floats, floats)
 
 
+# The check of the FluidPressure test below, for JointState: one test per type, each with its own strategy.
 @settings(max_examples=400, deadline=None)
 @given(joint_states)
 def test_a_joint_state_reads_as_rclpy_reads_it(data):
@@ -89,6 +90,7 @@ def test_a_joint_state_reads_as_rclpy_reads_it(data):
     assert _ours_joint_state(data) == expected
 
 
+# The check of the JointState test above, for FluidPressure: one test per type, each with its own strategy.
 @settings(max_examples=200, deadline=None)
 @given(fluid_pressures)
 def test_a_fluid_pressure_reads_as_rclpy_reads_it(data):

@@ -29,6 +29,7 @@ G = 9.80665                   # m/s², the preset's gravity
 W_HEADER = 15.00e3            # N, Popov 2009: F_pr = 15.00 kN · I_S, the ZhSK-4V header's weight
 
 
+# the preset and its solver, once per module: the same two fixtures in each paper's test, of its own preset
 @pytest.fixture(scope="module")
 def belarus():
     return load_preset("belarus_1221")

@@ -38,6 +38,7 @@ class Decoded:
     finding: Finding | None = None
 
 
+# Counters as fields, alike in form only to test/support/fuzz_check.FuzzTally: other things counted.
 @dataclass
 class FrameCounts:
     """Frames received and how they ended; unknown identifiers with their counts."""

@@ -25,6 +25,7 @@ from linkage_monitor.monitoring.name_value import name_value, number
 
 def add_calibrate_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Add the ``calibrate`` subcommand to ``subparsers``; returns its parser."""
+    # the form of every subcommand's parser (cli/commands.py names them); the words are this command's own
     p = subparsers.add_parser(
         "calibrate", help=COMMANDS["calibrate"].help,
         description="Bounded nonlinear least squares of the --free parameters of the start mechanism to the "
@@ -41,6 +42,7 @@ def add_calibrate_parser(subparsers: argparse._SubParsersAction) -> argparse.Arg
     p.add_argument("--inputs", metavar="NAME[,NAME...]",
                    help="data columns that drive the linkage (default: the measured cylinders, plus the "
                         "angle sensors if the cylinders do not fix the pose)")
+    # repeatable NAME=VALUE options, alike in form only to solve's --pressure and --set: other meanings
     p.add_argument("--sigma", action="append", default=[], metavar="COLUMN=VALUE",
                    help="standard deviation of a measured column in its unit (default: 1 mm, 1 mrad, "
                         "0.05 MPa, 500 N by kind)")

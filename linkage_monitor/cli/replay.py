@@ -18,6 +18,7 @@ from linkage_monitor.offline.replay import replay_streaming
 
 def add_replay_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Add the ``replay`` subcommand to ``subparsers``; returns its parser."""
+    # the form of every subcommand's parser (cli/commands.py names them); the words are this command's own
     parser = subparsers.add_parser(
         "replay", help=COMMANDS["replay"].help,
         description="Replay the JointState + FluidPressure messages of a rosbag2 bag (MCAP or sqlite3, one file "

@@ -52,6 +52,7 @@ def add_solve_arguments(parser: argparse.ArgumentParser) -> None:
                         help="measured cylinder length pin to pin, m (repeatable)")
     parser.add_argument("--angle", action="append", default=[], metavar="SENSOR=RAD",
                         help="joint-angle sensor reading, rad (repeatable)")
+    # repeatable NAME=VALUE options, alike in form only to calibrate's --sigma and --bound: other meanings
     parser.add_argument("--pressure", action="append", default=[], metavar="CYL=CAP_PA[:ROD_PA]",
                         help="gauge pressures of a cylinder's cap (and rod) chamber, Pa; makes its force "
                              "measured and the implement load estimated (repeatable)")

@@ -21,6 +21,7 @@ from linkage_monitor.offline.replay import mechanism_in_bag, replay
 
 def add_weigh_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Add the ``weigh`` subcommand to ``subparsers``; returns its parser."""
+    # the form of every subcommand's parser (cli/commands.py names them); the words are this command's own
     parser = subparsers.add_parser(
         "weigh", help=COMMANDS["weigh"].help,
         description="Replay a bag through the monitor and weigh the implement from its lifts and lowers: the "

@@ -82,6 +82,7 @@ class Spring:
     preload: float = 0.0
 
 
+# Spring and Contact, AngleSensor and PressureSensor: frozen records alike in form only (their own fields).
 @dataclass(frozen=True)
 class Contact:
     """Unilateral ground contact on ``body`` at ``point``: normal N along ``normal``, friction f·N against ``travel``."""
@@ -132,6 +133,7 @@ class AngleSensor:
     reference: float = 0.0
 
 
+# Alike in form only to Spring/Contact above and to viz.terminal_view's records: fields of other data.
 @dataclass(frozen=True)
 class PressureSensor:
     """Gauge pressure (Pa) of the ``cap`` or ``rod`` chamber of a cylinder."""

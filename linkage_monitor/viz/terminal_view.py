@@ -34,6 +34,7 @@ class HingeLoad:
     peak_n: float
 
 
+# Alike in form only to mechanics.model's sensor records and to TopicRate below: fields of other data.
 @dataclass(frozen=True)
 class StatusLine:
     """The latest DiagnosticStatus of one name on /diagnostics: level name (OK, WARN, ERROR,
@@ -54,6 +55,7 @@ class TopicRate:
     received: int
 
 
+# Alike in form only to HingeLoad and StatusLine above: fields of other data.
 @dataclass(frozen=True)
 class WatchRecord:
     """What the watch knows of the monitor: the latest value of each output (NaN: not received

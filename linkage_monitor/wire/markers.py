@@ -77,6 +77,7 @@ class LinkageMarkers:
     def __init__(self, mechanism: Mechanism) -> None:
         self.mechanism = mechanism
         self.force_scale: float | None = None   # m/N, fixed by the first pose drawn
+        # test/oracles/markers.py writes these lines again on purpose: an oracle shares no code with what it checks.
         self._bodies = [(b.name, body_outline(mechanism, b.points),
                          GROUND_COLOR if b.ground else BODY_COLORS[k % len(BODY_COLORS)])
                         for k, b in enumerate(mechanism.bodies)]

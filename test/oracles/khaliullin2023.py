@@ -98,6 +98,7 @@ def implement_reactions(pts: Points, r_x: float, r_y: float, variant: Variant) -
     return {"R_C": r_c, "R_D": r_c, "R_BX": r_bx, "R_BY": r_by}
 
 
+# Eqs. (18)-(20) have the form of the lift arm's (61)-(63): each set as printed, checked equation by equation.
 def rocker_reactions(pts: Points, r_d: float, variant: Variant) -> dict[str, float]:
     """Link KM compression R_K = R_M and rocker pivot reaction R_OX, R_OY (N); eqs. (18)-(20)."""
     O, D, K = pts["O"], pts["D"], pts["K"]
@@ -125,6 +126,7 @@ def lower_link_reactions(pts: Points, r_bx: float, r_by: float, variant: Variant
     return {"R_F": r_f, "R_E": r_f, "R_AX": r_ax, "R_AY": r_ay}
 
 
+# Eqs. (61)-(63) have the form of the rocker's (18)-(20): each set as printed, checked equation by equation.
 def lift_arm_reactions(pts: Points, r_e: float, variant: Variant) -> dict[str, float]:
     """Actuator push R_L and lift-arm pivot reaction R_O3X, R_O3Y (N); eqs. (61)-(63), O'' read O'''."""
     O3, E, L = pts["O3"], pts["E"], pts["L"]

@@ -29,6 +29,7 @@ class LinkageMarkers:
     def __init__(self, mechanism: Mechanism) -> None:
         self.mechanism = mechanism
         self.force_scale: float | None = None   # m/N, fixed by the first pose drawn
+        # wire.markers.LinkageMarkers.__init__'s lines, again on purpose: an oracle shares no code with its subject
         self._bodies = [(b.name, body_outline(mechanism, b.points),
                          GROUND_COLOR if b.ground else BODY_COLORS[k % len(BODY_COLORS)])
                         for k, b in enumerate(mechanism.bodies)]
