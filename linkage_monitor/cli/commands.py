@@ -26,7 +26,7 @@ class Command(NamedTuple):   # not a dataclass: importing dataclasses costs more
 
 
 COMMANDS = {c.name: c for c in (
-    Command("presets", "list the bundled mechanisms with their description", "linkage_monitor.cli.presets",
+    Command("presets", "list the bundled mechanisms and implement files with their description", "linkage_monitor.cli.presets",
             "add_presets_parser", "run_presets"),
     Command("solve", "solve one pose as the monitor node does: hinge reactions, cylinder forces, implement load, "
             "axle loads, the node's findings", "linkage_monitor.cli.solve", "add_solve_parser", "run_solve"),

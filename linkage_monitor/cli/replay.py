@@ -12,6 +12,7 @@ from linkage_monitor.cli.arguments import add_recorded_bag, bounded, mechanism_f
 from linkage_monitor.cli.can import add_redecode_arguments, redecoded
 from linkage_monitor.cli.commands import COMMANDS
 from linkage_monitor.cli.fleet import add_spectrum_arguments
+from linkage_monitor.monitoring.config import IMPLEMENT_MASS_SOURCES
 from linkage_monitor.offline.history import spectra_table
 from linkage_monitor.offline.replay import replay_streaming
 
@@ -34,6 +35,10 @@ def add_replay_parser(subparsers: argparse._SubParsersAction) -> argparse.Argume
     parser.add_argument("--uncertainty", action="store_true",
                         help="judge the limits on their 95 %% intervals (each pose's error budget from the "
                              "mechanism's declared error sources, docs/accuracy.md), whatever the bag recorded")
+    parser.add_argument("--implement-mass-source", choices=IMPLEMENT_MASS_SOURCES, metavar="SOURCE",
+                        help="where the machine-level results take the implement's mass and cg from: "
+                             f"{', '.join(IMPLEMENT_MASS_SOURCES)} (default: as recorded, else file); other than "
+                             "file, the implement is weighed and the summary gives the estimate (docs/implements.md)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--spectra", action="store_true",
                         help="print each hinge's rainflow load spectrum and damage-equivalent load (docs/fleet.md)")
@@ -53,7 +58,7 @@ def run_replay(args: argparse.Namespace) -> int:
 def _replay_bag(args: argparse.Namespace, bag: Path) -> int:
     replayed = replay_streaming(bag, mechanism_from_args(args), out_dir=args.out, rrd=args.rrd, rate=args.rate,
                                 progress=None if args.quiet else sys.stderr, history=args.spectra,
-                                uncertainty=args.uncertainty)
+                                uncertainty=args.uncertainty, implement_mass_source=args.implement_mass_source)
     summary = replayed.summary
     print(summary.table())
     if replayed.history is not None:

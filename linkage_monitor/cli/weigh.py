@@ -15,7 +15,7 @@ from pathlib import Path
 
 from linkage_monitor.cli.arguments import add_recorded_bag, mechanism_from_args
 from linkage_monitor.cli.commands import COMMANDS
-from linkage_monitor.monitoring.weighing import USED, WeighingEstimate, WeighingEstimator
+from linkage_monitor.monitoring.weighing import USED, WeighingEstimate, WeighingEstimator, estimate_text
 from linkage_monitor.offline.replay import mechanism_in_bag, replay
 
 
@@ -51,7 +51,7 @@ def run_weigh(args: argparse.Namespace) -> int:
         print(json.dumps({"estimate": _estimate_json(estimate), "phase_steps": phases,
                           "used_phases": [p.value for p in USED], "implement_changes": changes}, indent=2))
     else:
-        print(_estimate_text(estimate, mech.implement.mass if mech.implement is not None else None))
+        print(estimate_text(estimate, mech.implement.mass if mech.implement is not None else None))
         print("\nsteps per phase (used: " + ", ".join(p.value for p in USED) + ")")
         for name, count in phases.items():
             print(f"  {name:<15} {count:8d}")
@@ -73,19 +73,3 @@ def _estimate_json(estimate: WeighingEstimate | None) -> dict | None:
             "cg_x_m": estimate.cg_x, "cg_x_u_m": estimate.cg_x_u, "cg_x_identified": estimate.cg_x_identified,
             "cg_z_m": estimate.cg_z, "cg_z_u_m": estimate.cg_z_u, "cg_z_identified": estimate.cg_z_identified,
             "pairs": estimate.pairs, "friction_share": estimate.friction_share}
-
-
-def _estimate_text(estimate: WeighingEstimate | None, file_mass: float | None) -> str:
-    if estimate is None:
-        return "no estimate (no lift/lower pair over the same poses)"
-    low, high = estimate.interval(estimate.mass, estimate.mass_u)
-    lines = [f"implement mass {estimate.mass:.1f} kg, 95 % interval {low:.1f} .. {high:.1f} kg"
-             + (f" (the mechanism file says {file_mass:.1f} kg)" if file_mass is not None else "")]
-    for axis, value, u, found in (("x", estimate.cg_x, estimate.cg_x_u, estimate.cg_x_identified),
-                                  ("z", estimate.cg_z, estimate.cg_z_u, estimate.cg_z_identified)):
-        lo, hi = estimate.interval(value, u)
-        lines.append(f"cg {axis} {value:+.3f} m, 95 % interval {lo:+.3f} .. {hi:+.3f} m (reference pose)"
-                     + ("" if found else ": not identified by these strokes, the file's value"))
-    lines.append(f"from {estimate.pairs} lift/lower pairs of stroke bins; seal friction "
-                 f"{estimate.friction_share * 100:.1f} % of the force")
-    return "\n".join(lines)

@@ -22,6 +22,8 @@ from linkage_monitor.mechanics.reduced import DEAD_CENTRE_TRANSMISSION_DEG
 CONFIG_TOPIC = "/linkage_monitor/config"
 """Topic (std_msgs/String, YAML of a MonitorConfig) on which the node records its configuration."""
 
+IMPLEMENT_MASS_SOURCES = ("file", "estimate", "estimate_when_confident")   # MonitorConfig.implement_mass_source
+
 # runtime-changeable scalars of the mechanism: node parameter -> dotted key of the description
 OVERRIDE_KEYS = {"implement_mass": "implement.mass", "tractor_mass": "tractor.mass",
                  "front_ballast_mass": "tractor.front_ballast.mass", "ratio_min": "tractor.ratio_min"}
@@ -57,6 +59,11 @@ class MonitorConfig:
     this is a dead centre (``Solver(dead_centre_transmission_deg=)``). uncertainty: every solved pose
     carries the error budget of the mechanism's declared error sources (``mechanics.uncertainty``),
     and the machine-level limits are judged on their 95 % intervals (``monitoring.bounds``).
+    implement: a bundled implement's name or an implement file's path (``mechanics.implements``)
+    hung on the mechanism; '' keeps the mechanism file's. implement_mass_source: where the
+    machine-level results take the implement's mass and cg from, ``file`` (the default),
+    ``estimate`` or ``estimate_when_confident`` (the weighing estimator, which runs only then:
+    ``monitoring.implement_mass``).
     """
 
     mechanism: str
@@ -71,6 +78,13 @@ class MonitorConfig:
     kinetostatics: bool = False
     dead_centre_transmission_deg: float = DEAD_CENTRE_TRANSMISSION_DEG
     uncertainty: bool = False
+    implement: str = ""
+    implement_mass_source: str = "file"
+
+    def __post_init__(self) -> None:
+        if self.implement_mass_source not in IMPLEMENT_MASS_SOURCES:
+            raise InputError(f"implement_mass_source '{self.implement_mass_source}': expected one of "
+                             f"{', '.join(IMPLEMENT_MASS_SOURCES)}")
 
     @staticmethod
     def default(spec: str, mech: Mechanism, namespace: str = "/") -> MonitorConfig:

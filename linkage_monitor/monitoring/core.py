@@ -22,7 +22,7 @@ from typing import Iterable, Iterator, Sequence
 import numpy as np
 
 from linkage_monitor.mechanics import (AssemblyError, BatchResult, DeadCentreError, InputError, Inputs, LinkageError,
-                                       Mechanism, Result, Solver, Status, apply_overrides)
+                                       Mechanism, Result, Solver, Status)
 from linkage_monitor.mechanics.machine import MachineBatch, MachineModel, MachineResult, MachineSeries
 from linkage_monitor.mechanics.error_sources import Motion
 from linkage_monitor.mechanics.uncertainty import Budget, UncertaintyModel
@@ -32,6 +32,7 @@ from .checks import CONSISTENCY_WARN_M, RESIDUAL_WARN_SHARE, Check, CheckedValue
 from .config import MonitorConfig
 from .events import ConfigEvent, Event, InputEvent, JointStateEvent, PressureEvent, UnreadableEvent
 from .findings import Code, Finding, Level, fmt
+from .implement_mass import ImplementMass, effective_mechanism
 from .inputs import InputTracker, Refused
 
 # A pose whose sensors misfit the closed linkage by more than this cannot be assembled from the inputs
@@ -158,23 +159,26 @@ class _Due:
 
 
 _LIFT_OFF = Status.LIFT_OFF.label
+WEIGHING_PIECE = 1024   # with the weighing, the batched path's longest piece: a new estimate is put in use after it
 
 
 class Monitor:
     """Mechanism + configuration -> solver, machine model and the latest inputs; events -> Steps.
 
     ``description`` is the mechanism as described (preset or file, without the configuration's
-    overrides); the effective mechanism is ``apply_overrides(description, config.overrides)``.
+    overrides); the effective mechanism is ``apply_overrides(description, config.overrides)``, with
+    the configured implement hung on and the weighing's estimate in use (``implement_mass``).
     """
 
     def __init__(self, description: Mechanism, config: MonitorConfig) -> None:
         self.description = description
         self.config = config
+        self.weighing: ImplementMass | None = None
         self._build(config, previous=None)
 
     # ---- configuration ---------------------------------------------------------------------
     def _build(self, config: MonitorConfig, previous: InputTracker | None) -> None:
-        mech = apply_overrides(self.description, dict(config.overrides)) if config.overrides else self.description
+        mech, weighing = effective_mechanism(self.description, config, self.weighing)
         tracker = InputTracker(mech, config)   # raises ValueError for a bad mapping: nothing changed yet
         solver = Solver(mech, consistency_tol=ASSEMBLY_LIMIT_M,
                         dead_centre_transmission_deg=config.dead_centre_transmission_deg)
@@ -182,6 +186,7 @@ class Monitor:
         if previous is not None:
             tracker.carry_over(previous)
         self.config, self.mechanism, self.tracker, self.solver, self.machine = config, mech, tracker, solver, machine
+        self.weighing = weighing
         self.overdetermined = solver.kin.m > solver.kin.n
         self.estimates_load = bool(tracker.pressure_names)
         self.warm: Result | None = None   # the last solved pose: where the next live solve starts
@@ -201,6 +206,32 @@ class Monitor:
     def reconfigure(self, config: MonitorConfig) -> None:
         """Apply a new configuration from the next event on (the latest readings are kept)."""
         self._build(config, previous=self.tracker)
+
+    def select_implement(self, implement: str) -> MonitorConfig:
+        """Hang the bundled implement or implement file ``implement`` ('' the mechanism file's) from the
+        next event on, without a restart; returns the new configuration (to record). MechanismFileError
+        naming the file, with nothing changed, when it is not one for this mechanism."""
+        self.reconfigure(replace(self.config, implement=implement))
+        return self.config
+
+    def _weigh(self, steps: Iterable[Step | None]) -> None:
+        """The weighing's look at solved steps in input order (``implement_changed`` added while the
+        mass in use is stale)."""
+        weighing = self.weighing
+        for step in steps:
+            if weighing is not None and step is not None and step.pose is not None:
+                weighing.observe(step.stamp_ns, step.pose.result)
+                finding = weighing.finding()
+                if finding is not None:
+                    step.findings += (finding,)
+
+    def _use_estimate(self) -> bool:
+        """Put the weighing's new estimate in use, if it has one (the mechanism rebuilt with it): True then."""
+        estimate = self.weighing.pending() if self.weighing is not None else None
+        if estimate is not None:
+            self.weighing.put_in_use(estimate)  # type: ignore[union-attr]  # not None with an estimate
+            self._build(self.config, previous=self.tracker)
+        return estimate is not None
 
     # ---- the live path: one event at a time ------------------------------------------------------
     def on_joint_state(self, names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
@@ -226,7 +257,10 @@ class Monitor:
                 self.warm = None
                 return self._failed(due, EXCEPTION_STATUS.get(type(exc), Status.INPUT), str(exc))
             self.warm = result
-            return self._finish(due, result, machine, values)
+            step = self._finish(due, result, machine, values)
+            self._weigh((step,))
+            self._use_estimate()
+            return step
         except Exception as exc:  # noqa: BLE001 - the adapter boundary: report, forget the warm start, go on
             return self._internal_error(event, exc)
 
@@ -271,10 +305,13 @@ class Monitor:
                 else:
                     segment.add(len(steps), due)
                     steps.append(None)
-                if piece_steps is not None and len(steps) >= piece_steps:
+                limit = piece_steps if piece_steps is not None or self.weighing is None else WEIGHING_PIECE
+                if limit is not None and len(steps) >= limit:
                     self._solve_segment(segment, steps, segments)
                     yield Run(steps, segments)  # type: ignore[arg-type]  # as above
                     steps, segments = [], []
+                    if self._use_estimate():   # a new estimate: the next poses solved with it
+                        segment = _SegmentSeries(self, worker)
             self._solve_segment(segment, steps, segments)
             if steps:
                 yield Run(steps, segments)  # type: ignore[arg-type]  # as above
@@ -307,6 +344,8 @@ class Monitor:
             pose = Pose(results[k], machine_results[k], values[k], budgets[k])
             steps[i] = (self._pose_step(due, pose, check) if status < Status.INPUT
                         else self._failed(due, Status(status), batch.messages[k]))
+        if self.weighing is not None:
+            self._weigh(steps[i] for i, _ in indexed)
         segments.append(Segment(np.array([i for i, _ in indexed]),
                                 np.array([d.stamp_ns for d in dues], dtype=np.int64), batch, machine, self.mechanism,
                                 self.config))

@@ -134,6 +134,7 @@ class WeighingEstimator:
         self._fit: Fit | None = None
         self._columns: ForceColumns | None = None
         self.changes: list[ImplementChange] = []
+        self.fits = 0   # fits made so far: the estimate changes only when this grows
         self.phase_steps = {phase: 0 for phase in WeighingPhase}
         self.phase = WeighingPhase.NOT_SOLVED
 
@@ -173,7 +174,8 @@ class WeighingEstimator:
     def _phase(self, stamp_ns: int, length: float, force: float, acceleration: float | None) -> WeighingPhase:
         settings, m = self.settings, self.model
         last_stamp, last_length = self._last_stamp, self._last_length
-        self._last_stamp, self._last_length = stamp_ns, length
+        if last_stamp is None or stamp_ns > last_stamp:   # a second step of one stamp (another input) keeps the first
+            self._last_stamp, self._last_length = stamp_ns, length
         columns = self._columns = m.at(length) if math.isfinite(force) else None
         if columns is None:
             self._smooth_load = math.nan
@@ -237,6 +239,7 @@ class WeighingEstimator:
         else:
             self._sums += stroke
         self._fit = fit(self._sums, self.errors, self.settings.priors, self.settings.min_samples)
+        self.fits += 1
 
     def _relative_change(self, stroke: np.ndarray) -> float | None:
         """The stroke's load against the earlier strokes' in the same bins and direction (median
@@ -278,3 +281,19 @@ class WeighingEstimator:
                                 cg_z_identified=offsets[1] < 0.5 * priors.z,
                                 pairs=result.pairs, friction_share=result.friction_share)
 
+
+def estimate_text(estimate: WeighingEstimate | None, file_mass: float | None) -> str:
+    """The estimate with its 95 % intervals as lines of text (kg, m; ``file_mass`` kg the file's, if any)."""
+    if estimate is None:
+        return "no estimate (no lift/lower pair over the same poses)"
+    low, high = estimate.interval(estimate.mass, estimate.mass_u)
+    lines = [f"implement mass {estimate.mass:.1f} kg, 95 % interval {low:.1f} .. {high:.1f} kg"
+             + (f" (the mechanism file says {file_mass:.1f} kg)" if file_mass is not None else "")]
+    for axis, value, u, found in (("x", estimate.cg_x, estimate.cg_x_u, estimate.cg_x_identified),
+                                  ("z", estimate.cg_z, estimate.cg_z_u, estimate.cg_z_identified)):
+        lo, hi = estimate.interval(value, u)
+        lines.append(f"cg {axis} {value:+.3f} m, 95 % interval {lo:+.3f} .. {hi:+.3f} m (reference pose)"
+                     + ("" if found else ": not identified by these strokes, the file's value"))
+    lines.append(f"from {estimate.pairs} lift/lower pairs of stroke bins; seal friction "
+                 f"{estimate.friction_share * 100:.1f} % of the force")
+    return "\n".join(lines)

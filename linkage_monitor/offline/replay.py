@@ -38,6 +38,7 @@ from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
 from linkage_monitor.monitoring.core import Monitor, Run, Segment, Step
 from linkage_monitor.monitoring.events import ConfigEvent, Event
 from linkage_monitor.monitoring.findings import Level
+from linkage_monitor.monitoring.weighing import WeighingEstimate, estimate_text
 from linkage_monitor.wire.outputs import OutputEncoder, per_step
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, input_event
 
@@ -61,6 +62,8 @@ class Summary:
     min_reserve: tuple[float, float] | None = None                             # (-, s)
     kinds: Counter = field(default_factory=Counter)                             # (level, finding code) -> count
     notes: list[str] = field(default_factory=list)                              # what the replay assumed
+    weighed: bool = False                             # the weighing ran (MonitorConfig.implement_mass_source)
+    estimate: WeighingEstimate | None = None          # its estimate at the end (None: no lift/lower pair)
     seconds: float = 0.0
 
     def table(self) -> str:
@@ -75,6 +78,8 @@ class Summary:
             lines.append(f"\nminimum steerability margin {self.min_margin[0]:+.3f} at {self.min_margin[1]:.2f} s")
         if self.min_reserve is not None:
             lines.append(f"minimum lift reserve {self.min_reserve[0]:.2f} at {self.min_reserve[1]:.2f} s")
+        if self.weighed:
+            lines.append("\nimplement weighed: " + estimate_text(self.estimate, None).replace("\n", "\n  "))
         lines.append("\nlevel  count  finding")
         if not self.kinds:
             lines.append("(no warnings or errors)")
@@ -165,7 +170,8 @@ def _events(path: Path, config: MonitorConfig, raw: list[RecordedInput]) -> Iter
                 yield ConfigEvent(replace(config, overrides=recorded.overrides,
                                           staleness_limit_s=recorded.staleness_limit_s,
                                           stamp_tolerance_s=recorded.stamp_tolerance_s,
-                                          dead_centre_transmission_deg=recorded.dead_centre_transmission_deg))
+                                          dead_centre_transmission_deg=recorded.dead_centre_transmission_deg,
+                                          implement=recorded.implement))
             first_config = False
             continue
         if not ((type_name == JOINT_STATE and topic == config.topics.joint_states)
@@ -201,7 +207,8 @@ def _without_cyclic_gc(run: Callable[_P, _R]) -> Callable[_P, _R]:
 @_without_cyclic_gc
 def replay(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None, rrd: Path | None = None,
            rate: float | None = None, config: MonitorConfig | None = None,
-           progress: TextIO | None = sys.stderr, uncertainty: bool = False) -> Replayed:
+           progress: TextIO | None = sys.stderr, uncertainty: bool = False,
+           implement_mass_source: str | None = None) -> Replayed:
     """Re-run the monitor over ``bag``; write outputs to ``out_dir`` (a new bag) and/or ``rrd``; keep
     every Step (memory grows with the bag: ``replay_streaming`` keeps none).
 
@@ -210,10 +217,14 @@ def replay(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None
     rate: write at this multiple of real time (None: as fast as possible). uncertainty: every pose's
     error budget, the limits judged on their 95 % intervals (``MonitorConfig.uncertainty``), whatever
     the bag recorded (a bag recorded before it replays with the mechanism's default error sources).
+    implement_mass_source: where the machine-level results take the implement's mass and cg from
+    (``MonitorConfig.implement_mass_source``; None: as recorded); other than ``file`` the weighing
+    runs and the summary gives its estimate.
     """
     kept = _KeptRun()
     replayer = _Replayer(bag, mech, config, out_dir, rrd, rate, progress, [kept.add],
-                         piece_steps=None if rrd is not None else ENCODE_BLOCK, uncertainty=uncertainty)
+                         piece_steps=None if rrd is not None else ENCODE_BLOCK, uncertainty=uncertainty,
+                         implement_mass_source=implement_mass_source)
     summary = replayer.replay()
     return Replayed(summary, kept.run(), replayer.config)
 
@@ -221,17 +232,18 @@ def replay(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None
 @_without_cyclic_gc
 def replay_streaming(bag: Path, mech: Mechanism | None = None, out_dir: Path | None = None, rrd: Path | None = None,
                      rate: float | None = None, config: MonitorConfig | None = None,
-                     progress: TextIO | None = sys.stderr, history: bool = False, uncertainty: bool = False
-                     ) -> Streamed:
+                     progress: TextIO | None = sys.stderr, history: bool = False, uncertainty: bool = False,
+                     implement_mass_source: str | None = None) -> Streamed:
     """``replay`` keeping no Steps: the bag is read, solved, accounted and written ENCODE_BLOCK inputs
     at a time, each piece let go once written, so that memory stays flat in the bag's length
     (test_replay.py holds it). history: also the ``LoadHistory`` of the solved poses (its arrays,
     ~8 bytes per pose and series, grow with the bag). With ``rrd`` a configuration segment is
     replayed whole (the recording's hinge plot and force scale are chosen from the segment's
-    poses): memory grows with the longest segment. uncertainty: as ``replay``'s."""
+    poses): memory grows with the longest segment. uncertainty, implement_mass_source: as ``replay``'s."""
     recorder = HistoryRecorder() if history else None
     replayer = _Replayer(bag, mech, config, out_dir, rrd, rate, progress, [recorder.add] if recorder else [],
-                         piece_steps=None if rrd is not None else ENCODE_BLOCK, uncertainty=uncertainty)
+                         piece_steps=None if rrd is not None else ENCODE_BLOCK, uncertainty=uncertainty,
+                         implement_mass_source=implement_mass_source)
     summary = replayer.replay()
     return Streamed(summary, replayer.config, recorder.history() if recorder else None)
 
@@ -259,7 +271,7 @@ class _Replayer:
     def __init__(self, bag: Path, mech: Mechanism | None, config: MonitorConfig | None, out_dir: Path | None,
                  rrd: Path | None, rate: float | None, progress: TextIO | None,
                  consumers: list[Callable[[Run], None]], piece_steps: int | None = None,
-                 uncertainty: bool = False) -> None:
+                 uncertainty: bool = False, implement_mass_source: str | None = None) -> None:
         self.started = time.perf_counter()
         self.bag, self.out_dir, self.rrd, self.rate, self.progress = bag, out_dir, rrd, rate, progress
         self.consumers, self.piece_steps = consumers, piece_steps
@@ -284,6 +296,10 @@ class _Replayer:
             config = replace(config, uncertainty=True)
             self.summary.notes.append("note: the limits judged on their 95 % intervals of the mechanism's declared "
                                       "error sources (docs/accuracy.md)")
+        if implement_mass_source is not None and implement_mass_source != config.implement_mass_source:
+            config = replace(config, implement_mass_source=implement_mass_source)
+            self.summary.notes.append(f"note: the implement's mass and cg from: {implement_mass_source} "
+                                      "(docs/implements.md)")
         self.description, self.config = description, config
 
     def replay(self) -> Summary:
@@ -321,6 +337,8 @@ class _Replayer:
                            "nothing to replay")
         if view is not None:
             view.close()
+        if monitor.weighing is not None:
+            self.summary.weighed, self.summary.estimate = True, monitor.weighing.final_estimate()
         self.summary.seconds = time.perf_counter() - self.started
         return self.summary
 
