@@ -6,7 +6,7 @@ With ``implement_mass_source: estimate_when_confident`` the machine-level result
 is confident, are those of a monitor given the true implement; a mass change mid-run puts an
 ``implement_changed`` WARN on every solved step until a confident estimate is in use again; an
 implement file chosen at runtime changes the results without a new Monitor; the live and the
-batched paths agree."""
+batched paths agree; the replay's summary gives the estimate when it weighed."""
 
 from __future__ import annotations
 
@@ -21,14 +21,16 @@ from linkage_monitor.mechanics import MechanismFileError, load_preset
 from linkage_monitor.mechanics.implements import implement_from_text, implement_names, load_implement, with_implement
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Monitor, Step
-from linkage_monitor.monitoring.events import InputEvent, JointStateEvent, PressureEvent
+from linkage_monitor.monitoring.events import ConfigEvent, InputEvent, JointStateEvent, PressureEvent
 from linkage_monitor.monitoring.findings import Code, Level
 from linkage_monitor.monitoring.implement_mass import confident
+from linkage_monitor.offline.replay import replay_streaming
 from linkage_monitor.sim.friction import SealFriction
 from linkage_monitor.sim.telemetry import Noise
 from linkage_monitor.sim.work_cycle import ImplementTruth, LoadChange, WorkCycle, simulate_work
 from linkage_monitor.sim.work_cycle import with_implement as with_truth
 
+BAG = Path(__file__).resolve().parent.parent / "bags" / "belarus_1221_lift_transport"
 BELARUS = load_preset("belarus_1221")
 REF = np.asarray(BELARUS.implement.cg)
 TRUE = ImplementTruth(mass=1200.0, cg=(float(REF[0] + 0.2), float(REF[1] - 0.1)))
@@ -135,6 +137,22 @@ def test_a_runtime_implement_choice_changes_the_results(events: list[InputEvent]
     assert not np.allclose(_limits(before)[2:], _limits(expected[:half])[2:], rtol=1e-3)
     monitor.select_implement("zhsk4v_header")   # back to the bundled header: the file's values
     assert monitor.mechanism.implement.mass == BELARUS.implement.mass
+    # a recorded choice (the configuration the node records) replays through the batched path alike
+    replayed = Monitor(BELARUS, CONFIG).run([*events[:half], ConfigEvent(config), *events[half:]]).steps
+    np.testing.assert_allclose(_limits(replayed[half:])[2:], _limits(expected[half:])[2:], rtol=1e-9)
+
+
+def test_the_replay_summary_gives_the_estimate_when_weighed() -> None:
+    """The bundled bag carries the preset's header (1,529.57 kg at S6, no seal friction)."""
+    weighed = replay_streaming(BAG, progress=None, implement_mass_source="estimate").summary
+    estimate = weighed.estimate
+    assert weighed.weighed and estimate is not None
+    low, high = estimate.interval(estimate.mass, estimate.mass_u)
+    assert low <= BELARUS.implement.mass <= high
+    assert f"implement weighed: implement mass {estimate.mass:.1f} kg, 95 % interval {low:.1f} .. {high:.1f} kg" \
+        in weighed.table()
+    plain = replay_streaming(BAG, progress=None).summary   # the recorded source, file: no weighing
+    assert not plain.weighed and plain.estimate is None and "implement weighed" not in plain.table()
 
 
 def test_the_bundled_implements_are_their_presets() -> None:
@@ -166,3 +184,10 @@ def test_a_bad_runtime_choice_changes_nothing() -> None:
     with pytest.raises(MechanismFileError, match="no such implement file"):
         monitor.select_implement("no_such_header")
     assert monitor.config.implement == "" and monitor.mechanism.implement == BELARUS.implement
+
+
+def test_a_mechanism_that_cannot_be_weighed_is_named() -> None:
+    mower = load_preset("ksu1_mower_adapter")   # no pressure sensor: nothing to weigh with
+    with pytest.raises(MechanismFileError, match="implement_mass_source 'estimate' cannot weigh: weighing needs a "
+                                                 "measured cylinder length with a pressure sensor"):
+        Monitor(mower, dataclasses.replace(MonitorConfig.default(mower.name, mower), implement_mass_source="estimate"))

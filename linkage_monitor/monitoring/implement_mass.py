@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from linkage_monitor.mechanics import Mechanism, Result, apply_overrides
+from linkage_monitor.mechanics import Mechanism, MechanismFileError, Result, apply_overrides
 from linkage_monitor.mechanics.implements import ImplementFile, Tolerances, load_implement, with_implement
 
 from .config import IMPLEMENT_MASS_SOURCES, MonitorConfig
@@ -51,7 +51,8 @@ class ImplementMass:
     """The weighing of ``mechanism``'s implement (the file's values, before any estimate) for a monitor
     whose configuration takes its mass from ``source`` (not ``file``); ``tolerances``: the implement
     file's, its cg's the estimator's priors when it declares them; ``key``: the configuration's
-    (implement, implement_mass_source) it weighs for."""
+    (implement, implement_mass_source) it weighs for. MechanismFileError when the mechanism cannot be
+    weighed (no implement, no measured lift cylinder with a pressure sensor)."""
 
     def __init__(self, mechanism: Mechanism, source: str, tolerances: Tolerances | None = None,
                  key: tuple[str, str] = ("", "")) -> None:
@@ -60,7 +61,11 @@ class ImplementMass:
         settings = WeighingSettings()
         if tolerances is not None and tolerances.cg_x is not None and tolerances.cg_z is not None:
             settings = replace(settings, priors=Priors(x=tolerances.cg_x, z=tolerances.cg_z))
-        self.estimator = WeighingEstimator(mechanism, settings)
+        try:
+            self.estimator = WeighingEstimator(mechanism, settings)
+        except ValueError as exc:   # no implement, no measured lift cylinder with a pressure
+            raise MechanismFileError(mechanism.file, "", f"implement_mass_source '{source}' cannot weigh: "
+                                     + str(exc).removeprefix(f"{mechanism.file}: ")) from exc
         self.source = source
         self.in_use: WeighingEstimate | None = None   # the estimate the monitor's mechanism carries
         self.stale = False                            # a change found since the last confident estimate in use
