@@ -13,9 +13,8 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components, maximum_bipartite_matching
 
+from .loops import LoopBlock, diagonal_blocks
 from .model import Mechanism
 from .programs import Geometry
 from .results import Status
@@ -137,27 +136,17 @@ class KinematicLayout(ABC):
         return np.array(rows, dtype=np.int64), np.array(fit, dtype=np.int64)
 
     @staticmethod
-    def loop_blocks(rows: list[int], pattern: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-        """(rows, columns) of each loop of the linkage: the diagonal blocks of the block-triangular
-        form of the square driving system ``rows`` (``driving_rows``), found from the structural
-        non-zeros ``pattern`` (m, n) of the Jacobian (a maximum matching of rows to columns, then
-        the strongly connected components of the matched graph). A chain of dyads gives one block
-        per dyad; the sign of each block's determinant is that loop's assembly branch (the sign of
-        one global determinant would miss two loops flipping together)."""
+    def loop_blocks(rows: list[int], pattern: np.ndarray) -> list[LoopBlock]:
+        """The rows (of the Jacobian) and columns of each loop of the linkage: the diagonal blocks of
+        the block-triangular form of the square driving system ``rows`` (``driving_rows``), found
+        from the structural non-zeros ``pattern`` (m, n) of the Jacobian (``loops.diagonal_blocks``).
+        A chain of dyads gives one block per dyad; the sign of each block's determinant is that
+        loop's assembly branch (the sign of one global determinant would miss two loops flipping
+        together)."""
         if not rows:
             return []                         # not closable by a square subsystem: no branch to keep
-        sub = csr_matrix(pattern[rows].astype(np.int8))
-        match = maximum_bipartite_matching(sub, perm_type="column")   # match[row] = its column
-        if np.any(match < 0):
-            return []
-        order = np.argsort(match)            # row matched to each column
-        graph = csr_matrix(pattern[rows][order].astype(np.int8))    # column j -> columns of its matched row
-        count, label = connected_components(graph, directed=True, connection="strong")
-        blocks = []
-        for b in range(count):
-            cols = np.flatnonzero(label == b)
-            blocks.append((np.array(rows)[order[cols]], cols))
-        return blocks
+        return [LoopBlock(rows=np.array(rows, dtype=np.int64)[block.rows], columns=block.columns)
+                for block in diagonal_blocks(pattern[rows])]
 
     # ---- out of reach: continuation from the reference pose --------------------------------------
     def continuation(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

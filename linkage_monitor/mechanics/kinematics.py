@@ -54,9 +54,10 @@ class Kinematics(KinematicLayout):
         q = self.q_ref + 0.1 * np.random.default_rng(0).standard_normal(self.n)
         self._loops = self.loop_blocks(self.drive_rows.tolist(),
                                        self.residual_jacobian(q[None], self._s_ref[None])[1][0] != 0.0)
-        rows = [r for r, _ in self._loops]
+        rows = [b.rows for b in self._loops]
+        columns = [b.columns for b in self._loops]
         self._loop_arrays = (np.concatenate(rows or [np.zeros(0, dtype=int)]).astype(np.int64),
-                             np.concatenate([c for _, c in self._loops] or [np.zeros(0, dtype=int)]).astype(np.int64),
+                             np.concatenate(columns or [np.zeros(0, dtype=int)]).astype(np.int64),
                              np.cumsum([0] + [len(r) for r in rows]).astype(np.int64))
         self._ref_branch = self.branch(jac_ref)[0]   # the assembly branch (one sign per loop) every pose keeps
         ref_cond = np.array([kernels.condition(jac_ref[0], self.column_scale)])

@@ -198,7 +198,8 @@ class Kinematics(KinematicLayout):
     def branch(self, jac: np.ndarray) -> np.ndarray:
         """Sign of the determinant of each loop's block (N, n_loops): +1, −1, or 0 at a dead centre."""
         out = np.ones((jac.shape[0], len(self._loops)))
-        for k, (rows, cols) in enumerate(self._loops):
+        for k, block in enumerate(self._loops):
+            rows, cols = block.rows, block.columns
             out[:, k] = np.linalg.slogdet(jac[:, rows][:, :, cols])[0]
         return out
 
