@@ -30,6 +30,7 @@ from typing import Mapping
 
 import numpy as np
 
+from . import spans_cache
 from .capacity import interval_around
 from .constants import ATMOSPHERIC_PRESSURE
 from .errors import LinkageError
@@ -121,13 +122,21 @@ def _driven_by(mech: Mechanism, kind: str, entry: object) -> Solver | None:
 
 
 def _swept_spans_of(mech: Mechanism) -> dict[str, tuple[float, float]]:
-    """``_swept_spans`` of ``mech``, kept for the last SPANS_KEPT descriptions: a replay, a fleet
-    worker's every bag and a reconfigured node build a monitor of the same mechanism again, and the
-    sweeps took most of the time a monitor takes to build (~30 ms of ~40 for belarus_1221)."""
+    """``_swept_spans`` of ``mech``, kept for the last SPANS_KEPT descriptions in this process and
+    on disk (``spans_cache``) for the next: a replay, a fleet worker's every bag, a reconfigured or
+    restarted node build a monitor of the same mechanism again, and the sweeps took most of the
+    time a monitor takes to build (~30 ms of ~40 for belarus_1221, and the batch kernels only
+    they load at start-up)."""
     key = mech.description_key
     spans = _SPANS.pop(key, None)
     if spans is None:
-        spans = _swept_spans(mech)
+        stored = spans_cache.entry_key(key, {"cylinder_margin": CYLINDER_MARGIN, "angle_margin": ANGLE_MARGIN,
+                                             "sweep_points": SWEEP_POINTS})
+        names = [*mech.measurements.cylinders, *(a.name for a in mech.measurements.angles)]
+        spans = spans_cache.load(stored, names)
+        if spans is None:
+            spans = _swept_spans(mech)
+            spans_cache.store(stored, spans)
     _SPANS[key] = spans   # the last one used is the newest
     while len(_SPANS) > SPANS_KEPT:
         del _SPANS[next(iter(_SPANS))]
@@ -154,7 +163,7 @@ def _swept_spans(mech: Mechanism) -> dict[str, tuple[float, float]]:
             continue
         lo, hi = interval
         pad = CYLINDER_MARGIN * (hi - lo) + (grid[1] - grid[0])
-        spans[cyl] = (max(lo - pad, 0.0), hi + pad)
+        spans[cyl] = (float(max(lo - pad, 0.0)), float(hi + pad))
         inside = ok & (grid >= lo) & (grid <= hi)
         for name, values in angle_readings(mech, batch).items():
             angle_values[name].append(values[inside])

@@ -1,6 +1,7 @@
 """Compile the physics kernels ahead of use (``make`` runs this after installing): numba keeps the
 machine code in an on-disk cache beside ``kernels.py``, so a node or a replay started later loads
 it instead of compiling (first compile about a minute here; loading a warm cache well under 2 s).
+The presets' input limits are swept into their cache too (``spans_cache``).
 
     .venv/bin/python -m linkage_monitor.mechanics.warm
 """
@@ -18,6 +19,7 @@ from . import kernels
 from .machine import MachineModel
 from .presets import load_preset, preset_names
 from .errors import LinkageError
+from .limits import input_limits
 from .results import Status
 from .inputs import Inputs
 from .solver import Solver
@@ -32,11 +34,12 @@ def compiled_kernels() -> int:
 
 def warm_up() -> float:
     """Solve every preset once per path (single pose warm-started, small and large batches, with
-    rates, lift capacity, a recorded series); returns the seconds it took."""
+    rates, lift capacity, a recorded series) and sweep its input limits; returns the seconds it took."""
     started = time.perf_counter()
     kernels.allow_threads(True)   # compile the thread-pool drivers too
     for name in preset_names():
         mech = load_preset(name)
+        input_limits(mech)
         solver = Solver(mech)
         model = MachineModel(mech, solver)
         ref = {k: dict(v) for k, v in mech.reference_inputs.items()}
