@@ -17,7 +17,8 @@ def main() -> int:
     full = "--full" in sys.argv[1:]
     runs = [["bench_solver.py"], ["bench_step.py"], ["bench_encode.py"], ["bench_memory.py"], ["bench_startup.py"], ["bench_cli_start.py"],
             ["bench_bag.py"], ["bench_replay.py"], ["bench_replay_process.py"], ["bench_spin.py"],
-            ["bench_fleet.py"], ["bench_can.py"], ["bench_uncertainty_mc.py"], ["bench_uncertainty_step.py"],
+            ["bench_fleet.py"], ["bench_can.py"], ["bench_uncertainty_mc.py"], ["bench_uncertainty_coverage.py"],
+            ["bench_uncertainty_step.py"],
             ["bench_weighing.py"],
             ["bench_node.py", "--soak-minutes", "10"] if full else ["bench_node.py", "--quick"]]
     failed = 0

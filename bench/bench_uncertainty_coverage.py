@@ -1,0 +1,75 @@
+"""Coverage of the error budget against a truth the monitor does not see (``sim.coverage``): per preset,
+runs of the simulator's scenarios with the sensors' errors drawn from the declared sources (biases and the
+seals' level in their friction band once per run, noise per sample, readings quantized to their step;
+``sim.sensor_errors``), a fresh monitor with ``MonitorConfig.uncertainty`` fed the erroneous readings only,
+each step's outputs compared with the same mechanics solved from the true inputs.
+
+Goals, per preset and output kind, over >= 200 runs and >= 5,000 steps: the 95 % interval (value ± 1.96 u)
+holds the true value in 93-97 % of the steps (coverage); the mean 95 % half-width is <= 2.5 times the RMS of
+the actual error (sharpness); no step passed by the monitor (no finding about the limit) whose true
+steerability margin, lift reserve or axle load is beyond its limit (wrong with OK). Every figure printed,
+with the goal it meets or misses.
+
+    .venv/bin/python bench/bench_uncertainty_coverage.py [--runs 200] [--steps 30] [--seed 51] [--preset NAME]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from linkage_monitor.mechanics import load_preset, preset_names  # noqa: E402
+from linkage_monitor.sim.coverage import CoverageTally, study  # noqa: E402
+
+COVERAGE_GOAL = (0.93, 0.97)
+SHARPNESS_GOAL = 2.5
+
+
+def report(preset: str, tally: CoverageTally, seconds: float) -> bool:
+    """Print one preset's figures; True when every goal is met."""
+    compared = tally.steps - tally.refused - tally.untrue
+    print(f"{preset}: {tally.runs} runs, {tally.steps} steps ({tally.refused} refused by the monitor, "
+          f"{tally.untrue} whose truth does not solve), {seconds:.0f} s", flush=True)
+    met = compared >= 5000 and tally.runs >= 200
+    for group, g in tally.groups.items():
+        cover_ok = COVERAGE_GOAL[0] <= g.coverage <= COVERAGE_GOAL[1]
+        sharp = "exact (no error, u 0)" if not np.isfinite(g.sharpness) else f"{g.sharpness:.2f}"
+        sharp_ok = not np.isfinite(g.sharpness) or g.sharpness <= SHARPNESS_GOAL
+        met = met and cover_ok and sharp_ok
+        print(f"    {group:<20} coverage {g.coverage:7.2%} ({'ok' if cover_ok else 'MISS'})   sharpness {sharp} "
+              f"({'ok' if sharp_ok else 'MISS'})   over {g.steps} values", flush=True)
+    for output, beyond in tally.beyond.items():
+        wrong = tally.wrong_with_ok.get(output, 0)
+        met = met and wrong == 0
+        print(f"    wrong with OK: {output} {wrong} of {beyond} steps truly beyond the limit "
+              f"({'ok' if wrong == 0 else 'MISS'})")
+    if not tally.beyond:
+        print("    wrong with OK: no step truly beyond a limit (or the mechanism has none)")
+    return met
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=200)
+    parser.add_argument("--steps", type=int, default=30, help="samples per run (50 Hz)")
+    parser.add_argument("--seed", type=int, default=51)
+    parser.add_argument("--preset", action="append", default=[], help="only this preset (repeatable; default: all)")
+    args = parser.parse_args()
+    rng = np.random.default_rng(args.seed)
+    print(f"coverage of the 95 % intervals: {args.runs} runs x {args.steps} steps per preset, goals coverage "
+          f"{COVERAGE_GOAL[0]:.0%}-{COVERAGE_GOAL[1]:.0%}, sharpness <= {SHARPNESS_GOAL}, wrong with OK 0")
+    met = []
+    for preset in args.preset or preset_names():
+        t0 = time.perf_counter()
+        tally = study(load_preset(preset), args.runs, args.steps, rng)
+        met.append(report(preset, tally, time.perf_counter() - t0))
+    return 0 if all(met) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
