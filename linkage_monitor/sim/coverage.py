@@ -18,13 +18,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from linkage_monitor.mechanics import LinkageError, Mechanism
-from linkage_monitor.mechanics.inputs import Inputs
 from linkage_monitor.monitoring.bounds import COVERAGE_FACTOR
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Monitor, Step
 from linkage_monitor.monitoring.findings import Code
 
-from .sensor_errors import KINDS, SensorErrorSimulator, TrueInputs
+from .sensor_errors import SensorErrorSimulator, TrueInputs
 from .telemetry import SimulatedStream, simulate
 
 # output kind (mechanics.uncertainty.Output.kind) -> the group it is tallied in
@@ -118,8 +117,8 @@ class CoverageTally:
             tally.squared_error += float(error[k]) ** 2
         index = {name: k for k, name in enumerate(names)}
         for limit in LIMITS:
-            k = index.get(limit.output)
-            if k is None or not truth[k] < limit.limit:
+            row = index.get(limit.output)
+            if row is None or not truth[row] < limit.limit:
                 continue
             self.beyond[limit.output] = self.beyond.get(limit.output, 0) + 1
             if not limit.flagged(step):
@@ -166,8 +165,9 @@ def run_once(mech: Mechanism, simulator: SensorErrorSimulator, truth: TrueInputs
     assert monitor.uncertainty is not None
     table = monitor.uncertainty.table
     kinds, names = [o.kind for o in table.outputs], [o.name for o in table.outputs]
-    joints = [*readings["angles"], *readings["cylinders"]]
-    joint_values = np.column_stack([readings["angles"].get(n, readings["cylinders"].get(n)) for n in joints])
+    joint_readings = {**readings["angles"], **readings["cylinders"]}   # one JointState: angles, then lengths
+    joints = list(joint_readings)
+    joint_values = np.column_stack(list(joint_readings.values()))
     previous = None
     tally.runs += 1
     for i, stamp in enumerate(stamps_ns.tolist()):
@@ -175,9 +175,8 @@ def run_once(mech: Mechanism, simulator: SensorErrorSimulator, truth: TrueInputs
             monitor.on_pressure(topic, float(readings["pressures"][name][i]), stamp, stamp)
         step = monitor.on_joint_state(joints, joint_values[i].tolist(), [], stamp, stamp)
         tally.steps += 1
-        true = Inputs(**{kind: {n: float(v[i]) for n, v in truth.values[kind].items()} for kind in KINDS})
         try:
-            pose = monitor.machine.solve(true, previous)
+            pose = monitor.machine.solve(truth.at(i), previous)
         except LinkageError:
             tally.untrue += 1
             previous = None
@@ -195,7 +194,7 @@ def window_starts(mech: Mechanism, stream: SimulatedStream, steps: int) -> np.nd
     solvable = np.zeros(len(stream), dtype=bool)
     for i in range(len(stream)):
         try:
-            model.solve(Inputs(**{kind: {n: float(v[i]) for n, v in truth.values[kind].items()} for kind in KINDS}))
+            model.solve(truth.at(i))
         except LinkageError:
             continue
         solvable[i] = True

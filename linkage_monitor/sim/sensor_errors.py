@@ -28,6 +28,7 @@ from typing import Mapping
 import numpy as np
 
 from linkage_monitor.mechanics.error_sources import ErrorSources
+from linkage_monitor.mechanics.inputs import Inputs
 from linkage_monitor.mechanics.model import Mechanism
 from linkage_monitor.mechanics.uncertainty import force_per_pressure
 
@@ -45,6 +46,10 @@ class TrueInputs:
 
     def __len__(self) -> int:
         return next((len(v) for group in self.values.values() for v in group.values()), 0)
+
+    def at(self, i: int) -> Inputs:
+        """The true inputs of sample ``i``."""
+        return Inputs(**{kind: {n: float(v[i]) for n, v in group.items()} for kind, group in self.values.items()})
 
 
 @dataclass(frozen=True)
