@@ -305,7 +305,7 @@ class Monitor:
                 else:
                     segment.add(len(steps), due)
                     steps.append(None)
-                limit = piece_steps if piece_steps is not None or self.weighing is None else WEIGHING_PIECE
+                limit = piece_steps if self.weighing is None else min(piece_steps or WEIGHING_PIECE, WEIGHING_PIECE)
                 if limit is not None and len(steps) >= limit:
                     self._solve_segment(segment, steps, segments)
                     yield Run(steps, segments)  # type: ignore[arg-type]  # as above

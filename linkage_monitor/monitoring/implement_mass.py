@@ -57,7 +57,8 @@ class ImplementMass:
     def __init__(self, mechanism: Mechanism, source: str, tolerances: Tolerances | None = None,
                  key: tuple[str, str] = ("", "")) -> None:
         if source not in IMPLEMENT_MASS_SOURCES[1:]:
-            raise ValueError(f"implement_mass_source '{source}' does not weigh (one of {', '.join(IMPLEMENT_MASS_SOURCES[1:])})")
+            raise ValueError(f"implement_mass_source '{source}' does not weigh "
+                             f"(one of {', '.join(IMPLEMENT_MASS_SOURCES[1:])})")
         settings = WeighingSettings()
         if tolerances is not None and tolerances.cg_x is not None and tolerances.cg_z is not None:
             settings = replace(settings, priors=Priors(x=tolerances.cg_x, z=tolerances.cg_z))
