@@ -16,7 +16,7 @@ from . import kernels
 from .constants import ATMOSPHERIC_PRESSURE   # a gauge pressure below −1 atm is a negative absolute pressure
 from .inputs import Inputs
 from .kinematics import KinematicState
-from .programs import POSE_VALUES, LivePrograms, MachineProgram, OutputsProgram, fields
+from .programs import POSE_VALUES, LivePrograms, LiveRows, MachineProgram, OutputsProgram, fields
 from .results import Result, Status
 from .row_pool import RowPool
 from .statics import StaticsLayout
@@ -39,6 +39,15 @@ class SolvedPose(NamedTuple):
     steerability: np.ndarray | None
     capacity: np.ndarray | None
     values: np.ndarray | None
+
+
+class InputMoves(NamedTuple):
+    """Moves of a pose's inputs, a row per moved pose (``LivePath.solve_moved``): s (R, n_inputs) added
+    to its inputs in ``Kinematics.input_names`` order (m, rad), pressures (R, 2, C) to each cylinder's
+    cap and rod gauge pressures (Pa)."""
+
+    s: np.ndarray
+    pressures: np.ndarray
 
 
 class PlainLive(NamedTuple):
@@ -117,27 +126,14 @@ class LivePath:
         pose), no dead centre, no contact lifting off. None for anything else: the general path then
         solves the pose and words what is wrong. Gives what it and ``MachineModel.evaluate`` would
         (test_mechanics_fast_paths.py)."""
+        given = self._live_inputs(inputs)
+        if given is None:
+            return None
+        values, cap, rod = given
         solver = self._solver
         kin = solver.kin
-        if inputs.rates or inputs.accelerations or len(inputs.cylinders) + len(inputs.angles) != kin.n_inputs:
-            return None
-        nc = kin.cyl_att.shape[1]
-        sensors = solver.sensors
-        try:
-            values = [float(inputs.cylinders[n]) if j < nc else float(inputs.angles[n])
-                      for j, n in enumerate(kin.input_names)]
-            pressures = [(sensors[n], float(v)) for n, v in inputs.pressures.items()]
-        except (KeyError, TypeError, ValueError):
-            return None
-        if not (all(math.isfinite(v) for v in values) and all(v > 0.0 for v in values[:nc])
-                and all(math.isfinite(v) and v >= -ATMOSPHERIC_PRESSURE for _, v in pressures)):
-            return None
-        for j, reference in enumerate(self._angle_reference, start=nc):   # kin.wrap_angles on floats
+        for j, reference in enumerate(self._angle_reference, start=kin.cyl_att.shape[1]):   # kin.wrap_angles on floats
             values[j] = reference + ((values[j] - reference + math.pi) % (2.0 * math.pi) - math.pi)
-        cylinders = solver.mech.cylinders
-        cap, rod = [math.nan] * len(cylinders), [math.nan] * len(cylinders)
-        for ps, value in pressures:
-            (cap if ps.chamber == "cap" else rod)[self._cylinder_index[ps.cylinder]] = value
         live = self._plain_live(tuple(inputs.pressures), machine)
         block, i = live.rows.take()
         rows, s = block.rows, block.s
@@ -160,6 +156,60 @@ class LivePath:
                                  transmission_angle=pose["transmission_angle"],
                                  weakest_transmission=live.measure_names[pose["weakest"]]),
                           rows.steerability[i], rows.capacity[i], rows.values[i])
+
+    def solve_moved(self, inputs: Inputs, start: KinematicState | None, machine: MachineProgram, moves: InputMoves
+                    ) -> tuple[LiveRows, slice] | None:
+        """The poses of ``inputs`` moved by each row of ``moves`` in one compiled call (``kernels.live_series``),
+        each from the one before, the first from ``start`` (or the reference pose): the rows it wrote
+        and which of them are these poses (``plain`` False where a pose is not the usual one: the
+        general path is to solve it). None where ``inputs`` or a moved pose is not for this path (as
+        ``solve``: an input missing, not finite or out of range, rates). The moves are finite."""
+        given = self._live_inputs(inputs)
+        if given is None:
+            return None
+        values, cap, rod = given
+        solver = self._solver
+        kin = solver.kin
+        live = self._plain_live(tuple(inputs.pressures), machine)
+        count = len(moves.s)
+        block, first = live.rows.take_rows(count)
+        s, pressures = block.s[first:first + count], block.pressures[first:first + count]
+        np.add(values, moves.s, out=s)
+        np.add((cap, rod), moves.pressures, out=pressures)
+        # a length not positive, a pressure below vacuum (NaN: a chamber not measured)
+        if (s[:, :kin.cyl_att.shape[1]] <= 0.0).any() or (pressures < -ATMOSPHERIC_PRESSURE).any():
+            return None
+        if len(self._angle_reference):
+            s[:] = kin.wrap_angles(s)
+        start = start if start is not None else kin.reference
+        kernels.live_series(live.programs, block.buffer, start.q[-1:], start.s[-1:], solver.assembly_limit,
+                            solver.dead_centre_cond, first, first + count)
+        return block.rows, slice(first, first + count)
+
+    def _live_inputs(self, inputs: Inputs) -> tuple[list[float], list[float], list[float]] | None:
+        """The inputs of a pose for this path: s in ``kin.input_names`` order (m, rad, angles not
+        wrapped), per cylinder its cap and rod gauge pressures (Pa, NaN = not measured); None where
+        they are not for it (an input missing, not finite or out of range, rates)."""
+        solver = self._solver
+        kin = solver.kin
+        if inputs.rates or inputs.accelerations or len(inputs.cylinders) + len(inputs.angles) != kin.n_inputs:
+            return None
+        nc = kin.cyl_att.shape[1]
+        sensors = solver.sensors
+        try:
+            values = [float(inputs.cylinders[n]) if j < nc else float(inputs.angles[n])
+                      for j, n in enumerate(kin.input_names)]
+            pressures = [(sensors[n], float(v)) for n, v in inputs.pressures.items()]
+        except (KeyError, TypeError, ValueError):
+            return None
+        if not (all(math.isfinite(v) for v in values) and all(v > 0.0 for v in values[:nc])
+                and all(math.isfinite(v) and v >= -ATMOSPHERIC_PRESSURE for _, v in pressures)):
+            return None
+        cylinders = solver.mech.cylinders
+        cap, rod = [math.nan] * len(cylinders), [math.nan] * len(cylinders)
+        for ps, value in pressures:
+            (cap if ps.chamber == "cap" else rod)[self._cylinder_index[ps.cylinder]] = value
+        return values, cap, rod
 
     def _plain_live(self, sensors: tuple[str, ...], machine: MachineProgram) -> PlainLive:
         """``solve``'s programs and rows for the pressure sensors ``sensors`` (in the order the inputs

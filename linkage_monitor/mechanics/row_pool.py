@@ -33,17 +33,24 @@ class RowPool:
     def __init__(self, allocate: Callable[[int], LiveRows], n_inputs: int, n_cylinders: int) -> None:
         self._allocate, self._n_inputs, self._n_cylinders = allocate, n_inputs, n_cylinders
         self._lock = threading.Lock()   # one row per caller, from several threads too
-        self._block, self._next = self._new_block(), 0
+        self._block, self._next = self._new_block(self.SIZE), 0
 
     def take(self) -> tuple[RowBlock, int]:
         """The block and index of the next free row."""
-        with self._lock:
-            if self._next == self.SIZE:
-                self._block, self._next = self._new_block(), 0
-            self._next += 1
-            return self._block, self._next - 1
+        return self.take_rows(1)
 
-    def _new_block(self) -> RowBlock:
-        rows = self._allocate(self.SIZE)
-        s, pressures = np.empty((self.SIZE, self._n_inputs)), np.empty((self.SIZE, 2, self._n_cylinders))
+    def take_rows(self, count: int) -> tuple[RowBlock, int]:
+        """The block and index of the first of ``count`` free rows in a row (a block of their own when
+        they are more than SIZE)."""
+        if count > self.SIZE:
+            return self._new_block(count), 0
+        with self._lock:
+            if self._next + count > self.SIZE:
+                self._block, self._next = self._new_block(self.SIZE), 0
+            self._next += count
+            return self._block, self._next - count
+
+    def _new_block(self, size: int) -> RowBlock:
+        rows = self._allocate(size)
+        s, pressures = np.empty((size, self._n_inputs)), np.empty((size, 2, self._n_cylinders))
         return RowBlock(rows, s, pressures, kernels.live_buffer(fields(rows), s, pressures))

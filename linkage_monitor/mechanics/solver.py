@@ -19,9 +19,9 @@ from .errors import AssemblyError, DeadCentreError, InputError
 from .general_path import solve_general
 from .inputs import ArrayMap, InputChecks, Inputs, check_observable
 from .kinematics import Kinematics, KinematicState
-from .live_path import LivePath, SolvedPose
+from .live_path import InputMoves, LivePath, SolvedPose
 from .model import Mechanism
-from .programs import LivePrograms, MachineProgram, OutputsProgram
+from .programs import LivePrograms, LiveRows, MachineProgram, OutputsProgram
 from .reduced import DEAD_CENTRE_TRANSMISSION_DEG, ReducedStatics
 from .result_layout import ResultLayout
 from .results import BatchResult, Result, Status
@@ -98,6 +98,17 @@ class Solver:
             return SolvedPose(replace(res, state=ks), None, None, None)
         raise {Status.INPUT: InputError, Status.ASSEMBLY: AssemblyError, Status.DEAD_CENTRE: DeadCentreError}[Status(code)](
             res.message)
+
+    def solve_moved(self, inputs: Inputs, previous: Result | None, machine: MachineProgram, moves: InputMoves
+                    ) -> tuple[LiveRows, slice] | None:
+        """The poses of ``inputs`` moved by each row of ``moves`` (``live_path.InputMoves``: m, rad, Pa),
+        with the machine-level rows of ``machine``, in one compiled call, each from the one before, the
+        first from ``previous`` (as ``solve``'s warm start): the rows written and which of them are
+        these poses; ``plain`` False for a pose the live path does not take (``solve`` words it). None
+        where ``inputs`` or a moved pose is not for the live path (an input missing, not finite or out
+        of range, rates): ``solve`` each moved pose then."""
+        start = previous.state if previous is not None else None
+        return self._live.solve_moved(inputs, start if isinstance(start, KinematicState) else None, machine, moves)
 
     def explain(self) -> list[str]:
         """Whether reduced coordinates serve the statics of each set of measured cylinder forces and

@@ -6,15 +6,19 @@ load (N), axle loads (N), steerability ratio and margin (-), lift capacities (N)
 (-). Sources (``Source``): each measured input's bias, noise and resolution, each force-measured
 cylinder's seal friction, the implement's mass.
 
-Derivatives, through the same compiled solve as the pose (``MachineModel.solve``):
+Derivatives, from the pose's inputs moved one at a time, all the moved poses solved in one call of
+the same compiled solve as the pose (``Solver.solve_moved``; a moved pose it does not take: by
+``MachineModel.solve``, which words it), each from the one before, the first from the pose:
 - loads (pressures, seal friction, implement mass) do not move the pose, and at a fixed pose the
   statics, the implement load and the axle loads are linear in them: the derivative is exact from
-  one more solve (``(y(x + Δ) − y(x)) / Δ`` of a linear function), and the outputs that are not
+  one more pose (``(y(x + Δ) − y(x)) / Δ`` of a linear function), and the outputs that are not
   linear (hinge magnitude, steerability ratio and margin, lift reserve) follow from those by the
-  chain rule (``_LinearisedOutputs``);
+  chain rule (``_LinearisedOutputs``); the implement mass, a heavier implement, is one solve of
+  its own;
 - cylinder lengths and angles move the pose along the linkage's degrees of freedom: a central
   difference of step ``pose_step`` (truncation error O(h²), held by test/test_uncertainty.py to a
   Richardson estimate).
+What moves for a set of input names is worked out once (``_Plan``).
 u_y² = Σ_s (∂y/∂s · u_s)² (the sources independent); the share of s is (∂y/∂s · u_s)² / u_y².
 Units SI (m, rad, Pa, N, kg); frame x forward, z up, origin at the rear wheels' ground contact.
 """
@@ -24,13 +28,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from functools import cached_property
-from typing import Mapping
+from typing import Mapping, NamedTuple
 
 import numpy as np
 
 from .error_sources import ErrorSources, Motion
 from .errors import LinkageError
 from .inputs import Inputs
+from .live_path import InputMoves
 from .machine import STEERABILITY_KEYS, MachineModel, MachineResult
 from .model import Mechanism
 from .overrides import apply_overrides
@@ -182,7 +187,7 @@ class _LinearisedOutputs:
 
     def __init__(self, table: OutputTable) -> None:
         h, c = table.n_hinges, table.n_cylinders
-        self.fx, self.fz, self.magnitude = np.arange(h), np.arange(h, 2 * h), np.arange(2 * h, 3 * h)
+        self.fx, self.fz, self.magnitude = slice(0, h), slice(h, 2 * h), slice(2 * h, 3 * h)
         self.load = 3 * h + c
         self.table = table
         steer = self.load + 1
@@ -193,20 +198,22 @@ class _LinearisedOutputs:
         self.reserve = len(table.outputs) - 1
 
     def derivative(self, y0: np.ndarray, y1: np.ndarray, step: float) -> np.ndarray:
-        """∂y/∂x (n_out,) from y0 = y(x) and y1 = y(x + step) at one pose."""
+        """∂y/∂x (n_out,) from y0 = y(x) and y1 = y(x + step) at one pose; of several loads at once with
+        y1 (L, n_out), a row each: (L, n_out)."""
         with np.errstate(invalid="ignore", divide="ignore"):   # an infinite reserve (no load) has no derivative
             d = (y1 - y0) / step
             fx, fz, magnitude = y0[self.fx], y0[self.fz], y0[self.magnitude]
-            d[self.magnitude] = np.where(magnitude > 0.0, (fx * d[self.fx] + fz * d[self.fz]) / magnitude,
-                                         np.hypot(d[self.fx], d[self.fz]))
+            d[..., self.magnitude] = np.where(magnitude > 0.0,
+                                              (fx * d[..., self.fx] + fz * d[..., self.fz]) / magnitude,
+                                              np.hypot(d[..., self.fx], d[..., self.fz]))
             if self.table.steerability:
                 front, rear = y0[self.front], y0[self.rear]
-                d_front, d_rear = d[self.front], d[self.rear]
-                d[self.ratio] = ((d_front - y0[self.ratio] * (d_front + d_rear)) / (front + rear)
-                                 if self.table.unit_reference else d_front / self.table.tractor_weight)
-                d[self.margin] = d[self.ratio]
+                d_front, d_rear = d[..., self.front], d[..., self.rear]
+                d[..., self.ratio] = ((d_front - y0[self.ratio] * (d_front + d_rear)) / (front + rear)
+                                      if self.table.unit_reference else d_front / self.table.tractor_weight)
+                d[..., self.margin] = d[..., self.ratio]
             if self.capacity_cg is not None:
-                d[self.reserve] = (d[self.capacity_cg] - y0[self.reserve] * d[self.load]) / y0[self.load]
+                d[..., self.reserve] = (d[..., self.capacity_cg] - y0[self.reserve] * d[..., self.load]) / y0[self.load]
         return d
 
 
@@ -223,6 +230,39 @@ def pose_step(u: float) -> float:
     return min(max(POSE_STEP_SHARE * u, POSE_STEP_MIN), POSE_STEP_MAX)
 
 
+class _Move(NamedTuple):
+    """One moved pose of a budget: the ``kind`` input (``cylinders``, ``angles``, ``pressures``) ``name``
+    moved by ``step`` (m, rad or Pa)."""
+
+    kind: str
+    name: str
+    step: float
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """What the budget of a pose with one set of input names solves, worked out once for the set:
+    ``moves`` a row each (as ``inputs_moved``; None when a name is not the solver's: each moved pose
+    is then solved on its own), the derivatives they give, a row each of (P + L, n_out): P lengths
+    and angles (central differences of rows ``up`` and ``down`` over ``spans`` (P, 1), twice their
+    steps) then L pressure sensors (rows ``loads``, step LOAD_STEP_PRESSURE), ``derivative`` by input name; the
+    sources of the measured inputs (``sources``, each from its input's derivative ``which``) and the
+    sensor each cylinder's seal friction enters by (``friction_sensors``: None for one whose force is
+    not measured) with its N per Pa (``per_pascal``)."""
+
+    moves: tuple[_Move, ...]
+    inputs_moved: InputMoves | None
+    up: slice
+    down: slice
+    spans: np.ndarray
+    loads: slice
+    derivative: Mapping[str, int]
+    sources: tuple[Source, ...]
+    which: tuple[int, ...]
+    friction_sensors: Mapping[str, str | None]
+    per_pascal: Mapping[str, float]
+
+
 class UncertaintyModel:
     """The error budget of the poses of one ``MachineModel`` under the declared ``sources`` (default: the
     mechanism's own, ``Mechanism.error_sources``)."""
@@ -232,10 +272,8 @@ class UncertaintyModel:
         self.sources = sources if sources is not None else model.mech.error_sources
         self.table = OutputTable(model)
         self._linear = _LinearisedOutputs(self.table)
-        self._kinds = {**{c: "cylinders" for c in self.mech.measurements.cylinders},
-                       **{a.name: "angles" for a in self.mech.measurements.angles},
-                       **{p.name: "pressures" for p in self.mech.measurements.pressures}}
         self._heavier: MachineModel | None = None   # the implement LOAD_STEP_MASS heavier, built when first needed
+        self._plans: dict[tuple[tuple[str, ...], ...], _Plan] = {}   # by input names (``_plan``)
 
     @property
     def outputs(self) -> tuple[Output, ...]:
@@ -247,54 +285,112 @@ class UncertaintyModel:
         """The error budget of the solved pose (``result``, ``machine``: ``self.model``'s answer to
         ``inputs``), each seal friction's band by ``motion``: one for every cylinder, or per cylinder
         name (a cylinder not named: standing)."""
-        motions = ({c.name: motion.get(c.name, Motion.STANDING) for c in self.mech.cylinders}
-                   if isinstance(motion, Mapping) else {c.name: motion for c in self.mech.cylinders})
+        motions = ({c.name: motion for c in self.mech.cylinders} if isinstance(motion, Motion)
+                   else {c.name: motion.get(c.name, Motion.STANDING) for c in self.mech.cylinders})
+        plan = self._plan(inputs)
         y0 = self.table.values(result, machine)
-        sources: list[Source] = []
-        columns: list[np.ndarray] = []
-        per_pascal: dict[str, np.ndarray] = {}   # ∂y/∂p of each pressure sensor, one solve each
-
-        def load_derivative(sensor: str) -> np.ndarray:
-            if sensor not in per_pascal:
-                per_pascal[sensor] = self._load_derivative(inputs, result, y0, "pressures", sensor)
-            return per_pascal[sensor]
-
-        units = {"cylinders": "m", "angles": "rad", "pressures": "Pa"}
-        for kind in ("cylinders", "angles", "pressures"):
-            for name, value in getattr(inputs, kind).items():
-                error = self.sources.sensor(name, kind)
-                parts = {part: u for part, u in error.components().items() if u > 0.0}
-                if not parts:
-                    continue
-                d = (load_derivative(name) if kind == "pressures"
-                     else self._pose_derivative(inputs, result, kind, name, value, pose_step(error.total)))
-                for part, u in parts.items():
-                    sources.append(Source(f"{name} {part}", name, part, u, units[kind]))
-                    columns.append(d * u)
+        moved = self._moved_outputs(inputs, result, plan.moves, plan.inputs_moved)
+        with np.errstate(invalid="ignore"):   # an infinite reserve (no load) has no derivative
+            per_pose = (moved[plan.up] - moved[plan.down]) / plan.spans
+        derivatives = np.concatenate([per_pose, self._linear.derivative(y0, moved[plan.loads], LOAD_STEP_PRESSURE)])
+        sources, which, scales = list(plan.sources), list(plan.which), [source.u for source in plan.sources]
         used = {}
-        for sensor, cylinder, u in self._friction(inputs, result, motions):
+        forces = result.cylinders
+        for cylinder, sensor in plan.friction_sensors.items():
+            u = self.sources.seal_friction(cylinder).standard_uncertainty(forces[cylinder].force, motions[cylinder])
+            if sensor is None or u <= 0.0:
+                continue
             used[cylinder] = motions[cylinder]
-            d = load_derivative(sensor) / force_per_pressure(self.mech, sensor)
             sources.append(Source(f"{cylinder} seal friction", cylinder, "friction", u, "N"))
-            columns.append(d * u)
+            which.append(plan.derivative[sensor])
+            scales.append(u / plan.per_pascal[sensor])
+        contributions = derivatives[which].T * np.array(scales)
         if self.sources.implement_mass > 0.0 and self.mech.implement is not None:
             sources.append(Source("implement mass", "implement", "mass", self.sources.implement_mass, "kg"))
-            columns.append(self._mass_derivative(inputs, y0) * self.sources.implement_mass)
-        contributions = np.column_stack(columns) if columns else np.zeros((len(y0), 0))
+            contributions = np.column_stack([contributions,
+                                             self._mass_derivative(inputs, y0) * self.sources.implement_mass])
         return Budget(self.table.outputs, tuple(sources), y0, contributions, used)
 
-    def _friction(self, inputs: Inputs, result: Result, motions: Mapping[str, Motion]
-                  ) -> list[tuple[str, str, float]]:
-        """(pressure sensor, cylinder, u N) of every cylinder whose force is measured (a pressure of it
-        given; its cap sensor when it has one) and whose seal friction is not 0."""
-        out = []
-        forces = result.cylinders
-        for cyl in self.mech.cylinders:
-            sensor = self.friction_sensor(cyl.name, inputs)
-            u = self.sources.seal_friction(cyl.name).standard_uncertainty(forces[cyl.name].force, motions[cyl.name])
-            if sensor is not None and u > 0.0:
-                out.append((sensor, cyl.name, u))
-        return out
+    def _plan(self, inputs: Inputs) -> _Plan:
+        """The ``_Plan`` of the input names of ``inputs`` (in their order), built once for them."""
+        key = (tuple(inputs.cylinders), tuple(inputs.angles), tuple(inputs.pressures))
+        plan = self._plans.get(key)
+        if plan is None:
+            plan = self._plans[key] = self._new_plan(*key)
+        return plan
+
+    def _new_plan(self, cylinders: tuple[str, ...], angles: tuple[str, ...], pressures: tuple[str, ...]) -> _Plan:
+        """The ``_Plan`` of these input names (``_plan``)."""
+        units = {"cylinders": "m", "angles": "rad", "pressures": "Pa"}
+        parts = {name: {part: u for part, u in self.sources.sensor(name, kind).components().items() if u > 0.0}
+                 for kind, names in (("cylinders", cylinders), ("angles", angles), ("pressures", pressures))
+                 for name in names}
+        given = Inputs(cylinders=dict.fromkeys(cylinders, 0.0), angles=dict.fromkeys(angles, 0.0),
+                       pressures=dict.fromkeys(pressures, 0.0))
+        friction_sensors = {c.name: self.friction_sensor(c.name, given) for c in self.mech.cylinders}
+        moves: list[_Move] = []
+        derivative: dict[str, int] = {}
+        for kind, names in (("cylinders", cylinders), ("angles", angles)):
+            for name in names:
+                if parts[name]:
+                    step = pose_step(self.sources.sensor(name, kind).total)
+                    derivative[name] = len(derivative)
+                    moves += [_Move(kind, name, step), _Move(kind, name, -step)]
+        loads = [name for name in pressures if parts[name] or name in friction_sensors.values()]
+        for name in loads:
+            derivative[name] = len(derivative)
+            moves.append(_Move("pressures", name, LOAD_STEP_PRESSURE))
+        n_pose = 2 * (len(derivative) - len(loads))
+        sources, which = [], []
+        for kind, names in (("cylinders", cylinders), ("angles", angles), ("pressures", pressures)):
+            for name in names:
+                for part, u in parts[name].items():
+                    sources.append(Source(f"{name} {part}", name, part, u, units[kind]))
+                    which.append(derivative[name])
+        return _Plan(tuple(moves), self._inputs_moved(moves), slice(0, n_pose, 2), slice(1, n_pose, 2),
+                     np.array([2.0 * move.step for move in moves[:n_pose:2]]).reshape(-1, 1), slice(n_pose, None),
+                     derivative,
+                     tuple(sources), tuple(which), friction_sensors,
+                     {sensor: force_per_pressure(self.mech, sensor)
+                      for sensor in friction_sensors.values() if sensor is not None})
+
+    def _inputs_moved(self, moves: list[_Move]) -> InputMoves | None:
+        """``moves`` as ``Solver.solve_moved`` takes them; None when a name is not the solver's."""
+        solver = self.model.solver
+        columns = {name: j for j, name in enumerate(solver.kin.input_names)}
+        s = np.zeros((len(moves), len(columns)))
+        pressures = np.zeros((len(moves), 2, len(self.mech.cylinders)))
+        for row, move in enumerate(moves):
+            if move.kind == "pressures":
+                sensor = solver.sensors.get(move.name)
+                if sensor is None:
+                    return None
+                pressures[row, 0 if sensor.chamber == "cap" else 1, solver.cylinder_index[sensor.cylinder]] = move.step
+            elif move.name in columns:
+                s[row, columns[move.name]] = move.step
+            else:
+                return None
+        return InputMoves(s, pressures)
+
+    def _moved_outputs(self, inputs: Inputs, result: Result, moves: tuple[_Move, ...],
+                       inputs_moved: InputMoves | None) -> np.ndarray:
+        """The outputs (R, n_out) of ``inputs`` moved by each of ``moves`` (``inputs_moved`` the same as
+        ``Solver.solve_moved`` takes them), solved from ``result``: in one compiled call, the poses it
+        does not take one by one (``_solved``; NaN where a pose fails)."""
+        if not moves:
+            return np.zeros((0, len(self.table.outputs)))
+        solved = (self.model.solver.solve_moved(inputs, result, self.model.program, inputs_moved)
+                  if inputs_moved is not None else None)
+        if solved is None:
+            outputs, taken = np.empty((len(moves), len(self.table.outputs))), np.zeros(len(moves), dtype=bool)
+        else:
+            rows, span = solved
+            outputs = self.table.rows(rows.hinge_force[span], rows.cylinder_values[span, :, 1],
+                                      rows.pose["implement_load"][span], rows.steerability[span], rows.capacity[span])
+            taken = rows.plain[span]
+        for k in np.flatnonzero(~taken):
+            outputs[k] = self._solved(self.model, _moved(inputs, *moves[k]), result)
+        return outputs
 
     def friction_sensor(self, cylinder: str, inputs: Inputs) -> str | None:
         """The pressure sensor through which ``cylinder``'s seal friction enters the outputs (the friction
@@ -306,15 +402,17 @@ class UncertaintyModel:
         return given[0][1] if given else None
 
     def _load_derivative(self, inputs: Inputs, result: Result, y0: np.ndarray, kind: str, name: str) -> np.ndarray:
-        """∂y/∂p (n_out,) per Pa of the pressure sensor ``name``: one more solve at the same pose."""
-        y1 = self._solved(self.model, _moved(inputs, kind, name, LOAD_STEP_PRESSURE), result)
+        """∂y/∂p (n_out,) per Pa of the pressure sensor ``name``: one more pose, at the same pose."""
+        moves = (_Move(kind, name, LOAD_STEP_PRESSURE),)
+        y1 = self._moved_outputs(inputs, result, moves, self._inputs_moved(list(moves)))[0]
         return self._linear.derivative(y0, y1, LOAD_STEP_PRESSURE)
 
     def _pose_derivative(self, inputs: Inputs, result: Result, kind: str, name: str, value: float, step: float
                          ) -> np.ndarray:
-        """∂y/∂x (n_out,) per m or rad of the length or angle ``name``: a central difference of ``step``."""
-        up = self._solved(self.model, _moved(inputs, kind, name, step), result)
-        down = self._solved(self.model, _moved(inputs, kind, name, -step), result)
+        """∂y/∂x (n_out,) per m or rad of the length or angle ``name`` (now ``value``): a central
+        difference of ``step``."""
+        moves = (_Move(kind, name, step), _Move(kind, name, -step))
+        up, down = self._moved_outputs(inputs, result, moves, self._inputs_moved(list(moves)))
         with np.errstate(invalid="ignore"):   # an infinite reserve (no load) has no derivative
             return (up - down) / (2.0 * step)
 
