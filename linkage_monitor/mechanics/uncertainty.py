@@ -388,8 +388,9 @@ class UncertaintyModel:
             outputs = self.table.rows(rows.hinge_force[span], rows.cylinder_values[span, :, 1],
                                       rows.pose["implement_load"][span], rows.steerability[span], rows.capacity[span])
             taken = rows.plain[span]
-        for k in np.flatnonzero(~taken):
-            outputs[k] = self._solved(self.model, _moved(inputs, *moves[k]), result)
+        if not taken.all():
+            for k in np.flatnonzero(~taken):
+                outputs[k] = self._solved(self.model, _moved(inputs, *moves[k]), result)
         return outputs
 
     def friction_sensor(self, cylinder: str, inputs: Inputs) -> str | None:
