@@ -24,10 +24,6 @@ CONFIG_TOPIC = "/linkage_monitor/config"
 
 IMPLEMENT_MASS_SOURCES = ("file", "estimate", "estimate_when_confident")   # MonitorConfig.implement_mass_source
 
-# runtime-changeable scalars of the mechanism: node parameter -> dotted key of the description
-OVERRIDE_KEYS = {"implement_mass": "implement.mass", "tractor_mass": "tractor.mass",
-                 "front_ballast_mass": "tractor.front_ballast.mass", "ratio_min": "tractor.ratio_min"}
-
 
 @dataclass(frozen=True)
 class Topics:

@@ -19,7 +19,7 @@ file's lifecycle events, nav2's lifecycle manager). docs/lifecycle.md has the st
 - shutdown (from any state): what the node holds released as by deactivate and cleanup; the process
   then exits (code 0), as on Ctrl-C.
 
-The parameters are the plain node's (``ros.node.PARAMETERS``). Those the plain node reads only at its
+The parameters are the plain node's (``ros.parameters.PARAMETERS``). Those the plain node reads only at its
 start are read at configure here: settable while unconfigured, refused otherwise; the others apply at
 run time as in the plain node.
 """
@@ -41,8 +41,9 @@ from std_msgs.msg import String
 from linkage_monitor.bag.step_recorder import mechanism_yaml
 from linkage_monitor.bag.writer import BagError
 from linkage_monitor.mechanics import LinkageError
-from linkage_monitor.ros.node import NODE_NAME, PARAMETERS, LinkageMonitorNode, _descriptor, check_bounds
+from linkage_monitor.ros.node import NODE_NAME, LinkageMonitorNode, descriptor
 from linkage_monitor.ros.node import main as node_main
+from linkage_monitor.ros.parameters import PARAMETERS, check_bounds
 
 EXECUTABLE = "linkage_monitor_lifecycle_node"
 CONFIGURE_TIME = frozenset(name for name, d in PARAMETERS.items() if d.read_only)   # read at configure
@@ -50,7 +51,7 @@ CONFIGURE_TIME = frozenset(name for name, d in PARAMETERS.items() if d.read_only
 
 def _managed_descriptor(name: str) -> ParameterDescriptor:
     """The plain node's descriptor; a parameter it reads only at start is settable while unconfigured."""
-    desc = _descriptor(name)
+    desc = descriptor(PARAMETERS[name])
     if name in CONFIGURE_TIME:
         desc.read_only = False
         desc.description += " (read at configure: set it while the node is unconfigured)"

@@ -20,7 +20,6 @@ import signal
 import sys
 import threading
 import time
-from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -41,22 +40,20 @@ from visualization_msgs.msg import MarkerArray
 
 from linkage_monitor.bag.step_recorder import StepRecorder, mechanism_yaml
 from linkage_monitor.bag.writer import BagError, BagWriter
-from linkage_monitor.mechanics import LinkageError, Mechanism, apply_overrides, load_description
-from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
-from linkage_monitor.mechanics.reduced import DEAD_CENTRE_TRANSMISSION_DEG
+from linkage_monitor.mechanics import LinkageError, apply_overrides, load_description
 from linkage_monitor.mechanics.warm import compiled_kernels
-from linkage_monitor.monitoring.config import OVERRIDE_KEYS, MonitorConfig, Topics
+from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Monitor, Step
 from linkage_monitor.monitoring.findings import Level
 from linkage_monitor.monitoring.freshness import Freshness
 from linkage_monitor.monitoring.inputs import InputTracker
 from linkage_monitor.monitoring.loss import LossCounter
-from linkage_monitor.monitoring.name_value import name_value
 from linkage_monitor.msg import HingeReactions, HitchState, Steerability
 from linkage_monitor.ros.input_events import INCOMPATIBLE_QOS, LOST, InputEvents
+from linkage_monitor.ros.parameters import (PARAMETERS, Declaration, check_bounds, check_choices, config_with,
+                                            is_double, monitor_config, usage_table)
 from linkage_monitor.ros.spin import InputSpinner
 from linkage_monitor.wire.diagnostics import status_array
-from linkage_monitor.wire.markers import DEFAULT_RATE_HZ as DEFAULT_MARKER_RATE_HZ
 from linkage_monitor.wire.markers import DisplayGate
 from linkage_monitor.wire.outputs import OutputEncoder
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, input_event
@@ -72,85 +69,10 @@ ABANDONED_RERUN: list[Any] = []   # Rerun views whose sink failed (LinkageMonito
 NAME_CHECK_S = 10.0  # s, how long after its start the node looks for another node of its name
 
 
-@dataclass(frozen=True)
-class Declaration:
-    """One node parameter: its default, unit ('' for none), description, whether it is read-only
-    (set at start only) and its range [lo, hi] (numbers; None for none) — what the node declares,
-    checks and ``--help`` prints."""
-
-    default: Any
-    unit: str
-    description: str
-    read_only: bool
-    bounds: tuple[float, float] | None = None
-
-
-PARAMETERS: dict[str, Declaration] = {
-    "mechanism": Declaration("belarus_1221", "", "Preset name or path of the mechanism YAML "
-                             "(docs/mechanism-schema.md)", True),
-    "joint_state_topic": Declaration("joint_states", "", "Input sensor_msgs/JointState topic (angles rad, cylinder "
-                                     "lengths m)", True),
-    "joint_map": Declaration([""], "", "JointState names mapped to the mechanism's measurements, as "
-                             "'joint_name=measurement' (unlisted measurements are expected under their own name)",
-                             True),
-    "pressure_topics": Declaration([""], "", "One sensor_msgs/FluidPressure topic per cylinder chamber, as "
-                                   "'topic=pressure_sensor'; default 'pressure/<sensor>' for every sensor; ['none']: "
-                                   "no pressures (the implement load is then implement_mass, the pressures predicted)",
-                                   True),
-    "pressure_absolute": Declaration(True, "", "FluidPressure carries absolute pressure (true, per its definition) "
-                                     "or gauge", True),
-    "atmospheric_pressure": Declaration(ATMOSPHERIC_PRESSURE, "Pa", "subtracted from absolute pressures", True,
-                                        (50_000.0, 110_000.0)),
-    "sensor_qos": Declaration("sensor_data", "", "QoS of the inputs: 'sensor_data' (best effort, keep last 5) or "
-                              "'reliable' (keep last reliable_queue_depth)", True),
-    "reliable_queue_depth": Declaration(10_000, "messages", "queued per input topic with sensor_qos 'reliable': a "
-                                        "burst (e.g. a bag played faster than real time) waits there instead of being "
-                                        "dropped; what does not fit is reported lost", True, (1, 1_000_000)),
-    "staleness_limit": Declaration(0.5, "s", "no solve if the stamps of the inputs differ by more than this; "
-                                   "/diagnostics goes STALE when no input has been solved for this long (steady "
-                                   "clock, checked every second)", False, (0.0, 3600.0)),
-    "stamp_tolerance": Declaration(10.0, "s", "an input whose header stamp is farther than this from the node's clock "
-                                   "is refused (ERROR)", False, (0.001, 1e6)),
-    "kinetostatics": Declaration(False, "", "Add inertia loads from JointState velocities and their change "
-                                 "(Naumenko et al. 2021)", True),
-    "dead_centre_transmission_deg": Declaration(DEAD_CENTRE_TRANSMISSION_DEG, "degrees", "a pose whose smallest "
-                                                "transmission angle along the linkage's chain of dyads is below this "
-                                                "is a dead centre (ERROR, no outputs); applies from the next message",
-                                                False, (0.0, 45.0)),
-    "implement_mass": Declaration(-1.0, "kg", "implement mass; -1 (exactly) keeps the mechanism file's value, other "
-                                  "negatives are refused; applies from the next message", False, (-1.0, 100_000.0)),
-    "tractor_mass": Declaration(-1.0, "kg", "tractor operating mass without ballast; -1 (exactly) keeps the file's "
-                                "value", False, (-1.0, 100_000.0)),
-    "front_ballast_mass": Declaration(-1.0, "kg", "front ballast; -1 (exactly) keeps the file's value", False,
-                                      (-1.0, 10_000.0)),
-    "ratio_min": Declaration(-1.0, "", "minimum share of weight on the steered axle (Popov 2009: 0.2); -1 (exactly) "
-                             "keeps the file's value", False, (-1.0, 1.0)),
-    "record": Declaration(True, "", "Record every input and output to a rosbag2 MCAP bag", True),
-    "record_dir": Declaration("out/bags", "", "Directory under which each run's bag directory is created", True),
-    "record_name": Declaration("", "", "Name of this run's bag directory; empty: <mechanism>_<YYYYmmdd_HHMMSS>",
-                               True),
-    "max_bag_size": Declaration(0, "B", "the bag starts a new file once the current one has reached this size (as "
-                                "ros2 bag record --max-bag-size); 0: one file; below 86016 (rosbag2's smallest "
-                                "split size) refused at start", True, (0, 1 << 50)),
-    "max_bag_duration": Declaration(0.0, "s", "the bag starts a new file once the current one spans this long (as "
-                                    "ros2 bag record --max-bag-duration); 0: one file", True, (0.0, 1e9)),
-    "rerun": Declaration("off", "", "Rerun logging: 'off', 'save' (to rerun_path) or 'connect' (to a running "
-                         "viewer)", True),
-    "rerun_path": Declaration("out/linkage_monitor.rrd", "", "The .rrd file written when rerun = 'save'", True),
-    "rerun_rate": Declaration(30.0, "Hz", "largest rate at which solved poses are logged to Rerun (the bag keeps "
-                              "every one)", True, (0.1, 10_000.0)),
-    "marker_rate": Declaration(DEFAULT_MARKER_RATE_HZ, "Hz", "largest rate at which the linkage is published as a "
-                               "visualization_msgs/MarkerArray on linkage_markers (frame 'linkage'); 0: not at all",
-                               True, (0.0, 1000.0)),
-}
-SENSOR_QOS = ("sensor_data", "reliable")
-RERUN_MODES = ("off", "save", "connect")
-
-
-def _descriptor(name: str) -> ParameterDescriptor:
-    d = PARAMETERS[name]
+def descriptor(d: Declaration) -> ParameterDescriptor:
+    """The ParameterDescriptor of parameter ``d``: its unit and description, read-only, range, type."""
     text = f"{d.unit}, {d.description}" if d.unit else d.description
-    desc = ParameterDescriptor(name=name, description=text, read_only=d.read_only)
+    desc = ParameterDescriptor(name=d.name, description=text, read_only=d.read_only)
     if d.bounds is not None and isinstance(d.default, int):
         desc.integer_range = [IntegerRange(from_value=int(d.bounds[0]), to_value=int(d.bounds[1]), step=1)]
     elif d.bounds is not None:
@@ -158,73 +80,6 @@ def _descriptor(name: str) -> ParameterDescriptor:
     if isinstance(d.default, list):
         desc.type = ParameterType.PARAMETER_STRING_ARRAY
     return desc
-
-
-def check_bounds(name: str, value: Any) -> None:
-    """ValueError naming parameter ``name`` if ``value`` is outside its declared range. rclpy's own
-    range check lets a double within a relative 1e-6 of an end pass (``45.0000001`` for 0 to 45):
-    the range is the documented one, exactly."""
-    d = PARAMETERS.get(name)
-    if d is None or d.bounds is None or isinstance(value, bool) or not isinstance(value, (int, float)):
-        return
-    lo, hi = d.bounds
-    if not lo <= value <= hi:   # NaN too
-        unit = f" {d.unit}" if d.unit else ""
-        raise ValueError(f"parameter {name} = {value!r}: outside its range [{lo:g}, {hi:g}]{unit}; give a value "
-                         "inside it")
-
-
-def is_double(name: str) -> bool:
-    """Whether parameter ``name`` is a double (an integer given for it is taken as that double)."""
-    d = PARAMETERS.get(name)
-    return d is not None and isinstance(d.default, float)
-
-
-def _pairs(items: list[str], what: str) -> dict[str, str]:
-    return dict(name_value(item, f"parameter {what}:") for item in items if item)
-
-
-KEEP_FILE_VALUE = -1.0   # an override parameter's value that keeps the mechanism file's own value (the default)
-
-
-def override_value(name: str, value: float) -> float | None:
-    """The override that parameter ``name`` (one of OVERRIDE_KEYS) sets: its value (>= 0), or None for
-    KEEP_FILE_VALUE; ValueError naming the parameter for any other value."""
-    value = float(value)
-    if value == KEEP_FILE_VALUE:
-        return None
-    if not value >= 0.0:   # NaN too
-        raise ValueError(f"parameter {name} = {value}: a value must be >= 0, or exactly {KEEP_FILE_VALUE:g} to keep "
-                         "the mechanism file's value")
-    return value
-
-
-def monitor_config(p: dict[str, Any], mech: Mechanism, resolve: Callable[[str], str]) -> MonitorConfig:
-    """The MonitorConfig of the node's parameters ``p`` (topic names resolved by ``resolve``)."""
-    overrides = {OVERRIDE_KEYS[k]: v for k in OVERRIDE_KEYS if (v := override_value(k, p[k])) is not None}
-    if list(p["pressure_topics"]) == ["none"]:
-        pressure_topics: dict[str, str] = {}
-    else:
-        given = _pairs(list(p["pressure_topics"]), "pressure_topics")
-        pressure_topics = ({resolve(t): s for t, s in given.items()} if given
-                           else {resolve(f"pressure/{s.name}"): s.name for s in mech.measurements.pressures})
-    topics = Topics(joint_states=resolve(p["joint_state_topic"]), hinge_reactions=resolve("hinge_reactions"),
-                    hitch_state=resolve("hitch_state"), steerability=resolve("steerability"),
-                    diagnostics="/diagnostics", markers=resolve("linkage_markers"))
-    return MonitorConfig(mechanism=p["mechanism"], overrides=overrides, topics=topics,
-                         joint_map=_pairs(list(p["joint_map"]), "joint_map"), pressure_topics=pressure_topics,
-                         pressure_absolute=bool(p["pressure_absolute"]),
-                         atmospheric_pressure=float(p["atmospheric_pressure"]),
-                         staleness_limit_s=float(p["staleness_limit"]), stamp_tolerance_s=float(p["stamp_tolerance"]),
-                         kinetostatics=bool(p["kinetostatics"]),
-                         dead_centre_transmission_deg=float(p["dead_centre_transmission_deg"]))
-
-
-def _check_choices(p: dict[str, Any]) -> None:
-    if p["sensor_qos"] not in SENSOR_QOS:
-        raise ValueError(f"parameter sensor_qos = '{p['sensor_qos']}': expected one of {', '.join(SENSOR_QOS)}")
-    if p["rerun"] not in RERUN_MODES:
-        raise ValueError(f"parameter rerun = '{p['rerun']}': expected one of {', '.join(RERUN_MODES)}")
 
 
 class LinkageMonitorNode(Node):
@@ -240,8 +95,8 @@ class LinkageMonitorNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
         self._doubles_as_declared()
-        for name, declaration in PARAMETERS.items():
-            self.declare_parameter(name, declaration.default, _descriptor(name))
+        for d in PARAMETERS.values():
+            self.declare_parameter(d.name, d.default, descriptor(d))
         self.build_monitor()
         self.start_inputs()
         self.add_pre_set_parameters_callback(self.as_declared_types)
@@ -260,7 +115,7 @@ class LinkageMonitorNode(Node):
         # everything is validated before anything is created
         for name, value in p.items():
             check_bounds(name, value)
-        _check_choices(p)
+        check_choices(p)
         description = load_description(p["mechanism"])
         config = monitor_config(p, description, self.resolve_topic_name)
         self.monitor = Monitor(description, config)
@@ -491,23 +346,7 @@ class LinkageMonitorNode(Node):
 
     # ---- parameters: validate in on-set, apply in post-set ----------------------------------------
     def _config_with(self, params: list[Parameter]) -> MonitorConfig:
-        config = self.monitor.config
-        overrides = dict(config.overrides)
-        for param in params:
-            if param.name in OVERRIDE_KEYS:
-                key = OVERRIDE_KEYS[param.name]
-                value = override_value(param.name, param.value)
-                if value is not None:
-                    overrides[key] = value
-                else:
-                    overrides.pop(key, None)
-            elif param.name == "staleness_limit":
-                config = replace(config, staleness_limit_s=float(param.value))
-            elif param.name == "stamp_tolerance":
-                config = replace(config, stamp_tolerance_s=float(param.value))
-            elif param.name == "dead_centre_transmission_deg":
-                config = replace(config, dead_centre_transmission_deg=float(param.value))
-        return replace(config, overrides=overrides)
+        return config_with(self.monitor.config, {param.name: param.value for param in params})
 
     @staticmethod
     def as_declared_types(params: list[Parameter]) -> list[Parameter]:
@@ -667,15 +506,11 @@ def _publisher_id(info: dict) -> object:
 
 def usage() -> str:
     """``linkage_monitor_node --help``: how to run the node and its parameters (name, default, unit,
-    description: PARAMETERS, what the node declares)."""
-    rows = [("name", "default", "unit", "description")]
-    rows += [(name, repr(d.default), d.unit or "-", d.description + ("" if d.read_only else " (settable at run time)"))
-             for name, d in PARAMETERS.items()]
-    widths = [max(len(row[k]) for row in rows) for k in range(3)]
-    table = "\n".join("  " + "  ".join(cell.ljust(w) for cell, w in zip(row, widths)) + "  " + row[3] for row in rows)
+    description: ``ros.parameters.PARAMETERS``, what the node declares)."""
     return ("usage: linkage_monitor_node [-h] [--ros-args -p NAME:=VALUE ... | --params-file FILE ...]\n\n"
             "The live linkage monitor: sensor_msgs/JointState and FluidPressure in; hinge reactions, hitch state,\n"
-            "steerability and /diagnostics out (ros/node.py's docstring has the topics). Parameters:\n\n" + table)
+            "steerability and /diagnostics out (ros/node.py's docstring has the topics). Parameters:\n\n"
+            + usage_table())
 
 
 def main(argv: list[str] | None = None, make_node: Callable[[], LinkageMonitorNode] = LinkageMonitorNode) -> int:
