@@ -29,7 +29,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
 from linkage_monitor.msg import HingeReactions, HitchState, Steerability
-from linkage_monitor.ros.node import LATCHED, OUTPUT_QOS
+from linkage_monitor.ros.publishing import LATCHED, OUTPUT_QOS
 from linkage_monitor.ros.spin import InputSpinner
 
 INPUT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)  # the node's sensor_qos = reliable

@@ -124,16 +124,18 @@ def _time_stages(node: Any) -> dict[str, list]:
 
     spent: dict[str, list] = {}
     monitor = node.monitor
-    for owner, name, label in ((node, "on_input", "input callback (whole)"), (monitor, "step", "  monitoring step"),
+    outputs = node.outputs
+    for owner, name, label in ((node.input_source, "on_input", "input callback (whole)"),
+                               (monitor, "step", "  monitoring step"),
                                (monitor, "_accept", "    acceptance"),
                                (monitor.machine, "solve", "    solve with the machine level"),
                                (monitor.solver, "solve_with_machine", "      the solver's part"),
                                (monitor, "_finish", "    findings"),
-                               (node, "_publish", "  outputs: encode, publish, record"),
-                               (node.encoder, "outputs", "    encode the three outputs"),
-                               (node.messenger.markers, "markers", "    a MarkerArray (marker_rate)"),
-                               (node.recorder.writer, "write", "  a recording call (BagWriter.write)"),
-                               (node.pub_hitch, "publish", "  a publish (HitchState)")):
+                               (outputs, "publish", "  outputs: encode, publish, record"),
+                               (outputs.encoder, "outputs", "    encode the three outputs"),
+                               (outputs.messenger.markers, "markers", "    a MarkerArray (marker_rate)"),
+                               (node.recording.recorder.writer, "write", "  a recording call (BagWriter.write)"),
+                               (outputs.pub_hitch, "publish", "  a publish (HitchState)")):
         setattr(owner, name, timed(spent, label, getattr(owner, name), time.thread_time))
     return spent
 

@@ -36,11 +36,10 @@ from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.lifecycle import LifecycleNode, LifecyclePublisher, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
-from std_msgs.msg import String
 
-from linkage_monitor.bag.step_recorder import mechanism_yaml
 from linkage_monitor.bag.writer import BagError
 from linkage_monitor.mechanics import LinkageError
+from linkage_monitor.ros.inputs import SensorTopics
 from linkage_monitor.ros.node import NODE_NAME, LinkageMonitorNode, descriptor
 from linkage_monitor.ros.node import main as node_main
 from linkage_monitor.ros.parameters import PARAMETERS, check_bounds
@@ -63,6 +62,7 @@ class LinkageMonitorLifecycleNode(LinkageMonitorNode, LifecycleNode):
 
     def __init__(self, **kwargs: Any) -> None:
         LifecycleNode.__init__(self, NODE_NAME, **kwargs)   # not the plain node's start: configure builds it
+        self.input_source = SensorTopics()
         self._doubles_as_declared()
         for name, declaration in PARAMETERS.items():
             self.declare_parameter(name, declaration.default, _managed_descriptor(name))
@@ -99,7 +99,7 @@ class LinkageMonitorLifecycleNode(LinkageMonitorNode, LifecycleNode):
         if self._configured:
             self.apply_parameters(params)
 
-    def _publisher(self, msg_type: type, topic: str, qos: QoSProfile) -> Any:
+    def output_publisher(self, msg_type: type, topic: str, qos: QoSProfile) -> Any:
         """The outputs' publishers are lifecycle publishers: silent unless the node is active."""
         return self.create_lifecycle_publisher(msg_type, topic, qos,
                                                event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
@@ -129,7 +129,7 @@ class LinkageMonitorLifecycleNode(LinkageMonitorNode, LifecycleNode):
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Enable the publishers, publish the mechanism, subscribe the sensors, start the heartbeat."""
         result = super().on_activate(state)
-        self.pub_mech.publish(String(data=mechanism_yaml(self.monitor.description)))
+        self.outputs.publish_description()
         self.start_inputs()
         self._active = True
         self.get_logger().info(f"active: monitoring '{self.monitor.description.name}'")
@@ -167,16 +167,7 @@ class LinkageMonitorLifecycleNode(LinkageMonitorNode, LifecycleNode):
             self._release()
 
     def _stop_inputs(self) -> None:
-        now = self._now()
-        self._take_input_events(now)
-        self._report_losses("since the last report, at deactivate", now)
-        self.input_events.destroy()
-        for subscription in self.input_subscriptions:
-            self.destroy_subscription(subscription)
-        self._inputs = []
-        self.destroy_timer(self.heartbeat)
-        self.destroy_timer(self._start_status)
-        self._flush_rerun(now)
+        self.stop_inputs("since the last report, at deactivate")
         self._active = False
 
     def _release(self) -> None:
@@ -184,8 +175,8 @@ class LinkageMonitorLifecycleNode(LinkageMonitorNode, LifecycleNode):
         destroyed, every attribute configure added dropped."""
         if hasattr(self, "input_events"):   # built whole (build_monitor's last attribute)
             LinkageMonitorNode.close(self)
-        elif (recorder := getattr(self, "recorder", None)) is not None:   # configure failed after opening the bag
-            recorder.writer.close()
+        elif (recording := getattr(self, "recording", None)) is not None:   # configure failed after opening the bag
+            recording.close_bag()
         for publisher in [p for p in self.publishers if isinstance(p, LifecyclePublisher)]:
             self.destroy_lifecycle_publisher(publisher)
         for name in set(vars(self)) - self._unconfigured:

@@ -1,0 +1,83 @@
+"""Where the live node's inputs come from: an ``InputSource`` the node starts once it can solve
+and asks, at every heartbeat and at its end, for what it reports. The sensor subscriptions
+(``SensorTopics``, JointState and FluidPressure) are the node's own source; the CAN bridge's is the
+bus or the frames' topic (``can.node.CanFrames``). A source hands what it takes to the node's public
+side: ``subscribe``, ``now``, ``recording.input``, ``monitor.step``, ``outputs.publish``, ``publish_status``.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Callable, Protocol
+
+from sensor_msgs.msg import FluidPressure, JointState
+
+from linkage_monitor.monitoring.findings import Level
+from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, input_event
+
+if TYPE_CHECKING:
+    from .node import LinkageMonitorNode
+
+
+class InputSource(Protocol):
+    """The node's way in for its inputs."""
+
+    def start(self, node: LinkageMonitorNode) -> None:
+        """Subscribe to (or open) the inputs and create the source's timers on ``node``, whose monitor is
+        built; errors of the source's own settings raise (ValueError, LinkageError: the node's start fails)."""
+
+    def names(self) -> list[str]:
+        """Where the inputs come from (topics, a bus): what the STALE status names."""
+
+    def on_heartbeat(self) -> None:
+        """The source's own statuses at the node's heartbeat."""
+
+    def close(self) -> None:
+        """What the source holds released, its last statuses published (the node's end)."""
+
+
+class SensorTopics:
+    """The sensors' topics: the JointState topic and each pressure topic of the monitor's config,
+    taken serialized (the bag records the bytes that arrived), read into input events, solved."""
+
+    def __init__(self) -> None:
+        self._node: LinkageMonitorNode | None = None
+
+    def start(self, node: LinkageMonitorNode) -> None:
+        """Subscribe to the JointState topic, then to each pressure topic."""
+        self._node = node
+        topics = node.monitor.config.topics
+        node.subscribe(JointState, topics.joint_states, self._callback(topics.joint_states, JOINT_STATE))
+        for topic in node.monitor.config.pressure_topics:
+            node.subscribe(FluidPressure, topic, self._callback(topic, FLUID_PRESSURE))
+
+    def _callback(self, topic: str, type_name: str) -> Callable[[bytes, dict], None]:
+        def callback(data: bytes, info: dict) -> None:
+            self.on_input(topic, type_name, data)
+        return callback
+
+    def on_input(self, topic: str, type_name: str, data: bytes) -> None:
+        """An input message's CDR bytes (``type_name``) arrived on ``topic``: read them into an input
+        event (``wire.sensor_messages``; bytes that are not the type: an UnreadableEvent, an ERROR step
+        saying why), record the bytes as they came, solve, publish."""
+        node = self._node
+        assert node is not None
+        now = node.now()
+        event = input_event(type_name, data, topic, now)
+        node.recording.input(topic, type_name, data, event.stamp_ns, now)
+        try:
+            node.outputs.publish(node.monitor.step(event), now)
+        except Exception as exc:  # noqa: BLE001 - the adapter boundary: report and go on
+            node.get_logger().error(f"internal error on {topic}: {type(exc).__name__}: {exc}",
+                                    throttle_duration_sec=1.0)
+            node.publish_status("internal", Level.ERROR, f"internal error while publishing the results of "
+                                f"{topic}: {type(exc).__name__}: {exc}", now)
+
+    def names(self) -> list[str]:
+        """The topics of the node's input subscriptions."""
+        return [sub.topic_name for sub in self._node.input_subscriptions] if self._node is not None else []
+
+    def on_heartbeat(self) -> None:
+        """Nothing of its own: the node reports the subscriptions' losses."""
+
+    def close(self) -> None:
+        """Nothing of its own: the node destroys the subscriptions."""
