@@ -60,7 +60,11 @@ def test_launch_file_starts_node_with_params_and_descriptors(preset, tmp_path):
                                             "dead_centre_transmission_deg = 45.0000001: outside its range [0, 45] "
                                             "degrees"),
                                            ("stamp_tolerance:=2000000", "stamp_tolerance out of range"),   # an integer
-                                           ("tractor_mass:=-0.5", "tractor_mass = -0.5: a value must be >= 0")])
+                                           ("tractor_mass:=-0.5", "tractor_mass = -0.5: a value must be >= 0"),
+                                           ("implement_mass_source:=scale",
+                                            "implement_mass_source 'scale': expected one of file, estimate"),
+                                           ("implement:=no_such_implement",
+                                            "no_such_implement: no such implement file or bundled implement")])
 def test_bad_parameter_exits_2_with_one_line_on_stderr(param, expect):
     proc = subprocess.run([sys.executable, "-m", "linkage_monitor.ros.node", "--ros-args", "-p", "record:=false",
                            "-p", param], capture_output=True, text=True, timeout=60)
@@ -68,3 +72,21 @@ def test_bad_parameter_exits_2_with_one_line_on_stderr(param, expect):
     lines = [line for line in proc.stderr.splitlines() if line.startswith("linkage_monitor_node:")]
     assert len(lines) == 1 and expect in lines[0], proc.stderr
     assert "Traceback" not in proc.stderr, proc.stderr
+
+
+def test_weighing_and_uncertainty_parameters_reach_the_monitor_config():
+    """The node's `implement`, `implement_mass_source` and `uncertainty` parameters set the MonitorConfig fields
+    the monitor reads (at start and as a runtime change), so the node judges as `replay --uncertainty
+    --implement-mass-source` does."""
+    from linkage_monitor.mechanics import load_preset
+    from linkage_monitor.ros.parameters import PARAMETERS, config_with, monitor_config
+
+    params = {name: d.default for name, d in PARAMETERS.items()}
+    mech = load_preset("belarus_1221")
+    start = monitor_config({**params, "implement": "zhsk4v_header", "implement_mass_source": "estimate",
+                            "uncertainty": True}, mech, lambda topic: "/" + topic)
+    assert (start.implement, start.implement_mass_source, start.uncertainty) == ("zhsk4v_header", "estimate", True)
+    default = monitor_config(params, mech, lambda topic: "/" + topic)
+    assert (default.implement, default.implement_mass_source, default.uncertainty) == ("", "file", False)
+    changed = config_with(default, {"uncertainty": True, "implement_mass_source": "estimate_when_confident"})
+    assert (changed.uncertainty, changed.implement_mass_source) == (True, "estimate_when_confident")

@@ -78,6 +78,16 @@ PARAMETERS: dict[str, Declaration] = {d.name: d for d in (
     Declaration("implement_mass", -1.0, "kg", "implement mass; -1 (exactly) keeps the mechanism file's value, other "
                 "negatives are refused; applies from the next message", True, (-1.0, 100_000.0),
                 override="implement.mass"),
+    Declaration("implement", "", "", "bundled implement name or implement file path hung on the mechanism "
+                "(docs/implements.md); '' keeps the mechanism file's implement; applies from the next message", True,
+                config="implement"),
+    Declaration("implement_mass_source", "file", "", "implement mass and cg used by the machine-level results: "
+                "'file' (the mechanism or implement file's), 'estimate' (weighed while working) or "
+                "'estimate_when_confident' (docs/weighing.md); applies from the next message", True,
+                config="implement_mass_source"),
+    Declaration("uncertainty", False, "", "carry each pose's error budget and judge the limits on their 95 % "
+                "intervals (steerability_uncertain, lift_reserve_uncertain, axle_load_uncertain; docs/accuracy.md); "
+                "about 8x the step's CPU time; applies from the next message", True, config="uncertainty"),
     Declaration("tractor_mass", -1.0, "kg", "tractor operating mass without ballast; -1 (exactly) keeps the file's "
                 "value", True, (-1.0, 100_000.0), override="tractor.mass"),
     Declaration("front_ballast_mass", -1.0, "kg", "front ballast; -1 (exactly) keeps the file's value", True,
