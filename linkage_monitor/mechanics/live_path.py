@@ -18,7 +18,7 @@ from .inputs import Inputs
 from .kinematics import KinematicState
 from .programs import POSE_VALUES, LivePrograms, LiveRows, MachineProgram, OutputsProgram, fields
 from .results import Result, Status
-from .row_pool import RowPool
+from .row_pool import RowBlock, RowPool
 from .statics import StaticsLayout
 
 if TYPE_CHECKING:
@@ -59,6 +59,17 @@ class PlainLive(NamedTuple):
     programs: LivePrograms
     measure_names: list[str]
     rows: RowPool
+
+
+class LiveInputs(NamedTuple):
+    """A pose's inputs for the live path: ``s`` in ``Kinematics.input_names`` order (m, rad, angles not
+    wrapped), per cylinder its ``cap`` and ``rod`` gauge pressures (Pa, NaN = not measured), and the
+    programs and rows (``live``) for its pressure sensors."""
+
+    s: list[float]
+    cap: list[float]
+    rod: list[float]
+    live: PlainLive
 
 
 class LivePath:
@@ -126,22 +137,20 @@ class LivePath:
         pose), no dead centre, no contact lifting off. None for anything else: the general path then
         solves the pose and words what is wrong. Gives what it and ``MachineModel.evaluate`` would
         (test_mechanics_fast_paths.py)."""
-        given = self._live_inputs(inputs)
+        given = self._live_inputs(inputs, machine)
         if given is None:
             return None
-        values, cap, rod = given
         solver = self._solver
         kin = solver.kin
+        values = given.s
         for j, reference in enumerate(self._angle_reference, start=kin.cyl_att.shape[1]):   # kin.wrap_angles on floats
             values[j] = reference + ((values[j] - reference + math.pi) % (2.0 * math.pi) - math.pi)
-        live = self._plain_live(tuple(inputs.pressures), machine)
+        live = given.live
         block, i = live.rows.take()
         rows, s = block.rows, block.s
         s[i] = values
-        block.pressures[i] = cap, rod
-        start = start if start is not None else kin.reference
-        kernels.live_series(live.programs, block.buffer, start.q[-1:], start.s[-1:], solver.assembly_limit,
-                            solver.dead_centre_cond, i, i + 1)
+        block.pressures[i] = given.cap, given.rod
+        self._series(live, block, start, i, i + 1)
         if not rows.plain[i]:
             return None
         q = rows.q[i:i + 1]
@@ -164,32 +173,35 @@ class LivePath:
         and which of them are these poses (``plain`` False where a pose is not the usual one: the
         general path is to solve it). None where ``inputs`` or a moved pose is not for this path (as
         ``solve``: an input missing, not finite or out of range, rates). The moves are finite."""
-        given = self._live_inputs(inputs)
+        given = self._live_inputs(inputs, machine)
         if given is None:
             return None
-        values, cap, rod = given
-        solver = self._solver
-        kin = solver.kin
-        live = self._plain_live(tuple(inputs.pressures), machine)
+        kin = self._solver.kin
+        live = given.live
         count = len(moves.s)
         block, first = live.rows.take_rows(count)
         s, pressures = block.s[first:first + count], block.pressures[first:first + count]
-        np.add(values, moves.s, out=s)
-        np.add((cap, rod), moves.pressures, out=pressures)
+        np.add(given.s, moves.s, out=s)
+        np.add((given.cap, given.rod), moves.pressures, out=pressures)
         # a length not positive, a pressure below vacuum (NaN: a chamber not measured)
         if (s[:, :kin.cyl_att.shape[1]] <= 0.0).any() or (pressures < -ATMOSPHERIC_PRESSURE).any():
             return None
         if len(self._angle_reference):
             s[:] = kin.wrap_angles(s)
-        start = start if start is not None else kin.reference
-        kernels.live_series(live.programs, block.buffer, start.q[-1:], start.s[-1:], solver.assembly_limit,
-                            solver.dead_centre_cond, first, first + count)
+        self._series(live, block, start, first, first + count)
         return block.rows, slice(first, first + count)
 
-    def _live_inputs(self, inputs: Inputs) -> tuple[list[float], list[float], list[float]] | None:
-        """The inputs of a pose for this path: s in ``kin.input_names`` order (m, rad, angles not
-        wrapped), per cylinder its cap and rod gauge pressures (Pa, NaN = not measured); None where
-        they are not for it (an input missing, not finite or out of range, rates)."""
+    def _series(self, live: PlainLive, block: RowBlock, start: KinematicState | None, lo: int, hi: int) -> None:
+        """``kernels.live_series`` of the rows ``lo``..``hi - 1`` of ``block``, each pose from the one
+        before, the first from ``start`` (or the reference pose)."""
+        solver = self._solver
+        start = start if start is not None else solver.kin.reference
+        kernels.live_series(live.programs, block.buffer, start.q[-1:], start.s[-1:], solver.assembly_limit,
+                            solver.dead_centre_cond, lo, hi)
+
+    def _live_inputs(self, inputs: Inputs, machine: MachineProgram) -> LiveInputs | None:
+        """The inputs of a pose for this path, with the programs and rows for its pressure sensors under
+        ``machine``; None where they are not for it (an input missing, not finite or out of range, rates)."""
         solver = self._solver
         kin = solver.kin
         if inputs.rates or inputs.accelerations or len(inputs.cylinders) + len(inputs.angles) != kin.n_inputs:
@@ -209,7 +221,7 @@ class LivePath:
         cap, rod = [math.nan] * len(cylinders), [math.nan] * len(cylinders)
         for ps, value in pressures:
             (cap if ps.chamber == "cap" else rod)[self._cylinder_index[ps.cylinder]] = value
-        return values, cap, rod
+        return LiveInputs(values, cap, rod, self._plain_live(tuple(inputs.pressures), machine))
 
     def _plain_live(self, sensors: tuple[str, ...], machine: MachineProgram) -> PlainLive:
         """``solve``'s programs and rows for the pressure sensors ``sensors`` (in the order the inputs
