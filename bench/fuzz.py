@@ -48,11 +48,12 @@ def over_topics(preset: str, count: int) -> FuzzTally:
     import rclpy
     from sensor_msgs.msg import FluidPressure, JointState
 
-    from linkage_monitor.bag.reader import FLUID_PRESSURE, JOINT_STATE, read_bag
+    from linkage_monitor.bag.reader import read_bag
     from linkage_monitor.offline.compare import compare_bags
     from linkage_monitor.offline.replay import replay
     from linkage_monitor.ros.messages import header
     from linkage_monitor.wire.cdr import stamp_ns
+    from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE
     from support.ros_env import isolate_ros_domain
     from support.ros_harness import MonitorClient, node_bag, settle, start_node, stop
 

@@ -17,9 +17,11 @@ from rosbags.typesys import Stores, get_typestore
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import String
 
-from linkage_monitor.bag.reader import (
-    JointStateColumns, PressureColumns, _chunk_messages, _indexed_offsets, read_bag, read_bag_raw, read_inputs)
-from linkage_monitor.bag.writer import BagError, BagWriter
+from linkage_monitor.bag.columns import JointStateColumns, PressureColumns
+from linkage_monitor.bag.errors import BagError
+from linkage_monitor.bag.mcap_records import chunk_messages, indexed_offsets
+from linkage_monitor.bag.reader import read_bag, read_bag_raw, read_inputs
+from linkage_monitor.bag.writer import BagWriter
 
 T0 = 1_700_000_000_000_000_000  # ns since the epoch
 N = 25
@@ -285,7 +287,7 @@ SAMPLE_BAGS = Path(__file__).resolve().parents[1] / "bags"
 
 @pytest.mark.parametrize("bag", ["belarus_1221_lift_transport", "damping_hitch_lift"])
 def test_chunk_messages_are_mcaps_own(bag: str) -> None:
-    """The chunk reader's records (``_chunk_messages``: split by their heads, or taken at the offsets of
+    """The chunk reader's records (``chunk_messages``: split by their heads, or taken at the offsets of
     the chunk's MessageIndex records; only the wanted channels built) are, field for field, the Message
     records mcap's ``breakup_chunk`` gives for the same channels, for every chunk of a bundled bag, with
     every channel wanted and with one; offsets that do not point at the wanted messages (one moved by a
@@ -304,12 +306,12 @@ def test_chunk_messages_are_mcaps_own(bag: str) -> None:
                 theirs = [fields(r) for r in breakup_chunk(chunk, validate_crc=True) if isinstance(r, Message)]
                 mine = [t for t in theirs if t[0] in one]
                 every = set(summary.channels)
-                indexed_every, indexed_one = (_indexed_offsets(stream, index, c) for c in (every, one))
+                indexed_every, indexed_one = (indexed_offsets(stream, index, c) for c in (every, one))
                 assert indexed_every is not None and len(indexed_every) == len(theirs)
                 for wanted, offsets, expected in ((every, None, theirs), (one, None, mine),
                                                   (every, indexed_every, theirs), (one, indexed_one, mine),
                                                   (one, indexed_one + 1, mine), (one, indexed_every, mine)):
-                    assert [fields(m) for m in _chunk_messages(chunk, wanted, offsets)] == expected
+                    assert [fields(m) for m in chunk_messages(chunk, wanted, offsets)] == expected
 
 
 def test_chunk_messages_refuse_a_record_past_the_chunk_end() -> None:
@@ -319,4 +321,4 @@ def test_chunk_messages_refuse_a_record_past_the_chunk_end() -> None:
     chunk = Chunk(compression="", data=record, message_end_time=0, message_start_time=0,
                   uncompressed_crc=zlib.crc32(record), uncompressed_size=len(record))
     with pytest.raises(ValueError, match="runs past"):
-        _chunk_messages(chunk, {0}, None)
+        chunk_messages(chunk, {0}, None)

@@ -16,7 +16,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from linkage_monitor.bag.writer import BagError
+from linkage_monitor.bag.errors import BagError
 from linkage_monitor.cli.main import main as cli_main
 from linkage_monitor.offline.fleet import find_bags
 from support.bag_outputs import output_bytes
@@ -141,7 +141,7 @@ def test_a_ros1_bag_is_refused_with_the_command_that_converts_it(tmp_path, capsy
 
 
 def test_a_file_that_is_no_bag_says_so(tmp_path):
-    from linkage_monitor.bag.reader import storage_files
+    from linkage_monitor.bag.storage import storage_files
 
     junk = tmp_path / "junk.mcap"
     junk.write_bytes(b"not a bag at all")

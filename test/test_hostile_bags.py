@@ -17,7 +17,9 @@ from mcap.stream_reader import StreamReader
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from linkage_monitor.bag.reader import read_bag_raw, read_faults, storage_files
+from linkage_monitor.bag.faults import read_faults
+from linkage_monitor.bag.reader import read_bag_raw
+from linkage_monitor.bag.storage import storage_files
 from linkage_monitor.bag.writer import BagWriter
 from linkage_monitor.offline.fleet import analyse_bag, find_bags
 

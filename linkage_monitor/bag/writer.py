@@ -57,6 +57,7 @@ from rclpy.qos import (
     DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy)
 from rclpy.serialization import serialize_message
 
+from linkage_monitor.bag.errors import BagError
 from linkage_monitor.wire.definitions import exact_cdr, message_definition
 
 MECHANISM_TOPIC = "/linkage_monitor/mechanism"
@@ -518,10 +519,6 @@ def ros_distro() -> str:
         return _RCLPY_SERIES.get(int(importlib.metadata.version("rclpy").split(".")[0]), "unknown")
     except (importlib.metadata.PackageNotFoundError, ValueError):
         return "unknown"
-
-
-class BagError(RuntimeError):
-    """A bag cannot be written or read: says which path and what is wrong."""
 
 
 class BagWriter:

@@ -89,11 +89,9 @@ def read_bag_columns(path: Path, mech: Mechanism, gauge: bool = False) -> dict[s
     """Columns of a bag: the JointState positions of the measured cylinders (m) and angle sensors (rad),
     one row per message, and each ``.../pressure/<sensor>`` FluidPressure topic as ``pressure:<sensor>``
     (gauge Pa, interpolated at the JointState stamps; rows outside the pressure record are dropped)."""
-    from linkage_monitor.bag.reader import (  # rclpy only when a bag is read
-        JointStateColumns,
-        read_inputs,
-    )
-    from linkage_monitor.bag.writer import BagError
+    from linkage_monitor.bag.columns import JointStateColumns
+    from linkage_monitor.bag.errors import BagError
+    from linkage_monitor.bag.reader import read_inputs  # rclpy only when a bag is read
 
     try:
         topics = read_inputs(path)
@@ -148,7 +146,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     """Run ``linkage-monitor calibrate``; returns the exit code (LinkageError propagates to the caller)."""
     start = mechanism_from_args(args)
     assert start is not None   # the group is required
-    from linkage_monitor.bag.reader import STORAGE_SUFFIXES   # the bag reader's imports only when needed
+    from linkage_monitor.bag.storage import STORAGE_SUFFIXES   # the bag reader's imports only when needed
 
     data_path = Path(args.data)
     if data_path.is_dir() or data_path.suffix in STORAGE_SUFFIXES:

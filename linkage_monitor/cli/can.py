@@ -144,7 +144,8 @@ def run_can_calibrate(args: argparse.Namespace) -> int:
     """Fit the tables; print them (YAML) with their fit, write the calibrated mapping with --out."""
     import numpy as np
 
-    from linkage_monitor.bag.reader import JointStateColumns, read_inputs
+    from linkage_monitor.bag.columns import JointStateColumns
+    from linkage_monitor.bag.reader import read_inputs
     from linkage_monitor.can.calibrate import fit_tables
     from linkage_monitor.can.decoder import load_databases
     from linkage_monitor.can.mapping import UNITS

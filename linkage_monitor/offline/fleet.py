@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, TextIO
 
-from linkage_monitor.bag.reader import STORAGE_SUFFIXES, ReadFault, is_split_bag, read_faults
+from linkage_monitor.bag.faults import ReadFault, read_faults
+from linkage_monitor.bag.storage import STORAGE_SUFFIXES, is_split_bag
 from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.monitoring.findings import Code
 

@@ -19,7 +19,8 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
-from linkage_monitor.bag.reader import message_class, read_bag_raw
+from linkage_monitor.bag.decode import message_class
+from linkage_monitor.bag.reader import read_bag_raw
 from linkage_monitor.bag.step_recorder import RecordedInput
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, input_event
 
