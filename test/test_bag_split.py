@@ -15,7 +15,9 @@ from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from linkage_monitor.bag.writer import MIN_SPLIT_SIZE, BagError, BagWriter
+from linkage_monitor.bag.errors import BagError
+from linkage_monitor.bag.split_files import MIN_SPLIT_SIZE
+from linkage_monitor.bag.writer import BagWriter
 from linkage_monitor.cli.main import main as cli_main
 from support.bag_outputs import output_bytes
 

@@ -18,7 +18,9 @@ from mcap.reader import NonSeekingReader, make_reader
 from mcap.writer import CompressionType
 from rosbags.rosbag2 import Reader
 
-from linkage_monitor.bag.writer import MIN_SPLIT_SIZE, BagWriter, MessageRows
+from linkage_monitor.bag.row_block import MessageRows
+from linkage_monitor.bag.split_files import MIN_SPLIT_SIZE
+from linkage_monitor.bag.writer import BagWriter
 from linkage_monitor.can.candump import RefusedLine, parse_candump, read_candump
 from linkage_monitor.can.decoder import CanDecoder, load_databases
 from linkage_monitor.can.frame_msg import FRAME_TYPE, frames_cdr, from_cdr, to_cdr

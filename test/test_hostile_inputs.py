@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from linkage_monitor.bag.writer import BagError
+from linkage_monitor.bag.errors import BagError
 from linkage_monitor.cli.main import main
 from linkage_monitor.mechanics import MechanismFileError, load_mechanism, preset_path
 from linkage_monitor.offline.replay import replay

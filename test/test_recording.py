@@ -23,7 +23,8 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from sensor_msgs.msg import FluidPressure, JointState
 
 from linkage_monitor.wire.definitions import dependencies, message_definition, msg_file
-from linkage_monitor.bag.writer import MECHANISM_TOPIC, BagError, BagWriter
+from linkage_monitor.bag.errors import BagError
+from linkage_monitor.bag.writer import MECHANISM_TOPIC, BagWriter
 
 REPO = Path(__file__).resolve().parents[1]
 T0 = 1_700_000_000_000_000_000  # ns since the epoch, an arbitrary recording start
@@ -219,9 +220,9 @@ def test_threads_write_concurrently(tmp_path: Path) -> None:
 def test_a_writer_faster_than_the_background_thread_queues_at_most_max_queued(tmp_path: Path, monkeypatch) -> None:
     """write() only queues; past MAX_QUEUED queued messages it writes the queue itself, so memory
     stays bounded and every message lands, in order (read back by mcap-ros2-support)."""
-    import linkage_monitor.bag.writer as bag_writer
+    import linkage_monitor.bag.write_queue as write_queue
 
-    monkeypatch.setattr(bag_writer, "MAX_QUEUED", 50)
+    monkeypatch.setattr(write_queue, "MAX_QUEUED", 50)
     directory = tmp_path / "burst"
     largest = 0
     with BagWriter(directory, flush_period_s=60.0) as writer:

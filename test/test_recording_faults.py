@@ -13,7 +13,9 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 from std_msgs.msg import String
 
-from linkage_monitor.bag.writer import MIN_SPLIT_SIZE, BagError, BagWriter
+from linkage_monitor.bag.errors import BagError
+from linkage_monitor.bag.split_files import MIN_SPLIT_SIZE
+from linkage_monitor.bag.writer import BagWriter
 
 T0 = 1_700_000_000_000_000_000  # ns, an arbitrary recording start
 
@@ -105,7 +107,7 @@ def test_ros_distro_is_the_installed_one_when_ros_distro_is_unset(tmp_path, monk
 
     import yaml
 
-    from linkage_monitor.bag.writer import ros_distro
+    from linkage_monitor.bag.metadata import ros_distro
 
     installed = _DISTRO_OF_RCLPY_MAJOR[version("rclpy").split(".")[0]]   # KeyError: a venv make setup does not build
     expected = environment or installed

@@ -27,7 +27,9 @@ from linkage_monitor.wire.markers import MARKER_ARRAY
 from linkage_monitor.wire.outputs import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputRows, Outputs
 from linkage_monitor.wire.step_messages import StepMessages
 
-from .writer import BagWriter, MessageRows, yaml_text
+from .metadata import yaml_text
+from .row_block import MessageRows
+from .writer import BagWriter
 
 CONFIG_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 

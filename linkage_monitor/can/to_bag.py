@@ -23,7 +23,8 @@ from typing import Iterable, NamedTuple
 import numpy as np
 
 from linkage_monitor.bag.step_recorder import StepRecorder
-from linkage_monitor.bag.writer import BagWriter, MessageRows
+from linkage_monitor.bag.row_block import MessageRows
+from linkage_monitor.bag.writer import BagWriter
 from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.events import InputEvent, JointStateEvent, PressureEvent

@@ -18,7 +18,7 @@ from linkage_monitor.cli.commands import COMMANDS, EXIT_CODES, Command
 BAD_INPUT_EXIT = 2   # a bad option or input file: one line on stderr (argparse's own code)
 # the errors of the inputs (options, mechanism and YAML files, bags): module -> class; each module is
 # loaded by the command that raises its error, so none is imported to recognise them
-INPUT_ERRORS = {"linkage_monitor.mechanics.errors": "LinkageError", "linkage_monitor.bag.writer": "BagError",
+INPUT_ERRORS = {"linkage_monitor.mechanics.errors": "LinkageError", "linkage_monitor.bag.errors": "BagError",
                 "yaml": "YAMLError"}
 
 

@@ -32,7 +32,8 @@ from tqdm import tqdm
 
 from linkage_monitor.bag.reader import read_bag, read_bag_raw
 from linkage_monitor.bag.step_recorder import RecordedInput, StepRecorder
-from linkage_monitor.bag.writer import MECHANISM_TOPIC, BagError, BagWriter
+from linkage_monitor.bag.errors import BagError
+from linkage_monitor.bag.writer import MECHANISM_TOPIC, BagWriter
 from linkage_monitor.mechanics import Mechanism, Status, mechanism_from_text
 from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
 from linkage_monitor.monitoring.core import Monitor, Run, Segment, Step

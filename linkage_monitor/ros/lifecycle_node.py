@@ -37,7 +37,7 @@ from rclpy.lifecycle import LifecycleNode, LifecyclePublisher, LifecycleState, T
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 
-from linkage_monitor.bag.writer import BagError
+from linkage_monitor.bag.errors import BagError
 from linkage_monitor.mechanics import LinkageError
 from linkage_monitor.ros.inputs import SensorTopics
 from linkage_monitor.ros.node import NODE_NAME, LinkageMonitorNode, descriptor

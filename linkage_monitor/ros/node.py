@@ -38,8 +38,9 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.signals import SignalHandlerOptions
 
+from linkage_monitor.bag.errors import BagError
 from linkage_monitor.bag.step_recorder import StepRecorder
-from linkage_monitor.bag.writer import BagError, BagWriter
+from linkage_monitor.bag.writer import BagWriter
 from linkage_monitor.mechanics import LinkageError, apply_overrides, load_description
 from linkage_monitor.mechanics.warm import compiled_kernels
 from linkage_monitor.monitoring.config import MonitorConfig
