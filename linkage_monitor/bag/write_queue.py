@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Callable, NamedTuple
+from typing import Callable
 
 from linkage_monitor.bag.metadata import Topic
 
@@ -16,14 +16,10 @@ WRITE_PERIOD_S = 0.05   # s, the background thread writes the queued messages th
 MAX_QUEUED = 10_000     # messages queued at most; beyond, write() writes the queue (in order) itself
 
 
-class QueuedMessage(NamedTuple):
-    """A message ``BagWriter.write`` queued: its topic, CDR bytes and MCAP log and publish times (ns since
-    the epoch)."""
-
-    topic: Topic
-    data: bytes
-    log_time: int
-    publish_time: int
+QueuedMessage = tuple[Topic, bytes, int, int]
+"""A message ``BagWriter.write`` queued: (topic, CDR bytes, MCAP log time, MCAP publish time; ns since the
+epoch), unpacked by these names where it is written. A tuple, not a NamedTuple: it is built in the caller's
+path (a node's callback), 0.05 µs against 0.4 µs."""
 
 
 class WriteQueue:

@@ -37,7 +37,7 @@ from linkage_monitor.bag.errors import BagError
 from linkage_monitor.bag.metadata import Span, Topic, bag_information, qos_to_dict, write_metadata_yaml
 from linkage_monitor.bag.row_block import MessageRows, RowBlock, chunk_end, write_chunk
 from linkage_monitor.bag.split_files import MIN_SPLIT_SIZE, Attachment, BagFiles, file_path
-from linkage_monitor.bag.write_queue import QueuedMessage, WriteQueue, WriteThread
+from linkage_monitor.bag.write_queue import WriteQueue, WriteThread
 from linkage_monitor.wire.definitions import exact_cdr
 
 MECHANISM_TOPIC = "/linkage_monitor/mechanism"
@@ -149,7 +149,7 @@ class BagWriter:
             if entry is None or self.error is not None:
                 self.unwritten += 1
                 return
-            full = self._queued.append(QueuedMessage(entry, data, log_time, publish_time))
+            full = self._queued.append((entry, data, log_time, publish_time))
         if full:
             with self._lock:
                 self._write_queued()
@@ -197,17 +197,16 @@ class BagWriter:
         = log_time order, which readers of a killed (unindexed) bag need: a log time earlier than
         the last one written is moved up to it."""
         queued = self._queued.take()
-        for k, message in enumerate(queued):
-            entry = message.topic
-            log_time = max(message.log_time, self._span.end or 0)
+        for k, (entry, data, log_time, publish_time) in enumerate(queued):
+            log_time = max(log_time, self._span.end or 0)
             if self.error is None:
                 try:
                     if self._files.split_due(log_time):
                         self._next_file()
                     current = self._files.current
-                    current.writer.add_message(current.channel(entry), log_time=log_time, data=message.data,
-                                               publish_time=message.publish_time, sequence=entry.count % (1 << 32))
-                    current.pending_bytes += len(message.data)
+                    current.writer.add_message(current.channel(entry), log_time=log_time, data=data,
+                                               publish_time=publish_time, sequence=entry.count % (1 << 32))
+                    current.pending_bytes += len(data)
                 except OSError as exc:
                     self._fail(exc)
             if self.error is not None:
