@@ -80,7 +80,7 @@ $(PKG_STAMP): $(DEPS_STAMP) setup.py CMakeLists.txt package.xml $(MSGS)
 # The physics kernels compiled once into numba's on-disk cache (about a minute the first time),
 # so that the node and the tests load machine code instead of compiling it; the package's own
 # bytecode with them (the editable install leaves it to the first import, which may not write it).
-$(WARM_STAMP): $(PKG_STAMP) linkage_monitor/mechanics/kernels.py
+$(WARM_STAMP): $(PKG_STAMP) $(wildcard linkage_monitor/mechanics/kernels/*.py)
 	@echo ">> compiling the physics kernels (numba, cached on disk)"
 	$(PY) -m linkage_monitor.mechanics.warm
 	$(PY) -m compileall -q linkage_monitor

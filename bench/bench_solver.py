@@ -50,13 +50,13 @@ def per_call(fn, calls: int, repeat: int = 5) -> float:
 
 @numba.njit
 def chain_placements(s: np.ndarray, program: KinematicsProgram, n: int) -> float:
-    """The chain's closed-form placement alone (``kernels._chain_pose_into``) for each row of s, into
+    """The chain's closed-form placement alone (``kernels.dyads._chain_pose_into``) for each row of s, into
     one pose and one rotation array (no residual, no allocation per pose): the floor of the
     kinematics; n: the pose's coordinates. Returns a sum of the poses so that the work is not
     optimised away."""
     q, rotation, total = np.zeros(n), np.empty((2, n // 3)), 0.0
     for i in range(s.shape[0]):
-        kernels._chain_pose_into(q, rotation, s[i], program.att_body, program.att_ref, program.chain_int,
+        kernels.dyads._chain_pose_into(q, rotation, s[i], program.att_body, program.att_ref, program.chain_int,
                                  program.chain_float)
         total += q[0]
     return total

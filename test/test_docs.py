@@ -149,7 +149,7 @@ def test_the_path_check_sees_a_missing_path() -> None:
             "[the page](no_such_page.md), but not `my_tractor.yaml`, `out/demo/live.rrd`, `/diagnostics`,\n"
             "`sensor_msgs/JointState`, `linkage_monitor/HitchState`, `linkage_monitor.msg`, `install/setup.sh`, `DIR/bags.parquet`, `.msg`, [a site](https://ros.org).\n"
             "Real: `linkage_monitor/mechanics/presets/`, `.venv/bin/python bench/bench_step.py`,\n"
-            "`mechanics/kernels.py`, `linkage_monitor/offline/{fleet,history,spectra}.py`, `bench/bench_*.py`,\n"
+            "`mechanics/kernels/live.py`, `linkage_monitor/offline/{fleet,history,spectra}.py`, `bench/bench_*.py`,\n"
             "[the schema](mechanism-schema.md).\n"
             "```\nlinkage_monitor/fenced_is_not_a_reference.py\n```\n")
     assert _problems(doc, text) == [

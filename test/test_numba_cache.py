@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from numba.core import config
 
-from linkage_monitor.mechanics.numba_cache import ensure_writable, writable
+from linkage_monitor.mechanics.numba_cache import ensure_writable, package_stamp, writable
 
 
 @pytest.fixture
@@ -73,3 +73,22 @@ def test_a_fallback_directory_others_can_write_is_not_used(tmp_path, blocked, mo
     assert chosen is not None and chosen != shared and chosen.name.startswith("linkage_monitor-numba-")
     assert chosen.stat().st_mode & 0o077 == 0 and config.CACHE_DIR == str(chosen)
     chosen.rmdir()
+
+
+def test_a_change_to_any_module_of_the_package_changes_the_stamp(tmp_path):
+    """A cached kernel holds the machine code of the kernels it calls from the package's other
+    modules: the stamp numba keeps with it is the whole package's, and a change to any module changes it."""
+    package = tmp_path / "kernels"
+    package.mkdir()
+    (package / "a.py").write_text("x = 1\n")
+    (package / "b.py").write_text("y = 2\n")
+    before = package_stamp(package)
+    assert package_stamp(package) == before
+    (package / "b.py").write_text("y = 3\n")
+    assert package_stamp(package) != before
+
+
+def test_every_kernel_is_stamped_with_its_package():
+    from linkage_monitor.mechanics import kernels
+    for kernel in (kernels.linalg.lu_factor, kernels.live.live_series):
+        assert kernel._cache._impl.locator.get_source_stamp() == package_stamp()   # numba's locator of the kernel

@@ -6,7 +6,7 @@ each pair of links hinged to each other and each to a placed body (an RRR dyad: 
 intersect). ``decompose`` finds such a chain from the mechanism's data (bodies, hinges, measured
 cylinders and angles); ``kernels.chain_pose`` evaluates it for one pose — a few trigonometric
 functions per body, no iteration — on the reference pose's side of every circle intersection (its
-assembly branch). The solver takes that pose as it is (``kernels._kinematic_pose``: on the
+assembly branch). The solver takes that pose as it is (``kernels.assembly._kinematic_pose``: on the
 reference branch by those sides, its loop-closure residual checking that it closes); with
 redundant sensors ``kernels.chain_fit`` moves the driving inputs along the chain to the closed pose
 nearest all readings.

@@ -127,7 +127,7 @@ class Kinematics(KinematicLayout):
               consistency_tol: float, reach: bool = True) -> KinematicState:
         """Assemble N poses for inputs s (N, n_inputs), keeping the reference pose's assembly branch.
 
-        Each pose is the chain of dyads' (``kernels._kinematic_pose``); without a chain, or with a
+        Each pose is the chain of dyads' (``kernels.assembly._kinematic_pose``); without a chain, or with a
         step out of reach, Newton starts from the tangent prediction off ``previous`` (one solved
         pose: a live node passes its last one) or off the reference pose; poses that fail or land
         on another branch are redone by continuation from the reference pose.

@@ -1,24 +1,33 @@
-"""Where numba keeps the compiled physics kernels (``kernels.py``, ``@njit(cache=True)``).
+"""Where numba keeps the compiled physics kernels (the ``kernels`` package, ``@njit(cache=True)``),
+and when it compiles them again.
 
-numba looks for a writable directory, in this order: ``NUMBA_CACHE_DIR``, ``__pycache__`` beside
-``kernels.py`` (where ``make`` and a colcon install put the warm cache), the user's cache directory
-(``~/.cache/numba``). When none is writable — a read-only install run by a user without a writable
-home: a container, a service account — numba refuses to define the kernels at all (``RuntimeError:
-cannot cache function ... no locator available``) and the node could not start. ``ensure_writable``
-is called before the kernels are defined and then points numba at a per-user directory under the
-system's temporary directory (compiled at the first start, and again whenever that directory is
-cleared; the node's log says when it compiled).
+numba looks for a writable directory, in this order: ``NUMBA_CACHE_DIR``, ``__pycache__`` in the
+``kernels`` package (where ``make`` and a colcon install put the warm cache), the user's cache
+directory (``~/.cache/numba``). When none is writable — a read-only install run by a user without
+a writable home: a container, a service account — numba refuses to define the kernels at all
+(``RuntimeError: cannot cache function ... no locator available``) and the node could not start.
+``ensure_writable`` is called before the kernels are defined and then points numba at a per-user
+directory under the system's temporary directory (compiled at the first start, and again whenever
+that directory is cleared; the node's log says when it compiled).
+
+A cached kernel holds the machine code of every kernel it calls, from the package's other modules
+too, while numba keeps with it the content of its own module only: it would load a kernel built
+from an older version of a module it calls. ``stamp_by_package`` has numba stamp every kernel with
+the content of the whole package instead: a change to any of its modules compiles them all again.
 """
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import logging
 import os
 import stat
 import tempfile
 from pathlib import Path
+from typing import Any
 
-from numba.core import config
+from numba.core import caching, config
 
 try:
     from numba.misc.appdirs import AppDirs   # the helper numba's own user-wide cache locator uses
@@ -26,7 +35,8 @@ try:
 except ImportError:   # pragma: no cover - a numba without it: its documented default on Linux
     USER_CACHE = Path.home() / ".cache" / "numba"
 
-IN_TREE = Path(__file__).with_name("__pycache__")   # beside kernels.py
+KERNELS = Path(__file__).with_name("kernels")   # the package of compiled kernels
+IN_TREE = KERNELS / "__pycache__"   # numba's cache in the package
 _log = logging.getLogger(__name__)
 
 
@@ -75,3 +85,48 @@ def ensure_writable(configured: str | None = None, in_tree: Path = IN_TREE, user
                  "(compiled again whenever that directory is cleared; set NUMBA_CACHE_DIR to keep them)",
                  in_tree.parent, user_cache, fallback)
     return fallback
+
+
+@functools.lru_cache(maxsize=None)
+def _package_hash(sources: tuple[tuple[str, int, int], ...]) -> bytes:
+    """The hash of the package's modules' contents, by (path, mtime ns, size) of each (read again
+    when one changes while the process runs)."""
+    digest = hashlib.sha256()
+    for path, _, _ in sources:
+        digest.update(Path(path).name.encode())
+        digest.update(Path(path).read_bytes())
+    return digest.digest()
+
+
+def package_stamp(package: Path = KERNELS) -> bytes:
+    """The source stamp of every kernel of ``package``: a hash of all its modules' contents."""
+    sources = []
+    for path in sorted(package.glob("*.py")):
+        info = path.stat()
+        sources.append((str(path), info.st_mtime_ns, info.st_size))
+    return _package_hash(tuple(sources))
+
+
+class _PackageStamped:
+    """A numba cache locator for the kernels package's functions only, stamped with ``package_stamp``."""
+
+    def get_source_stamp(self) -> bytes:
+        return package_stamp()
+
+    @classmethod
+    def from_function(cls, py_func: Any, py_file: str) -> Any:
+        if Path(py_file).resolve().parent != KERNELS.resolve():
+            return None
+        return super().from_function(py_func, py_file)   # type: ignore[misc]
+
+
+def stamp_by_package() -> None:
+    """Have numba stamp the kernels package's cached functions with ``package_stamp``, in each of its
+    cache directories (``NUMBA_CACHE_DIR``, in the package, the user's): before they are defined."""
+    impl = caching.CacheImpl
+    if any(issubclass(locator, _PackageStamped) for locator in impl._locator_classes):
+        return
+    stamped: list[Any] = [type(f"Package{base.__name__}", (_PackageStamped, base), {"__module__": __name__})
+                           for base in (caching.UserProvidedCacheLocator, caching.InTreeCacheLocator,
+                                        caching.UserWideCacheLocator)]
+    impl._locator_classes[:0] = stamped

@@ -21,10 +21,6 @@ import numpy as np
 from numba.core import types
 from numba.experimental import structref
 
-from .numba_cache import ensure_writable
-
-ensure_writable()   # before kernels.py, which imports this module first, defines the cached kernels
-
 
 class Geometry(NamedTuple):
     """The loop closure's geometry (``Kinematics.geometry``): attachment bodies (K,) (−1: ground)

@@ -53,7 +53,7 @@ others); 1° flags every one of them, with a margin of 30× for mechanisms beyon
 
 class Transmission(NamedTuple):
     """Transmission of N poses along the chain: |sin| (N, S + 1) in [0, 1] per step (NaN for an
-    angle-driven step) and, last, the free load's (``kernels._reduced_pose``; NaN without one or
+    angle-driven step) and, last, the free load's (``kernels.reduced._reduced_pose``; NaN without one or
     without the statics); which of these attains the smallest (N,) (−1: none has a measure); the
     pose's measure as an angle (N,) rad in [0, π/2] (π/2 when none has one, 0 when the free
     load's is undefined: it does no work on any motion)."""

@@ -1,5 +1,5 @@
 """Compile the physics kernels ahead of use (``make`` runs this after installing): numba keeps the
-machine code in an on-disk cache beside ``kernels.py``, so a node or a replay started later loads
+machine code in an on-disk cache in the ``kernels`` package, so a node or a replay started later loads
 it instead of compiling (first compile about a minute here; loading a warm cache well under 2 s).
 The presets' input limits are swept into their cache too (``spans_cache``).
 
@@ -8,6 +8,8 @@ The presets' input limits are swept into their cache too (``spans_cache``).
 
 from __future__ import annotations
 
+import importlib
+import pkgutil
 import sys
 import time
 from typing import Any
@@ -28,7 +30,9 @@ from .solver import Solver
 def compiled_kernels() -> int:
     """How many kernel signatures this process has compiled (numba's cache misses) rather than
     loaded from the on-disk cache: nonzero after a start on a cold or unwritable cache."""
-    return sum(sum(kernel.stats.cache_misses.values()) for kernel in vars(kernels).values()
+    modules = [importlib.import_module(f"{kernels.__name__}.{module.name}")
+               for module in pkgutil.iter_modules(kernels.__path__)]
+    return sum(sum(kernel.stats.cache_misses.values()) for module in modules for kernel in vars(module).values()
                if isinstance(kernel, CPUDispatcher))
 
 

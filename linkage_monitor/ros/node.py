@@ -139,7 +139,7 @@ class LinkageMonitorNode(Node):
         if compiled := compiled_kernels() - compiled:
             self.get_logger().warning(
                 f"numba compiled {compiled} physics kernel(s) in {time.monotonic() - loading:.0f} s at this start: its "
-                "on-disk cache (beside linkage_monitor/mechanics/kernels.py, or NUMBA_CACHE_DIR) was cold or not "
+                "on-disk cache (in linkage_monitor/mechanics/kernels/, or NUMBA_CACHE_DIR) was cold or not "
                 "writable; `python -m linkage_monitor.mechanics.warm` compiles them ahead of the next start")
         self._inputs: list[tuple[Any, InputCallback]] = []   # (subscription, its callback)
         self.input_events = InputEvents()   # taken at the heartbeat (ros/input_events.py)

@@ -1,0 +1,112 @@
+"""Lift capacity by virtual work (Popov 2009): the vertical load the lift cylinder holds at each
+capacity point, and the lift reserve."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .closure import positions, residual_jacobian
+from .linalg import factor_and_condition, lu_solve
+from .threads import _parallel
+
+
+def lift_capacity(q: np.ndarray, att_body: np.ndarray, att_ref: np.ndarray, hinge_att: np.ndarray,
+                  cyl_att: np.ndarray, lift: int, force: float, gravity: float, weight_att: np.ndarray,
+                  weight_mass: np.ndarray, spring_att: np.ndarray, spring_force: np.ndarray,
+                  point_att: np.ndarray, column_scale: np.ndarray, max_condition: float, ok: np.ndarray,
+                  implement_load: np.ndarray, cg_point: int) -> np.ndarray:
+    """Vertical load (N, + = down) that the lift cylinder ``lift`` pushing with ``force`` (N) holds
+    at each capacity point (attachments ``point_att``), for N poses q (N, n): virtual work along
+    the motion with every hinge closed, every other cylinder held at its length and the lift
+    cylinder extending by δs:
+
+        G·δz_point = F·δs − Σ m·g·δz_cg + Σ F_spring·δL_spring        (Popov 2009: G = p_max·η·A·ds/dz)
+
+    (weights m at ``weight_att``, spring forces (N, n_springs) + = pushing). The motion δq solves
+    [hinge rows; cylinder rows]·δq = e_lift, one factorization per pose for every point.
+
+    Returns (N, n_points + 1): G at each point, NaN where the pose is not ``ok`` (failed), where
+    that system is near-singular (condition > ``max_condition``: a dead centre) or not square, and
+    where G ≤ 0 (the cylinder lowers the point instead of lifting it: no capacity, not a negative
+    load); then the lift reserve, G at point ``cg_point`` / ``implement_load`` (N,) N, inf where
+    that load is not > 0.
+    """
+    n_pose, n = q.shape
+    out = np.full((n_pose, point_att.shape[0] + 1), np.nan)
+    square = 2 * hinge_att.shape[1] + cyl_att.shape[1] == n
+    driver = _capacity_parallel if _parallel(n_pose) else _capacity_serial
+    driver(n_pose, out, q, att_body, att_ref, hinge_att, cyl_att, lift, force, gravity, weight_att, weight_mass,
+           spring_att, spring_force, point_att, column_scale, max_condition, ok, square, implement_load, cg_point)
+    return out
+
+
+@njit(cache=True)
+def _capacity_pose(i, out, q, att_body, att_ref, hinge_att, cyl_att, lift, force, gravity, weight_att,
+                   weight_mass, spring_att, spring_force, point_att, column_scale, max_condition, ok, square,
+                   implement_load, cg_point):
+    """Pose i of ``lift_capacity``, written into ``out`` (NaN on entry)."""
+    if ok[i] and square:
+        _capacity_points(i, out, q, att_body, att_ref, hinge_att, cyl_att, lift, force, gravity, weight_att,
+                         weight_mass, spring_att, spring_force, point_att, column_scale, max_condition)
+    _reserve(out[i], cg_point, implement_load[i])
+
+
+@njit(cache=True)
+def _reserve(row, cg_point, load):
+    """The lift reserve, the capacity row's last value: the capacity at the implement's cg (its
+    ``cg_point``-th value) over the implement load ``load`` (N; ∞ without a load)."""
+    row[-1] = row[cg_point] / load if load > 0.0 else math.inf
+
+
+@njit(cache=True)
+def _capacity_points(i, out, q, att_body, att_ref, hinge_att, cyl_att, lift, force, gravity, weight_att,
+                     weight_mass, spring_att, spring_force, point_att, column_scale, max_condition):
+    """G at each point of pose i (``lift_capacity``), written into ``out`` where > 0."""
+    n = q.shape[1]
+    nh, nc = hinge_att.shape[1], cyl_att.shape[1]
+    _, jac = residual_jacobian(q[i], np.zeros(nc), att_body, att_ref, hinge_att, cyl_att,
+                               np.zeros((2, 0), dtype=np.int64), np.zeros(0), 1.0)
+    lu, piv, cond = factor_and_condition(jac * column_scale)   # square: ``condition``'s, and its LU for δq
+    if not cond <= max_condition:
+        return
+    e = np.zeros(n)
+    e[2 * nh + lift] = 1.0
+    dq = lu_solve(lu, piv, e) * column_scale   # (J·diag(scale))·(δq / scale) = e
+    p, rel = positions(q[i], att_body, att_ref)
+    work = force
+    for k in range(weight_att.shape[0]):
+        work -= weight_mass[k] * gravity * _dp(dq, weight_att[k], att_body, rel)[1]
+    for k in range(spring_att.shape[1]):
+        a, b = spring_att[0, k], spring_att[1, k]
+        dx, dz = p[b, 0] - p[a, 0], p[b, 1] - p[a, 1]
+        da = _dp(dq, a, att_body, rel)
+        db = _dp(dq, b, att_body, rel)
+        work += spring_force[i, k] * (dx * (db[0] - da[0]) + dz * (db[1] - da[1])) / math.sqrt(dx * dx + dz * dz)
+    for k in range(point_att.shape[0]):
+        g = work / _dp(dq, point_att[k], att_body, rel)[1]
+        if g > 0.0:
+            out[i, k] = g
+
+
+@njit(cache=True)
+def _capacity_serial(n_pose, *args):
+    for i in range(n_pose):
+        _capacity_pose(i, *args)
+
+
+@njit(cache=True, parallel=True)
+def _capacity_parallel(n_pose, *args):
+    for i in prange(n_pose):
+        _capacity_pose(i, *args)
+
+
+@njit(cache=True)
+def _dp(dq: np.ndarray, att: int, att_body: np.ndarray, rel: np.ndarray) -> tuple[float, float]:
+    """Displacement (δx, δz) of an attachment for the body motion dq (∂P/∂θ = i·rel)."""
+    b = att_body[att]
+    if b < 0:
+        return 0.0, 0.0
+    return dq[3 * b] - rel[att, 1] * dq[3 * b + 2], dq[3 * b + 1] + rel[att, 0] * dq[3 * b + 2]
