@@ -24,6 +24,7 @@ from can_msgs.msg import Frame as FrameMsg
 from linkage_monitor.monitoring.core import Step
 from linkage_monitor.monitoring.events import UnreadableEvent
 from linkage_monitor.monitoring.findings import Code, Finding, Level, fmt
+from linkage_monitor.ros.inputs import InputHost
 from linkage_monitor.ros.node import LinkageMonitorNode
 
 from .decoder import CanDecoder, load_databases
@@ -61,15 +62,15 @@ class CanFrames:
     def __init__(self, source: CanSource) -> None:
         self.source = source
         self.bus: can.BusABC | None = None
-        self._node: LinkageMonitorNode | None = None
+        self._node: InputHost | None = None
 
     @property
-    def node(self) -> LinkageMonitorNode:
+    def node(self) -> InputHost:
         """The node this source feeds (``start``)."""
         assert self._node is not None, "the CAN source is not started"
         return self._node
 
-    def start(self, node: LinkageMonitorNode) -> None:
+    def start(self, node: InputHost) -> None:
         """The decoder for the node's mechanism; the bus opened (read every POLL_PERIOD_S) or the
         frames' topic subscribed; the silence check started."""
         source = self.source

@@ -7,21 +7,55 @@ side: ``subscribe``, ``now``, ``recording.input``, ``monitor.step``, ``outputs.p
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Callable, Protocol
+from typing import Any, Callable, Protocol
 
 from sensor_msgs.msg import FluidPressure, JointState
 
+from linkage_monitor.monitoring.core import Monitor
 from linkage_monitor.monitoring.findings import Level
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, input_event
 
-if TYPE_CHECKING:
-    from .node import LinkageMonitorNode
+from .publishing import OutputPublisher
+from .recording import Recording
+
+InputCallback = Callable[[bytes, dict], None]   # an input's CDR bytes and rclpy's message info
+
+
+class InputHost(Protocol):
+    """What a source uses of the node it feeds (``ros.node.LinkageMonitorNode``): its monitor, recording and
+    output publisher, its subscriptions, clock, statuses, logger and timers."""
+
+    monitor: Monitor
+    recording: Recording
+    outputs: OutputPublisher
+
+    @property
+    def input_subscriptions(self) -> list[Any]:
+        """The node's input subscriptions."""
+
+    def subscribe(self, msg_type: type, topic: str, callback: InputCallback) -> None:
+        """Take ``topic``'s messages serialized into ``callback``, their losses counted."""
+
+    def now(self) -> int:
+        """The node's clock, ns."""
+
+    def publish_status(self, part: str, level: Level, message: str, now: int) -> None:
+        """One /diagnostics status of ``part``."""
+
+    def get_logger(self) -> Any:
+        """The node's logger."""
+
+    def create_timer(self, timer_period_sec: float, callback: Any) -> Any:
+        """A timer on the node's clock."""
+
+    def resolve_topic_name(self, topic: str, *, only_expand: bool = False) -> str:
+        """``topic`` with the node's namespace and remappings."""
 
 
 class InputSource(Protocol):
     """The node's way in for its inputs."""
 
-    def start(self, node: LinkageMonitorNode) -> None:
+    def start(self, node: InputHost) -> None:
         """Subscribe to (or open) the inputs and create the source's timers on ``node``, whose monitor is
         built; errors of the source's own settings raise (ValueError, LinkageError: the node's start fails)."""
 
@@ -40,9 +74,9 @@ class SensorTopics:
     taken serialized (the bag records the bytes that arrived), read into input events, solved."""
 
     def __init__(self) -> None:
-        self._node: LinkageMonitorNode | None = None
+        self._node: InputHost | None = None
 
-    def start(self, node: LinkageMonitorNode) -> None:
+    def start(self, node: InputHost) -> None:
         """Subscribe to the JointState topic, then to each pressure topic."""
         self._node = node
         topics = node.monitor.config.topics

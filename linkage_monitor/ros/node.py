@@ -49,7 +49,7 @@ from linkage_monitor.monitoring.findings import Level
 from linkage_monitor.monitoring.inputs import InputTracker
 from linkage_monitor.monitoring.loss import LossCounter
 from linkage_monitor.ros.input_events import INCOMPATIBLE_QOS, LOST, InputEvents
-from linkage_monitor.ros.inputs import InputSource, SensorTopics
+from linkage_monitor.ros.inputs import InputCallback, InputSource, SensorTopics
 from linkage_monitor.ros.parameters import (PARAMETERS, Declaration, check_bounds, check_choices, config_with,
                                             is_double, monitor_config, usage_table)
 from linkage_monitor.ros.publishing import HEARTBEAT_S, OUTPUT_QOS, OutputPublisher
@@ -60,7 +60,6 @@ NODE_NAME = "linkage_monitor"
 STOP_POLL_S = 0.1  # s, the spin loop looks this often whether a signal asked it to stop
 DRAIN_LIMIT = 200  # input messages worked off per executor callback (then timers and services run)
 NAME_CHECK_S = 10.0  # s, how long after its start the node looks for another node of its name
-InputCallback = Callable[[bytes, dict], None]   # an input's CDR bytes and rclpy's message info
 
 
 def descriptor(d: Declaration) -> ParameterDescriptor:
