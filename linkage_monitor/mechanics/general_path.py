@@ -8,7 +8,6 @@ SI units (m, rad, N, Pa); frame x forward, z up, origin at the rear wheels' grou
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,13 +18,11 @@ from .kinematics import KinematicState
 from .model import Mechanism
 from .reduced import ReducedSolution, ReducedStatics, smallest_sine
 from .results import BatchResult, Status
+from .solver_parts import SolverParts
 from .statics import StaticsLayout, StaticsSolution
 
-if TYPE_CHECKING:
-    from .solver import Solver
 
-
-def solve_general(solver: Solver, previous: KinematicState | None, cylinders: ArrayMap, angles: ArrayMap,
+def solve_general(solver: SolverParts, previous: KinematicState | None, cylinders: ArrayMap, angles: ArrayMap,
                   pressures: ArrayMap, rates: ArrayMap, accelerations: ArrayMap, *, reach: bool = True
                   ) -> tuple[BatchResult, KinematicState]:
     """N poses (arrays (N,), scalars broadcast) solved by ``solver``'s mechanism from ``previous`` (or

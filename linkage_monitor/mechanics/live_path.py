@@ -8,7 +8,7 @@ SI units (m, rad, N, Pa); frame x forward, z up, origin at the rear wheels' grou
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -19,10 +19,8 @@ from .kinematics import KinematicState
 from .programs import POSE_VALUES, LivePrograms, LiveRows, MachineProgram, OutputsProgram, fields
 from .results import Result, Status
 from .row_pool import RowBlock, RowPool
+from .solver_parts import SolverParts
 from .statics import StaticsLayout
-
-if TYPE_CHECKING:
-    from .solver import Solver
 
 _SOLVED = np.zeros(1, dtype=int)   # KinematicState.status of one solved pose (shared, read-only)
 _SOLVED.flags.writeable = False
@@ -75,7 +73,7 @@ class LiveInputs(NamedTuple):
 class LivePath:
     """The compiled live path of ``solver``'s mechanism, with the programs and rows it builds once."""
 
-    def __init__(self, solver: Solver) -> None:
+    def __init__(self, solver: SolverParts) -> None:
         self._solver = solver
         mech, kin = solver.mech, solver.kin
         self._angle_reference = kin.angle_reference.tolist()   # rad, the angle inputs' readings in the reference pose

@@ -6,7 +6,7 @@ SI units (m, rad, N, Pa); frame x forward, z up, origin at the rear wheels' grou
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Mapping, NamedTuple
+from typing import Mapping, NamedTuple
 
 import numpy as np
 
@@ -15,9 +15,7 @@ from .general_path import weakest_names
 from .inputs import ArrayMap, InputArrays
 from .programs import LiveRows, MachineProgram, fields
 from .results import BatchResult
-
-if TYPE_CHECKING:
-    from .solver import Solver
+from .solver_parts import SolverParts
 
 
 class SeriesPart(NamedTuple):
@@ -37,7 +35,7 @@ class Series:
     (``finish`` gives its answer). ``add`` may run in another thread while the caller reads the next
     inputs: the compiled call releases the GIL."""
 
-    def __init__(self, solver: Solver, machine: MachineProgram) -> None:
+    def __init__(self, solver: SolverParts, machine: MachineProgram) -> None:
         self._solver, self._machine = solver, machine
         reference = solver.kin.reference
         self._start = (reference.q[-1:], reference.s[-1:])   # the last pose the compiled series took

@@ -2,7 +2,8 @@
 
 Built once per mechanism (``Solver``); a pose takes the live path (``live_path``: one compiled call)
 or the general path (``general_path``: whole arrays, every verdict worded), a recorded series both
-(``series``). Its inputs are checked by ``inputs``, its results laid out by ``result_layout``.
+(``series``); the paths take it as a ``solver_parts.SolverParts``, what they use of it. Its inputs
+are checked by ``inputs``, its results laid out by ``result_layout``.
 SI units (m, rad, N, Pa); frame x forward, z up, origin at the rear wheels' ground contact B.
 """
 
