@@ -18,14 +18,15 @@ frame x forward, z up, origin at the rear wheels' ground contact.
 
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from linkage_monitor.mechanics import Mechanism, mechanism_from_dict
+from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.mechanics.constants import STANDARD_GRAVITY
+from linkage_monitor.mechanics.implements import ImplementFile, Tolerances
+from linkage_monitor.mechanics.implements import with_implement as hang_implement
 
 from .friction import SealFriction
 from .road import BodyMotion, ImuNoise, ImuReadings, Road
@@ -104,11 +105,12 @@ class WorkRun:
 
 
 def with_implement(mechanism: Mechanism, implement: ImplementTruth) -> Mechanism:
-    """A copy of ``mechanism`` whose implement has the given mass and cg."""
-    raw = copy.deepcopy(dict(mechanism.raw))
-    raw["implement"]["mass"] = float(implement.mass)
-    raw["implement"]["cg"] = [float(implement.cg[0]), float(implement.cg[1])]
-    return mechanism_from_dict(raw, mechanism.file)
+    """A copy of ``mechanism`` whose implement has the given mass and cg (hung as an implement file is:
+    ``mechanics.implements.with_implement``)."""
+    truth = ImplementFile(name="truth", description="the simulator's true implement", mechanism=mechanism.name,
+                          mass=float(implement.mass), cg=(float(implement.cg[0]), float(implement.cg[1])),
+                          hitch_point=None, mast_point=None, tolerances=Tolerances(), file="<simulator>")
+    return hang_implement(mechanism, truth)
 
 
 def _cycle(t: np.ndarray, cycle: WorkCycle) -> tuple[np.ndarray, np.ndarray]:
