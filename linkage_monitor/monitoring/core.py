@@ -258,8 +258,9 @@ class Monitor:
                 return self._failed(due, EXCEPTION_STATUS.get(type(exc), Status.INPUT), str(exc))
             self.warm = result
             step = self._finish(due, result, machine, values)
-            self._weigh((step,))
-            self._use_estimate()
+            if self.weighing is not None:   # off by default: nothing added to the live step
+                self._weigh((step,))
+                self._use_estimate()
             return step
         except Exception as exc:  # noqa: BLE001 - the adapter boundary: report, forget the warm start, go on
             return self._internal_error(event, exc)
@@ -402,8 +403,9 @@ class Monitor:
         """The error budget of each solved pose (None for a failed one, or when the configuration does
         not ask for them), each cylinder's seal friction by its motion since the due before."""
         uncertainty = self.uncertainty
-        return [uncertainty.budget(due.inputs, result, machine, due.motions or {})
-                if uncertainty is not None and code < Status.INPUT else None
+        if uncertainty is None:
+            return [None] * len(dues)
+        return [uncertainty.budget(due.inputs, result, machine, due.motions or {}) if code < Status.INPUT else None
                 for due, result, machine, code in zip(dues, results, machines, status)]
 
     def _pose_step(self, due: _Due, pose: Pose, checks: int) -> Step:
