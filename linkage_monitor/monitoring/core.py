@@ -14,148 +14,34 @@ Units SI (m, rad, N, Pa, kg); frame x forward, z up, origin at the rear wheels' 
 from __future__ import annotations
 
 import math
-from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass, replace
-from functools import cached_property
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import replace
 from typing import Iterable, Iterator, Sequence
 
 import numpy as np
 
-from linkage_monitor.mechanics import (AssemblyError, BatchResult, DeadCentreError, InputError, Inputs, LinkageError,
-                                       Mechanism, Result, Solver, Status)
-from linkage_monitor.mechanics.machine import MachineBatch, MachineModel, MachineResult, MachineSeries
-from linkage_monitor.mechanics.error_sources import Motion
+from linkage_monitor.mechanics import (AssemblyError, DeadCentreError, InputError, Inputs, LinkageError, Mechanism,
+                                       Result, Solver, Status)
+from linkage_monitor.mechanics.machine import MachineModel, MachineResult
 from linkage_monitor.mechanics.uncertainty import Budget, UncertaintyModel
 
-from .bounds import LimitUncertainties, MotionTracker, ballast_at_bound_text, interval_checks, uncertain_findings
-from .checks import CONSISTENCY_WARN_M, RESIDUAL_WARN_SHARE, Check, CheckedValues, pose_checks
+from .bounds import LimitUncertainties, MotionTracker, interval_checks
+from .checks import Check, CheckedValues, pose_checks
 from .config import MonitorConfig
 from .events import ConfigEvent, Event, InputEvent, JointStateEvent, PressureEvent, UnreadableEvent
-from .findings import Code, Finding, Level, fmt
+from .findings import Code, Finding
 from .implement_mass import ImplementMass, effective_mechanism
 from .inputs import InputTracker, Refused
+from .segment_series import INPUT_KINDS, SegmentSeries, input_columns, limit_values, segment_checks
+from .steps import NO_FINDINGS, Due, Pose, Run, Segment, Step
+from .wording import failed_step, pose_findings
+
+__all__ = ["ASSEMBLY_LIMIT_M", "NO_FINDINGS", "Monitor", "Pose", "Run", "Segment", "Step"]
 
 # A pose whose sensors misfit the closed linkage by more than this cannot be assembled from the inputs
 # (an ERROR; up to checks.CONSISTENCY_WARN_M the misfit is sensor noise, between the two a WARN).
 ASSEMBLY_LIMIT_M = 20e-3
-# the diagnostic's standard uncertainties (with MonitorConfig.uncertainty): label, budget output, unit
-UNCERTAINTY_KEYS = (("implement load", "implement_load", "N"), ("steerability margin", "steerability_margin", "-"),
-                    ("front axle load", "front_axle_load", "N"), ("rear axle load", "rear_axle_load", "N"),
-                    ("lift reserve", "lift_reserve", "-"))
-MESSAGE_JOIN = " | "  # between the sentences of several findings of one step
-NO_FINDINGS = "ok"    # the message of a step without findings
-FAILURE_CODE = {Status.INPUT: Code.MALFORMED_INPUT, Status.ASSEMBLY: Code.CANNOT_ASSEMBLE,
-                Status.DEAD_CENTRE: Code.DEAD_CENTRE}
-FAILURE_TEXT = {Code.MALFORMED_INPUT: "malformed input", Code.CANNOT_ASSEMBLE: "cannot assemble",
-                Code.DEAD_CENTRE: "dead centre"}
 EXCEPTION_STATUS = {InputError: Status.INPUT, AssemblyError: Status.ASSEMBLY, DeadCentreError: Status.DEAD_CENTRE}
-
-
-# built per input event: a plain dataclass, not a frozen one (docs/architecture.md, One pipeline)
-@dataclass(eq=False)
-class Pose:
-    """A solved pose: the solver's result and the machine-level results (axle loads,
-    steerability, lift capacity), both domain types in SI units."""
-
-    result: Result
-    machine: MachineResult
-    values: np.ndarray | None = None   # its value row (mechanics.programs.ValueRow) when the compiled call wrote one
-    budget: Budget | None = None       # its error budget, with MonitorConfig.uncertainty
-
-
-# built per input event: a plain dataclass, not a frozen one (docs/architecture.md, One pipeline)
-@dataclass(eq=False)
-class Step:
-    """The outcome of one input event (stamp = its header stamp, ns)."""
-
-    stamp_ns: int
-    trigger: str
-    findings: tuple[Finding, ...] = ()
-    pose: Pose | None = None
-    inputs: Inputs | None = None   # what was solved (None when no solve was due)
-
-    @cached_property
-    def values(self) -> dict[str, str]:
-        """The key-values of the step's diagnostic, as text (SI units in the keys): the input topic,
-        the inputs of a due solve, the main results of a solved pose (with the smallest transmission
-        angle and the step attaining it where the reduced path solved it). Formatted when first asked
-        for (most steps are never reported)."""
-        values = {"input": self.trigger}
-        if self.inputs is not None:
-            values.update({f"input {k} [m]": fmt(v) for k, v in self.inputs.cylinders.items()})
-            values.update({f"input {k} [rad]": fmt(v) for k, v in self.inputs.angles.items()})
-            values.update({f"input {k} [Pa gauge]": fmt(v) for k, v in self.inputs.pressures.items()})
-        if self.pose is not None:
-            result, steer, capacity = self.pose.result, self.pose.machine.steerability, self.pose.machine.lift_capacity
-            values.update({
-                "implement load [N]": fmt(result.implement_load),
-                "steerability ratio [-]": f"{steer.get('ratio', math.nan):.4f}",
-                "steerability margin [-]": f"{steer.get('margin', math.nan):.4f}",
-                "front axle load [N]": fmt(steer.get("front_axle_load", math.nan)),
-                "lift reserve [-]": f"{capacity.get('reserve', math.nan):.4f}",
-                "largest hinge reaction [N]": fmt(max(result.hinge_magnitude.tolist(), default=math.nan)),
-                "equilibrium residual [N]": f"{result.residual:.3g}",
-                "kinematic residual [m]": f"{result.consistency_residual:.3g}",
-            })
-            if math.isfinite(result.transmission_angle):   # NaN on the general path
-                values["min transmission angle [rad]"] = f"{result.transmission_angle:.4f}"
-            if result.weakest_transmission:
-                values["weakest transmission"] = result.weakest_transmission
-            if self.pose.budget is not None:   # standard uncertainties (1 sigma) of the judged values
-                budget = self.pose.budget
-                values.update({f"{label} standard uncertainty [{unit}]": fmt(budget.u_of(name))
-                               for label, name, unit in UNCERTAINTY_KEYS})
-        return values
-
-    @property
-    def level(self) -> Level:
-        """The worst level of the findings (OK without any)."""
-        if not self.findings:   # most steps: asked several times per step (diagnostics, markers, the summary)
-            return Level.OK
-        return max(f.level for f in self.findings)
-
-    @property
-    def message(self) -> str:
-        """The findings' sentences joined, or 'ok'."""
-        return MESSAGE_JOIN.join(f.text for f in self.findings) or NO_FINDINGS
-
-
-@dataclass(frozen=True)
-class Segment:
-    """The poses of one configuration segment of a batched run, solved together.
-
-    steps: index (into ``Run.steps``) of each pose's Step; stamps_ns: their header stamps;
-    batch / machine: the solver's and the machine-level results (arrays, SI units; failed poses
-    NaN with their status); mechanism: the effective mechanism of the segment; config: the
-    configuration it was solved with.
-    """
-
-    steps: np.ndarray
-    stamps_ns: np.ndarray
-    batch: BatchResult
-    machine: MachineBatch
-    mechanism: Mechanism
-    config: MonitorConfig
-
-
-@dataclass(frozen=True)
-class Run:
-    """A batched run, or a piece of one (``Monitor.runs``): one Step per input event, and the solved
-    segments as arrays (their ``steps`` index these Steps)."""
-
-    steps: list[Step]
-    segments: list[Segment]
-
-
-# built per input event: a plain dataclass, not a frozen one (docs/architecture.md, One pipeline)
-@dataclass(eq=False)
-class _Due:
-    """An accepted input event whose solve is due."""
-
-    stamp_ns: int
-    trigger: str
-    inputs: Inputs
-    motions: dict[str, Motion] | None = None   # each measured cylinder's motion since the due before (uncertainty)
 
 
 _LIFT_OFF = Status.LIFT_OFF.label
@@ -255,7 +141,7 @@ class Monitor:
                 result, machine, values = self.machine.solve(due.inputs, previous=self.warm)
             except LinkageError as exc:
                 self.warm = None
-                return self._failed(due, EXCEPTION_STATUS.get(type(exc), Status.INPUT), str(exc))
+                return failed_step(due, EXCEPTION_STATUS.get(type(exc), Status.INPUT), str(exc))
             self.warm = result
             step = self._finish(due, result, machine, values)
             if self.weighing is not None:   # off by default: nothing added to the live step
@@ -269,7 +155,7 @@ class Monitor:
     def run(self, events: Iterable[Event]) -> Run:
         """One Step per input event (ConfigEvents give none), the due poses solved in batches: a
         segment's series part by part in a worker thread while the next events are accepted
-        (``_SegmentSeries``); ``runs`` joined, one ``Segment`` per configuration segment."""
+        (``SegmentSeries``); ``runs`` joined, one ``Segment`` per configuration segment."""
         steps: list[Step] = []
         segments: list[Segment] = []
         for piece in self.runs(events):
@@ -287,7 +173,7 @@ class Monitor:
         steps: list[Step | None] = []
         segments: list[Segment] = []
         with ThreadPoolExecutor(max_workers=1, thread_name_prefix="series") as worker:
-            segment = _SegmentSeries(self, worker)
+            segment = SegmentSeries(self.machine, self.config.kinetostatics, worker)
             for event in events:
                 if isinstance(event, ConfigEvent):
                     self._solve_segment(segment, steps, segments)
@@ -295,7 +181,7 @@ class Monitor:
                         yield Run(steps, segments)  # type: ignore[arg-type]  # every None was filled by _solve_segment
                         steps, segments = [], []
                     self.reconfigure(event.config)
-                    segment = _SegmentSeries(self, worker)
+                    segment = SegmentSeries(self.machine, self.config.kinetostatics, worker)
                     continue
                 try:
                     due = self._accept(event)
@@ -312,12 +198,12 @@ class Monitor:
                     yield Run(steps, segments)  # type: ignore[arg-type]  # as above
                     steps, segments = [], []
                     if self._use_estimate():   # a new estimate: the next poses solved with it
-                        segment = _SegmentSeries(self, worker)
+                        segment = SegmentSeries(self.machine, self.config.kinetostatics, worker)
             self._solve_segment(segment, steps, segments)
             if steps:
                 yield Run(steps, segments)  # type: ignore[arg-type]  # as above
 
-    def _solve_segment(self, segment: _SegmentSeries, steps: list[Step | None], segments: list[Segment]) -> None:
+    def _solve_segment(self, segment: SegmentSeries, steps: list[Step | None], segments: list[Segment]) -> None:
         """The Steps of the dues ``segment`` holds (solved, checked, put in their places in ``steps``)
         and their ``Segment``; the segment is left empty, its series going on from its last pose."""
         indexed, series = segment.take()
@@ -325,7 +211,7 @@ class Monitor:
             return
         dues = [d for _, d in indexed]
         if series is None:   # kinetostatics (rates and accelerations): the general path
-            c = {kind: _column(dues, kind) for kind in INPUT_KINDS}
+            c = {kind: input_columns(dues, kind) for kind in INPUT_KINDS}
             batch = self.solver.solve_batch(cylinders=c["cylinders"], angles=c["angles"], pressures=c["pressures"],
                                             rates=c["rates"], accelerations=c["accelerations"])
             machine = self.machine.evaluate_batch(batch)
@@ -334,17 +220,17 @@ class Monitor:
             batch, machine = series.batch, series.machine
             values = [row if plain else None for row, plain in zip(series.values, series.plain.tolist())]
         results, machine_results = batch.results(), machine.results()
-        checks = _segment_checks(batch, machine)
+        checks = segment_checks(batch, machine)
         budgets = self._budgets(dues, results, machine_results, batch.status)
         if self.uncertainty is not None:
-            front, rear, margin, reserve = _limit_values(machine, len(batch))
+            front, rear, margin, reserve = limit_values(machine, len(batch))
             checks = checks + interval_checks(front, rear, margin, reserve, LimitUncertainties(*(
                 np.array([getattr(LimitUncertainties.of(b), f) if b is not None else math.nan for b in budgets])
                 for f in LimitUncertainties._fields)))
         for k, ((i, due), status, check) in enumerate(zip(indexed, batch.status.tolist(), checks.tolist())):
             pose = Pose(results[k], machine_results[k], values[k], budgets[k])
             steps[i] = (self._pose_step(due, pose, check) if status < Status.INPUT
-                        else self._failed(due, Status(status), batch.messages[k]))
+                        else failed_step(due, Status(status), batch.messages[k]))
         if self.weighing is not None:
             self._weigh(steps[i] for i, _ in indexed)
         segments.append(Segment(np.array([i for i, _ in indexed]),
@@ -352,7 +238,7 @@ class Monitor:
                                 self.config))
 
     # ---- the stages both paths share -------------------------------------------------------------
-    def _accept(self, event: InputEvent) -> _Due | Step:
+    def _accept(self, event: InputEvent) -> Due | Step:
         """Take the event's values (or refuse it whole); the due solve, or the Step that ends here."""
         tracker = self.tracker
         if isinstance(event, UnreadableEvent):
@@ -371,14 +257,8 @@ class Monitor:
         if isinstance(inputs, Finding):   # an input missing or stale: a misspelt joint name is named
             unknown = tracker.unknown_joints_finding(event.stamp_ns)
             return Step(event.stamp_ns, event.topic, (inputs,) if unknown is None else (inputs, unknown))
-        return _Due(event.stamp_ns, event.topic, inputs,
+        return Due(event.stamp_ns, event.topic, inputs,
                     self.motion.motions(inputs) if self.uncertainty is not None else None)
-
-    @staticmethod
-    def _failed(due: _Due, status: Status, message: str) -> Step:
-        code = FAILURE_CODE[status]
-        return Step(due.stamp_ns, due.trigger, (Finding(code, f"{FAILURE_TEXT[code]}: {message}"),),
-                    inputs=due.inputs)
 
     def _internal_error(self, event: InputEvent, exc: Exception) -> Step:
         self.warm = None
@@ -386,7 +266,7 @@ class Monitor:
                 f"{type(exc).__name__}: {exc}; the input was recorded, the monitor goes on")
         return Step(event.stamp_ns, event.topic, (Finding(Code.INTERNAL_ERROR, text),))
 
-    def _finish(self, due: _Due, result: Result, machine: MachineResult, values: np.ndarray | None) -> Step:
+    def _finish(self, due: Due, result: Result, machine: MachineResult, values: np.ndarray | None) -> Step:
         """The Step of one solved pose with its machine-level results and value row, if any
         (``checks.pose_checks``; with the uncertainty, ``bounds.interval_checks`` too)."""
         limits = (machine.value("front_axle_load"), machine.value("rear_axle_load"), machine.value("margin"),
@@ -398,7 +278,7 @@ class Monitor:
             checks += int(interval_checks(*limits, LimitUncertainties.of(budget)))
         return self._pose_step(due, Pose(result, machine, values, budget), checks)
 
-    def _budgets(self, dues: Sequence[_Due], results: Sequence[Result], machines: Sequence[MachineResult],
+    def _budgets(self, dues: Sequence[Due], results: Sequence[Result], machines: Sequence[MachineResult],
                  status: Sequence[int] | np.ndarray) -> list[Budget | None]:
         """The error budget of each solved pose (None for a failed one, or when the configuration does
         not ask for them), each cylinder's seal friction by its motion since the due before."""
@@ -408,113 +288,7 @@ class Monitor:
         return [uncertainty.budget(due.inputs, result, machine, due.motions or {}) if code < Status.INPUT else None
                 for due, result, machine, code in zip(dues, results, machines, status)]
 
-    def _pose_step(self, due: _Due, pose: Pose, checks: int) -> Step:
+    def _pose_step(self, due: Due, pose: Pose, checks: int) -> Step:
         """The Step of a solved pose whose failed checks are ``checks`` (``Check`` bits)."""
-        findings = self._findings(Check(checks), pose) if checks else ()
+        findings = pose_findings(Check(checks), pose, self.mechanism) if checks else ()
         return Step(due.stamp_ns, due.trigger, findings, pose, due.inputs)
-
-    def _findings(self, checks: Check, pose: Pose) -> tuple[Finding, ...]:
-        """The findings of the failed ``checks`` of a solved pose, worded with its numbers."""
-        result, machine = pose.result, pose.machine
-        findings = []
-        if Check.LIFT_OFF in checks:
-            findings.append(Finding(Code.LIFT_OFF, result.message or "a ground contact lifts off"))
-        if Check.SENSORS_DISAGREE in checks:
-            findings.append(Finding(Code.SENSORS_DISAGREE, f"measurements disagree: kinematic residual "
-                                    f"{fmt(result.consistency_residual * 1e3)} mm > {fmt(CONSISTENCY_WARN_M * 1e3)} mm "
-                                    "(check sensor calibration)"))
-        if Check.PRESSURES_DISAGREE in checks:
-            findings.append(Finding(Code.PRESSURES_DISAGREE, f"equilibrium residual {fmt(result.residual)} N > "
-                                    f"{RESIDUAL_WARN_SHARE:.0%} of the largest force ({fmt(result.largest_force)} N): the measured "
-                                    "pressures disagree"))
-        for axle, check in (("front", Check.FRONT_AXLE_LIFT_OFF), ("rear", Check.REAR_AXLE_LIFT_OFF)):
-            if check in checks:
-                load = machine.value(f"{axle}_axle_load")
-                findings.append(Finding(Code.AXLE_LIFT_OFF, f"{axle} axle load {fmt(load / 1e3)} kN < 0: the machine "
-                                        f"tips over its {'rear' if axle == 'front' else 'front'} axle (check the "
-                                        "tractor, ballast and implement masses and their positions)"))
-        if Check.STEERABILITY_LOW in checks:
-            steer = machine.steerability
-            reference = self.mechanism.tractor.steerability_reference if self.mechanism.tractor else "unit"
-            findings.append(Finding(Code.STEERABILITY_LOW, f"steerability margin {steer['margin']:+.3f} < 0: the front "
-                                    f"axle carries {steer['ratio']:.1%} of the {reference} weight, below ratio_min "
-                                    f"{steer['ratio_min']:.0%}; extra front ballast needed "
-                                    f"{fmt(round(steer['front_ballast_needed']))} kg"
-                                    + (ballast_at_bound_text(pose.budget, self.mechanism, steer["total_weight"])
-                                       if pose.budget is not None else "")))
-        if Check.LIFT_RESERVE_LOW in checks:
-            findings.append(Finding(Code.LIFT_RESERVE_LOW, f"lift reserve {machine.value('reserve'):.2f} < 1: implement "
-                                    f"load {fmt(result.implement_load / 1e3)} kN exceeds the lift capacity "
-                                    f"{fmt(machine.value('implement_cg') / 1e3)} kN at its centre of gravity"))
-        if pose.budget is not None:
-            findings += uncertain_findings(checks, pose.budget, self.mechanism, machine.value("total_weight"))
-        return tuple(findings)
-
-
-INPUT_KINDS = ("cylinders", "angles", "pressures", "rates", "accelerations")   # the fields of ``Inputs``
-
-
-def _column(dues: Sequence[_Due], kind: str) -> dict[str, np.ndarray]:
-    """The inputs of ``kind`` of ``dues`` (one configuration's: the same names) as arrays (N,) by name."""
-    return {n: np.array([getattr(d.inputs, kind)[n] for d in dues]) for n in getattr(dues[0].inputs, kind)}
-
-
-class _SegmentSeries:
-    """The due poses of one configuration segment of ``Monitor.runs`` (``dues``: (step index, due)),
-    solved PART at a time in ``worker`` as they are accepted (``MachineModel.series``: each pose from the
-    one before, as ``solve_series`` solves them all at once), unless the configuration takes
-    kinetostatics (then ``take`` gives no series and ``Monitor._solve_segment`` solves them itself).
-    ``take`` hands over the dues so far; the next ones go on from the last pose solved."""
-
-    PART = 256   # poses per part: the last part, solved after the last input, is short
-
-    def __init__(self, monitor: Monitor, worker: ThreadPoolExecutor) -> None:
-        self.dues: list[tuple[int, _Due]] = []
-        self._series = None if monitor.config.kinetostatics else monitor.machine.series()
-        self._worker = worker
-        self._parts: list[Future[None]] = []
-        self._sent = 0   # dues handed to the worker
-
-    def add(self, step: int, due: _Due) -> None:
-        """The due solve of step ``step``."""
-        self.dues.append((step, due))
-        if len(self.dues) - self._sent >= self.PART:
-            self._send()
-
-    def take(self) -> tuple[list[tuple[int, _Due]], MachineSeries | None]:
-        """The dues added since the last ``take`` and their ``MachineSeries`` (every part solved; None
-        for a kinetostatics segment or no dues); the segment is left empty."""
-        dues = self.dues
-        if self._series is None or not dues:
-            self.dues = []
-            return dues, None
-        self._send()
-        for part in self._parts:
-            part.result()   # raises what the part raised
-        self.dues, self._parts, self._sent = [], [], 0
-        return dues, self._series.finish()
-
-    def _send(self) -> None:
-        """Hand the dues not yet handed to the worker."""
-        if self._series is None or self._sent == len(self.dues):
-            return
-        dues = [d for _, d in self.dues[self._sent:]]
-        self._sent = len(self.dues)
-        self._parts.append(self._worker.submit(self._series.add, _column(dues, "cylinders"), _column(dues, "angles"),
-                                               _column(dues, "pressures")))
-
-
-def _limit_values(machine: MachineBatch, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The values judged against a limit of a solved segment's poses: front and rear axle loads,
-    steerability margin, lift reserve ((N,) each; NaN where not computed)."""
-    steer, capacity, missing = machine.steerability, machine.lift_capacity, np.full(size, math.nan)
-    return (steer.get("front_axle_load", missing), steer.get("rear_axle_load", missing), steer.get("margin", missing),
-            capacity.get("reserve", missing))
-
-
-def _segment_checks(batch: BatchResult, machine: MachineBatch) -> np.ndarray:
-    """``pose_checks`` of every pose of a solved segment at once ((N,) ints; a failed pose's NaN
-    values pass every check, and its verdict is worded from its status)."""
-    return np.asarray(pose_checks(CheckedValues(
-        batch.status == Status.LIFT_OFF, batch.consistency_residual, batch.residual, batch.largest_force,
-        *_limit_values(machine, len(batch)))))
