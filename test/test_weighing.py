@@ -1,7 +1,7 @@
 """The weighing estimator on simulated work whose truth it does not see (monitoring.weighing).
 
 Oracle: the simulator (``sim.work_cycle``), which solves the statics with the true implement's
-mass and cg in the mechanism (``sim.telemetry.Plant``), not with the estimator's force model.
+mass and cg in the mechanism (``sim.plant.Plant``), not with the estimator's force model.
 Without friction and noise the model is exact (virtual work: the force is linear in the weight
 and the cg's offset), so the estimate is the truth up to the force table's interpolation.
 """

@@ -29,8 +29,9 @@ from linkage_monitor.mechanics.implements import ImplementFile, Tolerances
 from linkage_monitor.mechanics.implements import with_implement as hang_implement
 
 from .friction import SealFriction
+from .plant import Plant, chamber_pressure
 from .road import BodyMotion, ImuNoise, ImuReadings, Road
-from .telemetry import GroundTruth, Noise, Plant, SimulatedStream, chamber_pressure
+from .stream import GroundTruth, Noise, SimulatedStream
 
 DEFAULT_WHEELBASE = 2.5   # m, when the mechanism has no tractor block
 CONTACT_TRAVEL = 0.005    # m of cylinder travel over which the implement leaves the ground
