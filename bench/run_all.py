@@ -19,7 +19,7 @@ def main() -> int:
             ["bench_bag.py"], ["bench_replay.py"], ["bench_replay_process.py"], ["bench_spin.py"],
             ["bench_fleet.py"], ["bench_can.py"], ["bench_uncertainty_mc.py"], ["bench_uncertainty_coverage.py"],
             ["bench_uncertainty_step.py"],
-            ["bench_weighing.py"],
+            ["bench_weighing.py"], ["bench_dynamics.py"],
             ["bench_node.py", "--soak-minutes", "10"] if full else ["bench_node.py", "--quick"]]
     failed = 0
     for args in runs:

@@ -11,7 +11,8 @@ The truth the estimator does not see: the implement's mass and cg (``ImplementTr
 copy of the mechanism), an optional change of its mass mid-run (``LoadChange``: coupling,
 filling; at the same cg), the seal friction (``sim.friction``), the pressure sensors'
 calibration errors (``PressureErrors``: a gain and an offset per run, on top of the noise) and
-the implement's vertical acceleration. The cylinder's force is the statics' for the
+the implement's vertical acceleration, the body's (``mechanics.dynamics.BodyAcceleration``: at the
+rear axle and the pitch's). The IMU sits on the body at x = ``imu_x``. The cylinder's force is the statics' for the
 implement's load W·(1 + a/g) (the links' own inertia neglected) plus the friction. Units SI;
 frame x forward, z up, origin at the rear wheels' ground contact.
 """
@@ -25,6 +26,7 @@ import numpy as np
 
 from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.mechanics.constants import STANDARD_GRAVITY
+from linkage_monitor.mechanics.dynamics import BodyAcceleration
 from linkage_monitor.mechanics.implements import ImplementFile, Tolerances
 from linkage_monitor.mechanics.implements import with_implement as hang_implement
 
@@ -82,12 +84,13 @@ class PressureErrors:
 
 @dataclass(frozen=True)
 class WorkTruth:
-    """Per sample: the implement's mass (kg), its vertical acceleration (m/s², + up), the seal
-    friction (N), the phase; the cg (m, reference pose), the index of the first sample after the
+    """Per sample: the implement's mass (kg), its vertical acceleration (m/s², + up), the body's
+    (vertical at the rear axle, m/s², and pitch, rad/s², nose up), the seal friction (N), the phase; the cg (m, reference pose), the index of the first sample after the
     mass change (None without one), the pressure errors applied."""
 
     mass: np.ndarray
     acceleration: np.ndarray
+    body: BodyAcceleration
     friction: np.ndarray
     phase: np.ndarray
     cg: tuple[float, float]
@@ -134,7 +137,7 @@ def simulate_work(mechanism: Mechanism, implement: ImplementTruth, duration_s: f
                   cycle: WorkCycle = WorkCycle(), friction: SealFriction = SealFriction(),
                   road: Road | None = Road(), noise: Noise = Noise(), imu_noise: ImuNoise = ImuNoise(),
                   pressure_errors: PressureErrors = PressureErrors(), change: LoadChange | None = None,
-                  seed: int = 0) -> WorkRun:
+                  seed: int = 0, imu_x: float = 0.0) -> WorkRun:
     """Simulate ``duration_s`` s of work cycles of ``mechanism`` carrying ``implement`` (module docstring)."""
     if not (math.isfinite(duration_s) and duration_s > 0.0 and math.isfinite(rate_hz) and rate_hz > 0.0):
         raise ValueError(f"duration {duration_s} s and rate {rate_hz} Hz must be positive numbers")
@@ -159,11 +162,13 @@ def simulate_work(mechanism: Mechanism, implement: ImplementTruth, duration_s: f
                          [1.0, cycle.headland_bounce], 0.0)
     imu = None
     accel = np.zeros(n)
+    body = BodyAcceleration(np.zeros(n), np.zeros(n))
     if road is not None:
         motion = BodyMotion(road, wheelbase, cg_x, rng_road)
         motion.scale_to_peak(t)
         accel = envelope * motion.vertical_acceleration(t, cg_x)
-        imu_raw = motion.imu(t, stamps, 0.0, ImuNoise(0.0, 0.0), rng_noise)
+        body = BodyAcceleration(envelope * motion.vertical_acceleration(t, 0.0), envelope * motion.pitch(t, 2))
+        imu_raw = motion.imu(t, stamps, imu_x, ImuNoise(0.0, 0.0), rng_noise)
         rest = np.array([0.0, 0.0, STANDARD_GRAVITY])
         imu = ImuReadings(stamps_ns=stamps,
                           linear_acceleration=rest + envelope[:, None] * (imu_raw.linear_acceleration - rest)
@@ -199,6 +204,6 @@ def simulate_work(mechanism: Mechanism, implement: ImplementTruth, duration_s: f
                           implement_cg=poses.implement_cg, phase=phase, steerability_margin=nan,
                           largest_steerable_load=math.nan, overload_index=None))
     return WorkRun(stream=stream, imu=imu,
-                   truth=WorkTruth(mass=mass, acceleration=accel, friction=seal, phase=phase,
+                   truth=WorkTruth(mass=mass, acceleration=accel, body=body, friction=seal, phase=phase,
                                    cg=(float(implement.cg[0]), float(implement.cg[1])), change_index=change_index,
                                    pressure_errors=pressure_errors))

@@ -1,0 +1,145 @@
+"""Steerability on the road: the dynamic margin against the simulator's truth, the static one with and
+without bumps (docs/dynamics.md).
+
+belarus_1221 (the preset with a ``tractor`` block) carries ``--runs`` random implements (mass
+uniform 200-2,500 kg, the cg up to ±0.3 m along x and ±0.2 m along z from the file's, known to the
+monitor: the machine-level results use the implement's file or the weighing's estimate) through
+ordinary work cycles (``sim.work_cycle``) at ``--rate`` Hz for 60 s, on a road at 3-8 m/s that
+bounces the implement by up to ±0.3 g in transport; the IMU over the rear axle, at mid-wheelbase and
+over the front axle in turn (the pitch acceleration, lagged and noisy, counts with the distance
+from the IMU to the body whose inertia it gives), with the simulator's noise (0.05 m/s²,
+0.005 rad/s), the pressure sensors with 0.02 MPa noise, the stroke 0.2 mm and the angle
+0.5 mrad; no seal friction (the weighing's matter, bench_weighing.py). The monitor's side: the
+solver's poses of the noisy inputs, the IMU's body acceleration (``mechanics.dynamics``: the gyro
+differentiated over ``PITCH_WINDOW``), ``road_balance``. The truth, from the simulator's true body
+motion and implement mass: the unit at rest (the solver at the true lengths with the implement's
+weight), and d'Alembert's inertia forces added by the unit's moment balance about B (the oracle of
+test/test_machine_dynamics.py, written out here again on purpose: the truth must not come from the
+code under test).
+
+Printed per IMU place: the RMS error of the dynamic margin against the truth over all solved steps
+and over the transport, the worst run's, and the static margin's RMS error against the rest truth
+with the bumps; then the static margin's error on the same runs without a road (goal: the same) and
+with the bumps without the IMU's correction (the pressures carry the implement's inertia); the
+truth's dynamic dips (its lowest margin minus the static one). Goal: dynamic margin RMS error ≤ 0.01.
+
+Run: ``.venv/bin/python bench/bench_dynamics.py [--runs 10] [--rate 400]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from linkage_monitor.mechanics import Mechanism, Solver, load_preset  # noqa: E402
+from linkage_monitor.mechanics.dynamics import (BodyAcceleration, PitchAcceleration, imu_body_acceleration,  # noqa: E402
+                                                road_balance)
+from linkage_monitor.mechanics.kernels import STEERABILITY_COLUMNS  # noqa: E402
+from linkage_monitor.sim.friction import SealFriction  # noqa: E402
+from linkage_monitor.sim.road import Road  # noqa: E402
+from linkage_monitor.sim.telemetry import Noise  # noqa: E402
+from linkage_monitor.sim.work_cycle import ImplementTruth, WorkRun, simulate_work, with_implement  # noqa: E402
+
+NOISE = Noise(angle=0.0005, length=0.0002, pressure=2e4)
+DURATION = 60.0
+MARGIN = STEERABILITY_COLUMNS.index("margin")
+
+
+def _truth(mech: Mechanism, run: WorkRun) -> tuple[np.ndarray, np.ndarray]:
+    """The true static margin at rest and dynamic margin (N,): the tractor's free body with the
+    linkage's true forces (the true pressures: the implement's weight, its inertia, the ground's
+    support) and the unit's balance about B with the inertia forces (test/test_machine_dynamics.py's
+    oracle): the implement's true inertia m_6·a_6 taken out of the rest, the tractor's (J = m·a·b)
+    and the ballast's added to the dynamic, from the simulator's true motion and mass."""
+    truth, body = run.stream.truth, run.truth.body
+    solved = Solver(mech).solve_batch(cylinders=dict(zip(run.stream.cylinder_names, truth.cylinder_lengths.T)),
+                                      angles=dict(zip(run.stream.angle_names, truth.angles.T)),
+                                      pressures=dict(zip(run.stream.pressure_names, truth.pressures.T)))
+    nan = np.full(len(solved), np.nan)
+    steer = _rows(mech, solved, BodyAcceleration(nan, nan)).static   # the linkage's true forces, no correction
+    t, g = mech.tractor, mech.gravity
+    L, x_tr, r = t.wheelbase, float(t.cg[0]), t.ratio_min
+    x6, inertia = solved.implement_cg[:, 0], run.truth.mass * run.truth.acceleration
+    front = steer[:, STEERABILITY_COLUMNS.index("front_axle_load")]
+    total = steer[:, STEERABILITY_COLUMNS.index("total_weight")] - inertia
+    rest = front - inertia * x6 / L
+    dynamic = front + (t.mass * body.at(x_tr) * x_tr + t.mass * x_tr * (L - x_tr) * body.pitch
+                       + t.front_ballast.mass * body.at(t.front_ballast.x) * t.front_ballast.x) / L
+    return rest / total - r, dynamic / total - r
+
+
+def _rows(mech: Mechanism, batch, body: BodyAcceleration):
+    return road_balance(mech.tractor, mech.gravity, batch.frame_load_points, batch.frame_load_forces,
+                        batch.implement_load, batch.implement_cg[:, 0], body)
+
+
+def _run(base: Mechanism, seed: int, rate: float, places: dict[str, float]) -> dict[str, float]:
+    """One implement on one road: the errors (RMS over the run) with the IMU at each of ``places`` (m)."""
+    rng = np.random.default_rng([seed, 4903])
+    ref = np.asarray(base.implement.cg)
+    implement = ImplementTruth(mass=float(rng.uniform(200.0, 2500.0)),
+                               cg=(float(ref[0] + rng.uniform(-0.3, 0.3)), float(ref[1] + rng.uniform(-0.2, 0.2))))
+    road = Road(speed=float(rng.uniform(3.0, 8.0)))
+    mech = with_implement(base, implement)
+    smooth = simulate_work(base, implement, DURATION, rate, friction=SealFriction(share=0.0), road=None, noise=NOISE,
+                           seed=seed)
+    batch = Solver(mech).solve_batch(**smooth.stream.solver_inputs())
+    static_truth = _truth(mech, smooth)[0]
+    nan = np.full(len(batch), np.nan)
+    static = _rows(mech, batch, BodyAcceleration(nan, nan)).static[:, MARGIN]
+    out = {"static smooth": math.sqrt(np.nanmean((static - static_truth) ** 2))}
+    for place, imu_x in places.items():
+        run = simulate_work(base, implement, DURATION, rate, friction=SealFriction(share=0.0), road=road,
+                            noise=NOISE, seed=seed, imu_x=imu_x)
+        assert run.imu is not None
+        batch = Solver(mech).solve_batch(**run.stream.solver_inputs())
+        static_truth, dynamic_truth = _truth(mech, run)
+        imu = run.imu
+        pitch = PitchAcceleration().series(imu.stamps_ns, imu.angular_velocity[:, 1])
+        found = _rows(mech, batch, imu_body_acceleration(imu.linear_acceleration[:, 2], pitch, imu_x))
+        plain = _rows(mech, batch, BodyAcceleration(nan, nan)).static[:, MARGIN]
+        ok = np.isfinite(found.dynamic[:, 3])
+        transport = ok & (run.truth.phase == "transport")
+        dyn_err = found.dynamic[:, 3] - dynamic_truth
+        out[f"{place} dynamic"] = math.sqrt(np.mean(dyn_err[ok] ** 2))
+        out[f"{place} dynamic transport"] = math.sqrt(np.mean(dyn_err[transport] ** 2))
+        out[f"{place} static"] = math.sqrt(np.mean((found.static[ok, MARGIN] - static_truth[ok]) ** 2))
+        out["static bumps, no IMU"] = math.sqrt(np.mean((plain[ok] - static_truth[ok]) ** 2))
+        out["dip"] = float(np.min(dynamic_truth - static_truth))
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=10)
+    parser.add_argument("--rate", type=float, default=400.0, help="sensor and IMU rate, Hz (default 400, the node's)")
+    args = parser.parse_args()
+    base = load_preset("belarus_1221")
+    wheelbase = base.tractor.wheelbase
+    places = {"rear axle": 0.0, "mid-wheelbase": 0.5 * wheelbase, "front axle": wheelbase}
+    runs = [_run(base, seed, args.rate, places) for seed in range(args.runs)]
+
+    def rms(key: str) -> float:
+        return math.sqrt(np.mean([r[key] ** 2 for r in runs]))
+
+    print(f"belarus_1221: {args.runs} runs of {DURATION:.0f} s at {args.rate:.0f} Hz, implement bounced ±0.3 g "
+          "in transport")
+    print(f"{'IMU at':<24} {'dynamic margin RMS error':>25} {'in transport':>13} {'worst run':>10} "
+          f"{'static margin RMS error':>24}")
+    for place, imu_x in places.items():
+        print(f"{place + f' ({imu_x:.2f} m)':<24} {rms(place + ' dynamic'):25.4f} "
+              f"{rms(place + ' dynamic transport'):13.4f} {max(r[place + ' dynamic'] for r in runs):10.4f} "
+              f"{rms(place + ' static'):24.4f}")
+    print(f"goal: dynamic <= 0.01. Static margin's RMS error without a road {rms('static smooth'):.4f}; "
+          f"with the bumps and without the IMU's correction {rms('static bumps, no IMU'):.4f}")
+    print(f"the truth's dynamic dips below the static margin: median {np.median([r['dip'] for r in runs]):.4f}, "
+          f"deepest {min(r['dip'] for r in runs):.4f}")
+
+
+if __name__ == "__main__":
+    main()
