@@ -174,11 +174,13 @@ HITCH_STATE = "linkage_monitor/msg/HitchState"
 
 
 def test_a_message_recorded_with_another_definition_reads_by_it(tmp_path: Path, caplog) -> None:
-    """A HitchState recorded with a definition that lacks `min_transmission_angle` (the installed
-    definition with that line taken out), written by rosbags' writer, whose schema record carries
+    """A HitchState recorded with a definition that lacks `min_transmission_angle`, the standard
+    uncertainties and the weighing (the installed definition with those lines taken out: as a bag
+    recorded before they were added), written by rosbags' writer, whose schema record carries
     that definition: read_bag decodes it by the recorded definition into the installed class —
-    every field the recording has equal to what was written, `min_transmission_angle` NaN (not
-    known) — and says once in the log which field the recording lacks."""
+    every field the recording has equal to what was written, the float fields it lacks NaN (not
+    known: the nested CylinderState's `force_u` too), the others their defaults (weighing_phase
+    WEIGHING_OFF) — and says once in the log which fields the recording lacks."""
     import math
     import re
 
@@ -188,7 +190,9 @@ def test_a_message_recorded_with_another_definition_reads_by_it(tmp_path: Path, 
     from linkage_monitor.wire.definitions import message_definition
 
     installed = message_definition(HITCH_STATE)
-    older = re.sub(r"^float64 min_transmission_angle .*\n", "", installed, flags=re.M)
+    later = (r"float64 min_transmission_angle|float64 \w+_u|float64 implement_\w+_estimate\w*|"
+             r"uint8 weighing_phase|bool weighing_confident|uint8 implement_mass_in_use|uint8 (?:WEIGHING|MASS_FROM)_\w+=")
+    older = re.sub(rf"^(?:{later})\b.*\n", "", installed, flags=re.M)
     assert older != installed
     store = get_typestore(Stores.EMPTY)
     store.register(get_types_from_msg(older, HITCH_STATE))
@@ -211,16 +215,25 @@ def test_a_message_recorded_with_another_definition_reads_by_it(tmp_path: Path, 
     assert len(rows) == 1
     topic, type_name, stamp, _, msg = rows[0]
     assert (topic, type_name, stamp) == ("/hitch_state", HITCH_STATE, T0 + 5) and isinstance(msg, HitchState)
-    for name in HitchState.get_fields_and_field_types():
-        if name not in ("header", "cylinders", "min_transmission_angle"):
+    lacking = [name for name in HitchState.get_fields_and_field_types() if not hasattr(written, name)]
+    assert "min_transmission_angle" in lacking and "implement_load_u" in lacking and "weighing_phase" in lacking
+    for name, kind in HitchState.get_fields_and_field_types().items():
+        if name in ("header", "cylinders"):
+            continue
+        if name not in lacking:
             assert getattr(msg, name) == getattr(written, name), name
+        elif kind == "double":
+            assert math.isnan(getattr(msg, name)), name
+        else:
+            assert getattr(msg, name) in (0, False), name
+    assert msg.weighing_phase == HitchState.WEIGHING_OFF
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id) == (T0 // 10**9, 5, "base_footprint")
     [c] = msg.cylinders
     assert (c.name, c.length, c.force, c.cap_pressure_measured, c.cap_pressure_predicted) == (
         "lift_cylinder", 0.6, 1.2e5, 1.0e7, 1.01e7) and math.isnan(c.rod_pressure_measured)
-    assert math.isnan(msg.min_transmission_angle)
+    assert math.isnan(c.force_u)
     said = [r.getMessage() for r in caplog.records if "another definition" in r.getMessage()]
-    assert len(said) == 1 and "lacks min_transmission_angle" in said[0], caplog.text
+    assert len(said) == 1 and all(name in said[0].partition("lacks ")[2] for name in lacking), caplog.text
 
 
 def test_every_recorded_output_of_the_bundled_bag_reads() -> None:

@@ -158,3 +158,49 @@ def test_the_smallest_transmission_angle_in_hitch_state_and_the_diagnostic():
     msg = deserialize_message(OutputEncoder().outputs(monitor, step).hitch_state, HitchState)
     assert math.isnan(msg.min_transmission_angle)
     assert "min transmission angle [rad]" not in step.values and "weakest transmission" not in step.values
+
+
+def test_standard_uncertainties_and_the_weighing_as_rclpy_builds_them():
+    """With the error budget and the weighing on (``uncertainty``, ``implement_mass_source``): every
+    ``*_u`` field is the standard uncertainty (1 sigma) of the step's budget (mechanics.uncertainty,
+    the oracle's ``Budget.u_of`` by output name), HitchState's weighing fields the step's
+    ``WeighingState``; one step at a time and all at once, the same bytes. A simulated work cycle of
+    belarus_1221 (sim.work_cycle: lifts, lowers, transport, 4 % seal friction) gives an estimate,
+    its phases and the estimate put in use; with both off, the fields are NaN and the phase OFF."""
+    from linkage_monitor.sim.friction import SealFriction
+    from linkage_monitor.sim.work_cycle import ImplementTruth, WorkCycle, simulate_work
+
+    mech = load_preset("belarus_1221")
+    cycle = WorkCycle(work_s=2.0, transport_s=4.0)
+    run = simulate_work(mech, ImplementTruth(mass=1200.0, cg=mech.implement.cg), duration_s=2 * cycle.period,
+                        cycle=cycle, friction=SealFriction(share=0.04), road=None,
+                        noise=Noise(angle=0.0005, length=0.0002, pressure=2e4), seed=3)
+    stream = run.stream
+    base = _monitor(mech)
+    config = MonitorConfig(**{**base.config.__dict__, "uncertainty": True, "implement_mass_source": "estimate"})
+    monitor, encoder, steps = Monitor(mech, config), OutputEncoder(), []
+    for i, stamp in enumerate((stream.stamps_ns + 1_700_000_000_000_000_000).tolist()[::4]):
+        k = 4 * i
+        steps.append(monitor.on_pressure("/pressure/lift_cap_pressure", float(stream.pressure_values[k, 0]), stamp,
+                                         stamp))
+        steps.append(monitor.on_joint_state(list(stream.joint_names), stream.joint_positions[k].tolist(), [], stamp,
+                                            stamp))
+        _check(monitor, encoder, steps[-2])
+        _check(monitor, encoder, steps[-1])
+    solved = [s for s in steps if s.pose is not None]
+    assert solved and all(s.pose.budget is not None and s.weighing is not None for s in solved)
+    last = deserialize_message(encoder.outputs(monitor, solved[-1]).hitch_state, HitchState)
+    assert last.implement_mass_estimate > 0.0 and last.implement_mass_estimate_u > 0.0
+    assert last.implement_load_u > 0.0 and last.cylinders[0].force_u > 0.0
+    phases = {deserialize_message(encoder.outputs(monitor, s).hitch_state, HitchState).weighing_phase for s in solved}
+    assert {HitchState.WEIGHING_LIFTING, HitchState.WEIGHING_LOWERING} <= phases, phases
+    assert any(s.weighing.estimate_in_use for s in solved)
+    assert per_step(OutputEncoder().output_rows(monitor, steps), len(steps)) == [encoder.outputs(monitor, s)
+                                                                                 for s in steps]
+    base.on_pressure("/pressure/lift_cap_pressure", float(stream.pressure_values[0, 0]), 1_700_000_000_000_000_000,
+                     1_700_000_000_000_000_000)
+    off = deserialize_message(OutputEncoder().outputs(base, base.on_joint_state(
+        list(stream.joint_names), stream.joint_positions[0].tolist(), [], 1_700_000_000_000_000_000,
+        1_700_000_000_000_000_000)).hitch_state, HitchState)
+    assert math.isnan(off.implement_load_u) and math.isnan(off.implement_mass_estimate)
+    assert off.weighing_phase == HitchState.WEIGHING_OFF

@@ -28,6 +28,10 @@ from .checks import Check
 from .findings import Code, Finding, fmt
 
 COVERAGE_FACTOR = 1.96   # the 95 % interval's half-width in standard uncertainties
+# the diagnostic's standard uncertainties (with MonitorConfig.uncertainty): label, budget output, unit
+UNCERTAINTY_KEYS = (("implement load", "implement_load", "N"), ("steerability margin", "steerability_margin", "-"),
+                    ("front axle load", "front_axle_load", "N"), ("rear axle load", "rear_axle_load", "N"),
+                    ("lift reserve", "lift_reserve", "-"))
 MOTION_DEADBAND_M = 1e-4   # m: the least change of a cylinder's length between two solves that is motion
 MOTION_DEADBAND_SIGMAS = 3.0   # ... or this many standard deviations of the change its noise makes
 
@@ -106,6 +110,16 @@ def _dominant(budget: Budget, output: str) -> str:
     if not math.isfinite(line.u):
         return "unbounded: the pose cannot be solved within the sources' errors"
     return f"dominant source {line.dominant} ({line.shares[line.dominant]:.0%})" if line.dominant else "no source"
+
+
+def uncertainty_values(budget: Budget) -> dict[str, str]:
+    """The diagnostic's key-values of a pose's budget: the standard uncertainty (1 sigma) of each value
+    judged against a limit (``nan`` where the mechanism has no such value) and, where it has, its
+    dominant source, worded as the findings word it."""
+    values = {f"{label} standard uncertainty [{unit}]": fmt(budget.u_of(name)) for label, name, unit in UNCERTAINTY_KEYS}
+    values.update({f"{label} uncertainty": _dominant(budget, name) for label, name, _ in UNCERTAINTY_KEYS
+                   if name in budget.index})
+    return values
 
 
 def _interval(budget: Budget, output: str, digits: str) -> str:

@@ -107,6 +107,7 @@ class Monitor:
         for step in steps:
             if weighing is not None and step is not None and step.pose is not None:
                 weighing.observe(step.stamp_ns, step.pose.result)
+                step.weighing = weighing.state()
                 finding = weighing.finding()
                 if finding is not None:
                     step.findings += (finding,)

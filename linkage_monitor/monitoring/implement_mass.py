@@ -17,13 +17,14 @@ mechanism's reference pose, frame x forward, z up, origin at the rear wheels' gr
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import NamedTuple
 
 from linkage_monitor.mechanics import Mechanism, MechanismFileError, Result, apply_overrides
 from linkage_monitor.mechanics.implements import ImplementFile, Tolerances, load_implement, with_implement
 
 from .config import IMPLEMENT_MASS_SOURCES, MonitorConfig
 from .findings import Code, Finding, fmt
-from .weighing import WeighingEstimate, WeighingEstimator, WeighingSettings
+from .weighing import WeighingEstimate, WeighingEstimator, WeighingPhase, WeighingSettings
 from .weighing_fit import Priors
 
 CONFIDENT_SHARE = 0.05   # confident: the mass's 95 % half-interval within this share of the mass (-)
@@ -36,6 +37,18 @@ def confident(estimate: WeighingEstimate | None) -> bool:
     mass, from CONFIDENT_PAIRS pairs or more."""
     return (estimate is not None and estimate.pairs >= CONFIDENT_PAIRS
             and 1.96 * estimate.mass_u <= CONFIDENT_SHARE * estimate.mass)
+
+
+class WeighingState(NamedTuple):
+    """The weighing as one step left it (published with the step: HitchState, /diagnostics, Rerun):
+    the step's ``phase``, the ``estimate`` after it (None before the first lift/lower pair), whether
+    that is ``confident``, and whether the machine-level results of the step used an estimate
+    (``estimate_in_use``; else the file's mass and cg). Units SI (kg, m)."""
+
+    phase: WeighingPhase
+    estimate: WeighingEstimate | None
+    confident: bool
+    estimate_in_use: bool
 
 
 def with_estimate(mechanism: Mechanism, estimate: WeighingEstimate) -> Mechanism:
@@ -74,6 +87,8 @@ class ImplementMass:
         self.last_stamp_ns = 0   # of the last step observed
         self._changes = 0
         self._fits = 0
+        self._state_fit = 0   # the fit ``state``'s estimate is of (none before the first)
+        self._state_estimate: tuple[WeighingEstimate | None, bool] = (None, False)
 
     def observe(self, stamp_ns: int, result: Result) -> None:
         """One solved step, in input order."""
@@ -82,6 +97,15 @@ class ImplementMass:
         if len(self.estimator.changes) != self._changes:
             self._changes = len(self.estimator.changes)
             self.stale, self.in_use = True, None
+
+    def state(self) -> WeighingState:
+        """The weighing after the last step observed, that step's results computed with ``in_use``."""
+        estimator = self.estimator
+        if self._state_fit != estimator.fits:   # the estimate changes only with a new fit
+            estimate = estimator.estimate
+            self._state_fit, self._state_estimate = estimator.fits, (estimate, confident(estimate))
+        estimate, sure = self._state_estimate
+        return WeighingState(estimator.phase, estimate, sure, self.in_use is not None)
 
     def final_estimate(self) -> WeighingEstimate | None:
         """The estimate at the end of the data (the stroke under way closed)."""
@@ -119,6 +143,30 @@ class ImplementMass:
             f"implement changed: its load moved {change.relative_change * 100:+.1f} % at "
             f"{fmt(change.stamp_ns * 1e-9)} s; the machine-level results use the mass from before until the "
             "weighing is confident again (a lift and a lower)"))
+
+
+def weighing_values(state: WeighingState) -> dict[str, str]:
+    """The diagnostic's key-values of a step's weighing (kg, m; the cg in the mechanism's reference pose,
+    x forward, z up): its phase, the estimate with its standard uncertainties (1 sigma), whether it is
+    confident, and which mass the step's machine-level results use."""
+    values = {"weighing phase": state.phase.value,
+              "implement mass in use": "weighing estimate" if state.estimate_in_use else "file"}
+    e = state.estimate
+    if e is None:
+        values["implement mass estimate"] = "none yet (no lift/lower pair over the same poses)"
+        return values
+    values["implement mass estimate [kg]"] = fmt(e.mass)
+    values["implement mass standard uncertainty [kg]"] = fmt(e.mass_u)
+    for axis, value, u, found in (("x", e.cg_x, e.cg_x_u, e.cg_x_identified), ("z", e.cg_z, e.cg_z_u, e.cg_z_identified)):
+        if found:
+            values[f"implement cg {axis} estimate [m]"] = fmt(value)
+            values[f"implement cg {axis} standard uncertainty [m]"] = fmt(u)
+        else:
+            values[f"implement cg {axis} estimate"] = "not identified by these strokes"
+    values["weighing confident"] = ("yes" if state.confident else
+                                    f"no (the 95 % mass interval within {CONFIDENT_SHARE:.0%} of the mass from "
+                                    f"{CONFIDENT_PAIRS} lift/lower pairs or more: not yet)")
+    return values
 
 
 def effective_mechanism(description: Mechanism, config: MonitorConfig, running: ImplementMass | None

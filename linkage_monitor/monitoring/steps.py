@@ -17,13 +17,11 @@ from linkage_monitor.mechanics.error_sources import Motion
 from linkage_monitor.mechanics.machine import MachineBatch, MachineResult
 from linkage_monitor.mechanics.uncertainty import Budget
 
+from .bounds import uncertainty_values
 from .config import MonitorConfig
 from .findings import Finding, Level, fmt
+from .implement_mass import WeighingState, weighing_values
 
-# the diagnostic's standard uncertainties (with MonitorConfig.uncertainty): label, budget output, unit
-UNCERTAINTY_KEYS = (("implement load", "implement_load", "N"), ("steerability margin", "steerability_margin", "-"),
-                    ("front axle load", "front_axle_load", "N"), ("rear axle load", "rear_axle_load", "N"),
-                    ("lift reserve", "lift_reserve", "-"))
 MESSAGE_JOIN = " | "  # between the sentences of several findings of one step
 NO_FINDINGS = "ok"    # the message of a step without findings
 
@@ -50,6 +48,7 @@ class Step:
     findings: tuple[Finding, ...] = ()
     pose: Pose | None = None
     inputs: Inputs | None = None   # what was solved (None when no solve was due)
+    weighing: WeighingState | None = None   # the weighing after this step (a solved step, with the estimator on)
 
     @cached_property
     def values(self) -> dict[str, str]:
@@ -79,9 +78,9 @@ class Step:
             if result.weakest_transmission:
                 values["weakest transmission"] = result.weakest_transmission
             if self.pose.budget is not None:   # standard uncertainties (1 sigma) of the judged values
-                budget = self.pose.budget
-                values.update({f"{label} standard uncertainty [{unit}]": fmt(budget.u_of(name))
-                               for label, name, unit in UNCERTAINTY_KEYS})
+                values.update(uncertainty_values(self.pose.budget))
+        if self.weighing is not None:
+            values.update(weighing_values(self.weighing))
         return values
 
     @property

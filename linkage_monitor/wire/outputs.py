@@ -8,6 +8,12 @@ status texts, so ``OutputEncoder`` lays it out once per status text (``wire.temp
 the numbers of each pose in — of one pose (the node) or of a whole recording's poses at once (the
 replay), the same bytes.
 
+With the error budget on (``MonitorConfig.uncertainty``) the ``*_u`` fields carry each value's
+standard uncertainty (1 sigma, ``Pose.budget``); with the weighing on (``implement_mass_source``
+other than ``file``) HitchState carries its estimate and state (``Step.weighing``). Both are
+columns after the value row's (``_extra_row``); when they are off the fields are NaN (and the
+weighing's state fields zero) in the template itself: nothing is added to the default step.
+
 Units SI (m, N, Pa, kg); frame x forward, z up, origin at the rear wheels' ground contact.
 Every output carries the header stamp of the triggering input, never wall-clock time.
 """
@@ -26,6 +32,7 @@ from linkage_monitor.mechanics.programs import ROW_SCALARS, ValueRow
 from linkage_monitor.mechanics.results import CylinderResult
 from linkage_monitor.monitoring.core import NO_FINDINGS, Monitor, Pose, Step
 from linkage_monitor.monitoring.findings import Code, Level
+from linkage_monitor.monitoring.implement_mass import WeighingState
 
 from .compose import STAMP, Column, Composer, Flag
 from .layout import constants
@@ -38,6 +45,17 @@ HINGE_REACTIONS, HITCH_STATE, STEERABILITY = ("linkage_monitor/msg/HingeReaction
 CAPACITY_FIELDS = {"lift_capacity_hitch_axis": "hitch_axis", "lift_capacity_610mm": "behind_610mm",
                    "lift_capacity_implement_cg": "implement_cg", "lift_reserve": "reserve"}
 # Steerability's float64 fields are MachineResult.steerability keys of the same names
+# the standard uncertainty fields (1 sigma) <- the error budget's outputs (mechanics.uncertainty.OutputTable)
+HITCH_UNCERTAINTIES = {"implement_load_u": "implement_load",
+                       "lift_capacity_hitch_axis_u": "lift_capacity.hitch_axis",
+                       "lift_capacity_610mm_u": "lift_capacity.behind_610mm",
+                       "lift_capacity_implement_cg_u": "lift_capacity.implement_cg", "lift_reserve_u": "lift_reserve"}
+STEERABILITY_UNCERTAINTIES = {"front_axle_load_u": "front_axle_load", "rear_axle_load_u": "rear_axle_load",
+                              "ratio_u": "steerability_ratio", "margin_u": "steerability_margin"}
+# HitchState's weighing estimate fields, in the order of ``weighing_row``'s columns
+WEIGHING_FIELDS = ("implement_mass_estimate", "implement_mass_estimate_u", "implement_cg_x_estimate",
+                   "implement_cg_x_estimate_u", "implement_cg_z_estimate", "implement_cg_z_estimate_u")
+_NO_ESTIMATE = (math.nan,) * len(WEIGHING_FIELDS)
 HINGE_TAIL, HITCH_TAIL = "status", "status_text"   # the first field of each message's varying tail
 
 
@@ -98,6 +116,27 @@ def steerability_reference(mech: Mechanism) -> int:
     return constants(STEERABILITY)["REFERENCE_TRACTOR" if reference == "tractor" else "REFERENCE_UNIT"]
 
 
+def weighing_row(state: WeighingState) -> tuple[float, ...]:
+    """HitchState's WEIGHING_FIELDS of a step's weighing (kg, m; NaN without an estimate, a cg
+    coordinate and its uncertainty NaN where the strokes do not identify it)."""
+    e = state.estimate
+    if e is None:
+        return _NO_ESTIMATE
+    x = (e.cg_x, e.cg_x_u) if e.cg_x_identified else (math.nan, math.nan)
+    z = (e.cg_z, e.cg_z_u) if e.cg_z_identified else (math.nan, math.nan)
+    return (e.mass, e.mass_u, *x, *z)
+
+
+def weighing_flags(state: WeighingState | None) -> tuple[int, int, int]:
+    """HitchState's weighing_phase, weighing_confident and implement_mass_in_use of a step's weighing
+    (None: the estimator is off, or the step was not solved)."""
+    c = constants(HITCH_STATE)
+    if state is None:
+        return c["WEIGHING_OFF"], 0, c["MASS_FROM_FILE"]
+    return (c["WEIGHING_" + state.phase.name], int(state.confident),
+            c["MASS_FROM_ESTIMATE" if state.estimate_in_use else "MASS_FROM_FILE"])
+
+
 class OutputEncoder:
     """Writes the three output messages of solved steps as CDR bytes.
 
@@ -112,21 +151,25 @@ class OutputEncoder:
     MAX_TEMPLATES = 64   # per message type: most steps share "ok"; texts with numbers in them are not kept long
 
     def __init__(self) -> None:
-        self._mechanism: Mechanism | None = None
+        self._machine: object | None = None   # the monitor's MachineModel laid out for (rebuilt with each configuration)
 
     def outputs(self, monitor: Monitor, step: Step) -> Outputs | None:
         """The serialized outputs of ``step`` (a step of ``monitor``), or None without a solved pose."""
         if step.pose is None:
             return None
-        if monitor.mechanism is not self._mechanism:
+        if monitor.machine is not self._machine:
             self._lay_out(monitor)
         pose, stamp = step.pose, step.stamp_ns
         result = pose.result
         source = pose.values if pose.values is not None else monitor.machine.value_rows([result], [pose.machine])[0]
+        flags: tuple[int, ...] = (hitch_status(step),)
+        if self._extra_width:   # the error budget or the weighing: off by default
+            source = np.concatenate([source, self._extra_row(step)])
+            flags += weighing_flags(step.weighing) if self._weighed else ()
         hinges = self._hinge_template(hinge_status(step, result, self._overdetermined))
         hitch = self._hitch_template(step.message)
         return Outputs(hinges.fill(stamp, source.take(hinges.columns)),
-                       hitch.fill(stamp, source.take(hitch.columns), (hitch_status(step),)),
+                       hitch.fill(stamp, source.take(hitch.columns), flags),
                        self._steerability.fill(stamp, source.take(self._steerability.columns)))
 
     def output_rows(self, monitor: Monitor, steps: Sequence[Step]) -> list[OutputRows]:
@@ -135,14 +178,17 @@ class OutputEncoder:
         solved = [k for k, step in enumerate(steps) if step.pose is not None]
         if not solved:
             return []
-        if monitor.mechanism is not self._mechanism:
+        if monitor.machine is not self._machine:
             self._lay_out(monitor)
         poses = [steps[k] for k in solved]
         results = [step.pose.result for step in poses]   # type: ignore[union-attr]  # solved: a pose each
         source = _value_rows(monitor, [step.pose for step in poses])  # type: ignore[misc]  # solved: a pose each
         stamps = np.array([step.stamp_ns for step in poses], dtype=np.int64)
         hinge_keys = [hinge_status(step, result, self._overdetermined) for step, result in zip(poses, results)]
-        flags = np.array([[hitch_status(step)] for step in poses], dtype=np.uint8)
+        if self._extra_width:
+            source = np.concatenate([source, np.stack([self._extra_row(step) for step in poses])], axis=1)
+        flags = np.array([(hitch_status(step), *weighing_flags(step.weighing)) if self._weighed
+                          else (hitch_status(step),) for step in poses], dtype=np.uint8)
         index = np.array(solved, dtype=np.intp)
         return [*_filled("hinge_reactions", self._hinge_template, hinge_keys, index, stamps, source),
                 *_filled("hitch_state", self._hitch_template, [step.message for step in poses], index, stamps, source,
@@ -155,10 +201,22 @@ class OutputEncoder:
         a ``Column`` of the poses' value rows (``mechanics.programs.ValueRow``), or NaN
         where the mechanism has no such value."""
         mech, machine = monitor.mechanism, monitor.machine
-        self._mechanism, self._overdetermined = mech, monitor.overdetermined
+        self._machine, self._overdetermined = machine, monitor.overdetermined
         n_h, n_c = len(mech.hinges), len(mech.cylinders)
         row = ValueRow.of(n_h, len(mech.points), n_c, len(machine.capacity_keys),
                           len(machine.steerability_keys))
+        # the extra columns after the value row: the budget's standard uncertainties, then the weighing's
+        outputs = monitor.uncertainty.outputs if monitor.uncertainty is not None else ()
+        self._n_budget, self._weighed = len(outputs), monitor.weighing is not None
+        self._extra_width = self._n_budget + len(WEIGHING_FIELDS) * self._weighed
+        budget_at = {o.name: row.width + k for k, o in enumerate(outputs)}
+
+        def u(output: str) -> Column | float:
+            """The standard uncertainty column of the budget output ``output`` (NaN: no budget, or none)."""
+            return Column(budget_at[output]) if output in budget_at else math.nan
+
+        weighing = ({f: Column(row.width + self._n_budget + k) for k, f in enumerate(WEIGHING_FIELDS)} if self._weighed
+                    else dict.fromkeys(WEIGHING_FIELDS, math.nan))
         residual, consistency, load, transmission = (Column(row.scalars + ROW_SCALARS.index(name)) for name in (
             "residual", "consistency_residual", "implement_load", "transmission_angle"))
         points = list(mech.points)
@@ -170,7 +228,9 @@ class OutputEncoder:
 
         hinges = [{"name": h.name, "on_body": h.bodies[1], "from_body": h.bodies[0],   # on: the second body
                    "fx": Column(row.hinge_force + 2 * k), "fz": Column(row.hinge_force + 2 * k + 1),
-                   "magnitude": Column(row.hinge_magnitude + k), "x": xz(h.point)[0], "z": xz(h.point)[1]}
+                   "magnitude": Column(row.hinge_magnitude + k), "fx_u": u(f"{h.name}.fx"),
+                   "fz_u": u(f"{h.name}.fz"), "magnitude_u": u(f"{h.name}.magnitude"),
+                   "x": xz(h.point)[0], "z": xz(h.point)[1]}
                   for k, h in enumerate(mech.hinges)]
         self._hinges = Template.of(Composer(strict=True).message(
             HINGE_REACTIONS, {"header": header, "mechanism": mech.name, "hinges": hinges}, stop=HINGE_TAIL))
@@ -178,7 +238,8 @@ class OutputEncoder:
         self._hinge_texts: dict[tuple[int, str], Template] = {}
 
         cylinders = [{"name": c.name, **{f: Column(row.cylinder_values + 5 * k + j)
-                                         for j, f in enumerate(CylinderResult._fields)}}
+                                         for j, f in enumerate(CylinderResult._fields)},
+                      "force_u": u(f"{c.name}.force")}
                      for k, c in enumerate(mech.cylinders)]
         hitch_point = mech.implement.hitch_point if mech.implement else None
         capacities = {f: Column(row.capacity + machine.capacity_keys.index(key)) if key in machine.capacity_keys
@@ -188,13 +249,25 @@ class OutputEncoder:
             "implement_load_estimated": int(monitor.estimates_load), "implement_cg_x": Column(row.implement_cg),
             "implement_cg_z": Column(row.implement_cg + 1),
             "hitch_axis_height": xz(hitch_point)[1] if hitch_point is not None else math.nan,
-            **capacities, "min_transmission_angle": transmission, "status": Flag(0)}, stop=HITCH_TAIL))
+            **capacities, **{f: u(output) for f, output in HITCH_UNCERTAINTIES.items()}, **weighing,
+            "weighing_phase": Flag(1), "weighing_confident": Flag(2), "implement_mass_in_use": Flag(3),
+            "min_transmission_angle": transmission, "status": Flag(0)}, stop=HITCH_TAIL))
         self._hitch_texts: dict[str, Template] = {}
 
         ratios = {f: Column(row.steerability + machine.steerability_keys.index(f)) if f in machine.steerability_keys
                   else math.nan for f in STEERABILITY_KEYS}
         self._steerability = Template.of(Composer(strict=True).message(
-            STEERABILITY, {"header": header, "reference": steerability_reference(mech), **ratios}))
+            STEERABILITY, {"header": header, "reference": steerability_reference(mech), **ratios,
+                           **{f: u(output) for f, output in STEERABILITY_UNCERTAINTIES.items()}}))
+
+    def _extra_row(self, step: Step) -> np.ndarray:
+        """The extra columns of a solved step (``_lay_out``): its budget's standard uncertainties (NaN
+        without a budget) and its weighing's ``weighing_row``."""
+        budget = step.pose.budget if step.pose is not None else None
+        parts = [budget.u if budget is not None else np.full(self._n_budget, math.nan)] if self._n_budget else []
+        if self._weighed:
+            parts.append(np.array(weighing_row(step.weighing) if step.weighing is not None else _NO_ESTIMATE))
+        return np.concatenate(parts)
 
     def _hinge_template(self, key: tuple[int, str]) -> Template:
         """HingeReactions with status, status_text = ``key`` and the residual slots."""

@@ -71,7 +71,8 @@ class Template:
     def fill_rows(self, stamps_ns: np.ndarray, values: np.ndarray, flags: np.ndarray | None = None) -> np.ndarray:
         """N messages at once: ``fill`` of each row, as an (N, len(data)) uint8 array. ``stamps_ns``
         (N,) int64 ns since the epoch (struct.error beyond int32 seconds, as ``fill``), ``values``
-        (N, len(slots)) in slot order, ``flags`` (N, len(flags)) uint8 (None: the template's)."""
+        (N, len(slots)) in slot order, ``flags`` (N, k) uint8 of the first k flags (None, and those after
+        k: the template's)."""
         n, size = len(stamps_ns), len(self.data)
         rows = np.empty((n, size), dtype=np.uint8)
         rows[:] = np.frombuffer(self.data, dtype=np.uint8)
@@ -85,7 +86,7 @@ class Template:
         words = rows[:, base:base + 8 * ((size - base) // 8)].view("<f8")   # every float64 is 8-aligned there
         words[:, self.slots] = values
         if flags is not None:
-            for k, offset in enumerate(self.flags):
+            for k, offset in enumerate(self.flags[:flags.shape[1]]):
                 rows[:, offset] = flags[:, k]
         return rows
 
