@@ -32,20 +32,11 @@ def node(ros, tmp_path):
     """A belarus_1221 node in a child process (recording into tmp_path/bags, reliable inputs,
     staleness 0.5 s, stamps accepted within an hour of the clock) and a test client here: yields (client, process, tmp_path). A node the test
     did not stop or kill itself must exit cleanly (code 0) on Ctrl-C."""
-    from support.ros_harness import MonitorClient, start_node, stop
+    from support.ros_harness import running_node
 
-    proc = start_node({"mechanism": "belarus_1221", "record_dir": str(tmp_path / "bags"),
-                       "sensor_qos": "reliable", "staleness_limit": 0.5, "stamp_tolerance": 3600.0},
-                      tmp_path / "node.log")
-    client = MonitorClient()
-    try:
-        client.wait_for_node()
+    with running_node({"mechanism": "belarus_1221", "record_dir": str(tmp_path / "bags"), "sensor_qos": "reliable",
+                       "staleness_limit": 0.5, "stamp_tolerance": 3600.0}, tmp_path / "node.log") as (client, proc):
         yield client, proc, tmp_path
-    finally:
-        client.close()
-        still_running = proc.poll() is None
-        code = stop(proc)
-        assert code == 0 or not still_running, f"node exit code {code}:\n" + (tmp_path / "node.log").read_text()
 
 
 @pytest.fixture
@@ -69,7 +60,7 @@ def tmpfs(tmp_path):
 # What starts ROS 2 processes or rclpy nodes: these fixtures, these names (the harness's, rclpy),
 # these command words (a node's module, ROS arguments), in a test or in a function of its module it calls
 ROS_FIXTURES = {"ros", "node"}
-ROS_NAMES = {"rclpy", "start_node", "start_simulator", "MonitorClient", "publish_samples", "can_sender",
+ROS_NAMES = {"rclpy", "start_node", "running_node", "start_simulator", "MonitorClient", "publish_samples", "can_sender",
              "launch", "colcon_smoke", "demo"}
 ROS_COMMANDS = ("ros2", "--ros-args", "launch", "linkage_monitor.ros.node", "linkage_monitor.sim.node",
                 "linkage_monitor.can.node")

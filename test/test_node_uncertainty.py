@@ -28,7 +28,7 @@ from linkage_monitor.sim.friction import SealFriction
 from linkage_monitor.sim.telemetry import Noise
 from linkage_monitor.sim.work_cycle import ImplementTruth, WorkCycle, simulate_work
 from support.lift_pose import lift_pose
-from support.ros_harness import MonitorClient, node_bag, read_bag_rosbags, settle, start_node, stop
+from support.ros_harness import node_bag, read_bag_rosbags, running_node, settle, stop
 
 T0 = (time.time_ns() // 10**9) * 10**9  # ns, now (whole s): the node refuses stamps far from its clock
 JOINTS = ["lift_cylinder", "lift_arm_angle"]
@@ -44,16 +44,10 @@ REL = 1e-6
 def budget_node(ros, tmp_path_factory):
     """A belarus_1221 node with the error budget and the weighing on, recording; (client, process, dir)."""
     tmp = tmp_path_factory.mktemp("budget_node")
-    proc = start_node({"mechanism": "belarus_1221", "record_dir": str(tmp / "bags"), "sensor_qos": "reliable",
+    with running_node({"mechanism": "belarus_1221", "record_dir": str(tmp / "bags"), "sensor_qos": "reliable",
                        "staleness_limit": 3600.0, "stamp_tolerance": 3600.0, "uncertainty": True,
-                       "implement_mass_source": "estimate"}, tmp / "node.log")
-    client = MonitorClient()
-    try:
-        client.wait_for_node()
+                       "implement_mass_source": "estimate"}, tmp / "node.log") as (client, proc):
         yield client, proc, tmp
-    finally:
-        client.close()
-        stop(proc)
 
 
 def _hitch_u(hitch) -> dict[str, float]:

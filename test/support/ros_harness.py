@@ -7,8 +7,9 @@ import signal
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
@@ -34,6 +35,23 @@ def start_node(params: dict[str, Any], log: Path) -> subprocess.Popen:
             value = "[" + ",".join(f"'{v}'" for v in value) + "]"
         args += ["-p", f"{name}:={value}"]
     return subprocess.Popen(args, stdout=log.open("w"), stderr=subprocess.STDOUT, env=dict(os.environ))
+
+
+@contextmanager
+def running_node(params: dict[str, Any], log: Path) -> Iterator[tuple["MonitorClient", subprocess.Popen]]:
+    """A node of ``params`` in a child process (``start_node``, its output in ``log``) and a test client
+    here, once the node is up. A node the caller did not stop or kill itself must exit cleanly (code 0)
+    on Ctrl-C."""
+    proc = start_node(params, log)
+    client = MonitorClient()
+    try:
+        client.wait_for_node()
+        yield client, proc
+    finally:
+        client.close()
+        still_running = proc.poll() is None
+        code = stop(proc)
+        assert code == 0 or not still_running, f"node exit code {code}:\n" + log.read_text()
 
 
 def stop(proc: subprocess.Popen, sig: int = signal.SIGINT, timeout: float = 20.0) -> int:
