@@ -2,10 +2,11 @@
 
 A lift cycle of the telemetry simulator, repeated, each JointState / FluidPressure message
 kept or damaged the way real sensors and buses fail: NaN/inf and absurd values, readings
-outside the plausibility limits, zero or subnormal pressures, duplicate or unknown joint
-names, array lengths that differ, stamps at zero, negative, or far from the clock — and the
-benign oddities a monitor must take as valid: angles reported in [0, 2π) or off by ±2π, extra
-unknown joints, inputs that cannot be assembled (a valid message whose pose is impossible).
+outside the plausibility limits, zero or subnormal pressures, a pressure in kPa sent as Pa
+(1000x too small), duplicate or unknown joint names, array lengths that differ, stamps at zero,
+negative, or far from the clock — and the benign oddities a monitor must take as valid: angles
+reported in [0, 2π) or off by ±2π, extra unknown joints, inputs that cannot be assembled (a
+valid message whose pose is impossible).
 Each message says whether it is malformed (must be refused with an ERROR) and how.
 Units SI (m, rad, Pa, ns).
 """
@@ -20,14 +21,15 @@ import numpy as np
 
 from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.mechanics.constants import ATMOSPHERIC_PRESSURE
-from linkage_monitor.mechanics.limits import Limit, input_limits
+from linkage_monitor.mechanics.limits import UNIT_SLIP, Limit, input_limits
 from linkage_monitor.monitoring.events import JointStateEvent, PressureEvent
 from linkage_monitor.sim.telemetry import Noise, simulate
 
 NS = 1_000_000_000
 JOINT_FAULTS = ("nan", "inf", "huge", "out_of_range", "duplicate", "unknown_only", "length_mismatch",
                 "zero_stamp", "negative_stamp", "future_stamp", "past_stamp", "velocity_nan")
-PRESSURE_FAULTS = ("nan", "negative_absolute", "zero", "subnormal", "huge", "zero_stamp", "future_stamp")
+PRESSURE_FAULTS = ("nan", "negative_absolute", "zero", "subnormal", "huge", "kpa_as_pa", "zero_stamp",
+                   "future_stamp")
 BENIGN = ("angle_plus_2pi", "angle_minus_2pi", "angle_0_2pi", "extra_unknown_joint", "unassemblable")
 
 
@@ -133,7 +135,8 @@ def _pressure(rng: np.random.Generator, rate: float, topic: str, absolute: float
     if rng.random() < rate:
         malformed = str(rng.choice(PRESSURE_FAULTS))
         absolute = {"nan": math.nan, "negative_absolute": -abs(absolute), "zero": 0.0, "subnormal": 5e-324,
-                    "huge": float(10.0 ** rng.uniform(12, 308))}.get(malformed, absolute)
+                    "huge": float(10.0 ** rng.uniform(12, 308)),
+                    "kpa_as_pa": absolute * UNIT_SLIP}.get(malformed, absolute)
         if malformed == "zero_stamp":
             stamp = 0
         elif malformed == "future_stamp":
