@@ -354,3 +354,75 @@ def test_live_bridge_refuses_two_sources(tmp_path: Path, ros: None, monkeypatch:
     findings = [s.message for m in bag_messages(bag, "/diagnostics") for s in m.status]
     assert any("0xF0 and 0x80 both send PGN 65093" in text for text in findings)
     assert len(bag_messages(bag, "/joint_states")) == 1   # the first frame's, before the second source was heard
+
+
+# ---- 5, live: the bridge's own bus flooded while it cannot read ------------------------------------------------
+@pytest.mark.slow
+@pytest.mark.ros
+def test_the_bridge_reports_the_frames_its_bus_dropped(ros: None, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A flood the bridge does not read fast enough (here: it is not spun while 3000 frames arrive into a 4 kB
+    receive buffer): before, it handled what reached it and said nothing of the rest; now the frames the
+    socket dropped are an ``inputs_lost`` WARN on /diagnostics naming the bus and how many, and the frame
+    count says "lost" and is WARN. The frames counted plus the frames lost are every frame sent."""
+    import json
+    import random
+
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+
+    from linkage_monitor.can.node import CanBridgeNode, CanSource
+    from linkage_monitor.can.sources import receive_buffer
+
+    chance = random.SystemRandom()
+    group = f"239.74.{chance.randint(0, 255)}.{chance.randint(1, 254)}"
+    port = chance.randint(20_000, 60_000)
+    monkeypatch.setenv("CAN_CONFIG", json.dumps({"port": port}))   # python-can's bus options, as the CLI gets them
+    bus = f"udp_multicast:{group}"
+    mapping = load_mapping(MAP)
+    bridge = CanBridgeNode(CanSource(mapping=mapping, dbc=mapping.dbc, bus=bus),
+                           parameter_overrides=[Parameter("mechanism", value="belarus_1221"),
+                                                Parameter("record", value=False)])
+    listener = rclpy.create_node("flood_listener")
+    statuses: list = []
+    listener.create_subscription(DiagnosticArray, "/diagnostics", lambda m: statuses.extend(m.status), 1000)
+    sender = can.Bus(interface="udp_multicast", channel=group, port=port)
+    executor = SingleThreadedExecutor()
+    executor.add_node(bridge)
+    executor.add_node(listener)
+    sent = 3000
+    try:
+        frames = bridge.input_source
+        assert frames.drops.known
+        receive_buffer(frames.bus, 4096)
+        for k in range(sent):
+            sender.send(can.Message(arbitration_id=HITCH_F0,
+                                    data=bytes([125, 0x40, 0xFF, 0xFF, 0xFF, 0x3F, 0, k % 256])))
+        time.sleep(0.2)
+        end = time.monotonic() + 30.0
+        while time.monotonic() < end and not _every_frame_accounted(statuses, sent):
+            executor.spin_once(timeout_sec=0.05)
+    finally:
+        sender.shutdown()
+        executor.shutdown()
+        bridge.close()
+        bridge.destroy_node()
+        listener.destroy_node()
+    lost = [s for s in statuses if "inputs_lost" in {kv.value for kv in s.values}]
+    assert lost and all(f"CAN frame(s) lost on {bus}" in s.message and s.level == b"\x01" for s in lost), \
+        [(s.name, s.message) for s in statuses]
+    dropped = sum(int(s.message.split()[0]) for s in lost)
+    count = [s for s in statuses if s.name.endswith(": can")][-1]
+    assert dropped > 0 and _every_frame_accounted(statuses, sent), (count.message, [s.message for s in lost])
+    assert f"{dropped} lost before the bridge read them" in count.message and count.level == b"\x01"
+
+
+def _every_frame_accounted(statuses: list, sent: int) -> bool:
+    """Whether the bridge's last frame count says ``sent`` frames were received or lost at the socket."""
+    counts = [s.message for s in statuses if s.name.endswith(": can")]
+    if not counts or " lost before the bridge read them" not in counts[-1]:
+        return False
+    received = int(counts[-1].split()[0])
+    lost = int(counts[-1].split(" lost before the bridge read them")[0].rsplit(maxsplit=1)[-1])
+    return received + lost == sent
