@@ -228,7 +228,7 @@ def test_can_log_stamps_no_header_stamp_holds_are_refused_by_name(tmp_path, caps
     """candump lines stamped after 19 January 2038 or with 11 digits of seconds: a 27-line traceback before
     (struct.error packing the int32 sec, OverflowError filling int64 ns). rosbags' serializer cannot write
     such a builtin_interfaces/Time (the oracle); each line is refused naming its stamp and the reason, the
-    other lines are converted; a log of such lines only is one error line, exit 2."""
+    other lines are converted; a log of such lines only is one error line, exit 2, and no bag."""
     from linkage_monitor.cli.main import main
 
     store = get_typestore(Stores.LATEST)
@@ -248,6 +248,7 @@ def test_can_log_stamps_no_header_stamp_holds_are_refused_by_name(tmp_path, caps
     assert main(["can-to-bag", str(only_bad), "--map", str(CAN_MAP), "--out", str(tmp_path / "bad")]) == 2
     err_lines = capsys.readouterr().err.strip().splitlines()
     assert len(err_lines) == 1 and f"{seconds} s since the epoch" in err_lines[0], err_lines
+    assert not (tmp_path / "bad").exists()   # a log that gives no bag leaves none behind (a partial one before)
 
 
 def test_a_header_stamp_beyond_int32_seconds_is_a_named_input_error():
