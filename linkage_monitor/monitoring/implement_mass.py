@@ -17,7 +17,9 @@ mechanism's reference pose, frame x forward, z up, origin at the rear wheels' gr
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import NamedTuple
+from typing import NamedTuple, Sequence
+
+import numpy as np
 
 from linkage_monitor.mechanics import Mechanism, MechanismFileError, Result, apply_overrides
 from linkage_monitor.mechanics.implements import ImplementFile, Tolerances, load_implement, with_implement
@@ -49,6 +51,28 @@ class WeighingState(NamedTuple):
     estimate: WeighingEstimate | None
     confident: bool
     estimate_in_use: bool
+
+
+class WeighingSeries(NamedTuple):
+    """The weighing's estimate after each of N steps as arrays (NaN where a step has none): ``mass`` and
+    ``mass_u`` (N,) kg, ``cg`` and ``cg_u`` (N, 2) m (x, z in the mechanism's reference pose; a coordinate
+    the strokes do not identify: the file's value with its prior's uncertainty); the ``u``: standard
+    uncertainties (1 sigma)."""
+
+    mass: np.ndarray
+    mass_u: np.ndarray
+    cg: np.ndarray
+    cg_u: np.ndarray
+
+
+def weighing_series(states: Sequence[WeighingState | None]) -> WeighingSeries:
+    """The estimates of ``states`` (a step's each, None for a step without) as a ``WeighingSeries``."""
+    rows = np.full((len(states), 6), np.nan)
+    for k, state in enumerate(states):
+        e = state.estimate if state is not None else None
+        if e is not None:
+            rows[k] = (e.mass, e.mass_u, e.cg_x, e.cg_z, e.cg_x_u, e.cg_z_u)
+    return WeighingSeries(rows[:, 0], rows[:, 1], rows[:, 2:4], rows[:, 4:6])
 
 
 def with_estimate(mechanism: Mechanism, estimate: WeighingEstimate) -> Mechanism:

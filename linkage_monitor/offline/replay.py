@@ -39,6 +39,7 @@ from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
 from linkage_monitor.monitoring.core import Monitor, Run, Segment, Step
 from linkage_monitor.monitoring.events import ConfigEvent, Event
 from linkage_monitor.monitoring.findings import Level
+from linkage_monitor.monitoring.implement_mass import weighing_series
 from linkage_monitor.monitoring.weighing import WeighingEstimate, estimate_text
 from linkage_monitor.wire.outputs import OutputEncoder, per_step
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, input_event
@@ -438,13 +439,15 @@ class _RerunOutput:
         self.view: RerunView | None = None
 
     def log(self, piece: Run) -> None:
+        from linkage_monitor.viz.rerun_estimates import budget_bands
         from linkage_monitor.viz.rerun_view import RerunView, default_blueprint, largest_hinges, machine_series
 
         segments = piece.segments
         if self.view is None:
             hinges = largest_hinges(segments[0].batch) if segments else None
-            self.view = RerunView.to_file(self.description, self.path,
-                                          blueprint=default_blueprint(self.description, hinges=hinges))
+            weighing = bool(segments) and segments[0].config.implement_mass_source != "file"
+            self.view = RerunView.to_file(self.description, self.path, blueprint=default_blueprint(
+                self.description, hinges=hinges, weighing=weighing))
         view = self.view
         solved_in_batch = {int(i) for seg in segments for i in seg.steps}   # log_batch reports the solver's rejections
         for i, s in enumerate(piece.steps):
@@ -452,9 +455,16 @@ class _RerunOutput:
                 view.log_status(s.stamp_ns, s.message)
         for seg in segments:
             m = seg.machine
+            steps = [piece.steps[i] for i in seg.steps.tolist()]
+            bands = (budget_bands(self.description, [s.pose.budget if s.pose is not None else None for s in steps])
+                     if seg.config.uncertainty else None)
             view.log_batch(seg.stamps_ns, seg.batch, machine_series(m.steerability, m.lift_capacity,
                                                                     seg.batch.transmission_angle,
-                                                                    seg.config.dead_centre_transmission_deg))
+                                                                    seg.config.dead_centre_transmission_deg), bands)
+            implement = self.description.implement
+            if seg.config.implement_mass_source != "file" and implement is not None:
+                view.log_weighing(seg.stamps_ns, seg.batch.body_poses[implement.body],
+                                  **weighing_series([s.weighing for s in steps])._asdict())
 
     def close(self) -> None:
         if self.view is not None:

@@ -128,7 +128,8 @@ class LinkageMonitorNode(Node):
         if recorder is not None:
             self.recording.begin(description, config, self.now())
             self.get_logger().info(f"recording to {bag_dir}")
-        self.recording.open_rerun(p["rerun"], p["rerun_path"], float(p["rerun_rate"]), description)
+        self.recording.open_rerun(p["rerun"], p["rerun_path"], float(p["rerun_rate"]), description,
+                                  weighing=config.implement_mass_source != "file")
 
         # the kernels are loaded before the inputs are subscribed: a sensor sees this node once it
         # can solve, and nothing waits in its queue while numba compiles (a cold cache, the first

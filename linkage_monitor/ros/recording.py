@@ -11,11 +11,14 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
+import numpy as np
+
 from linkage_monitor.bag.step_recorder import StepRecorder
 from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Step
 from linkage_monitor.monitoring.findings import Level
+from linkage_monitor.monitoring.implement_mass import weighing_series
 from linkage_monitor.wire.markers import DisplayGate
 from linkage_monitor.wire.step_messages import StepMessages
 
@@ -37,13 +40,16 @@ class Recording:
         self._report = report
         self._logger = logger
 
-    def open_rerun(self, mode: str, path: str, rate_hz: float, description: Mechanism) -> None:
-        """The Rerun view of ``mode`` ('off', 'save' to ``path``, 'connect'), poses at most ``rate_hz`` Hz."""
+    def open_rerun(self, mode: str, path: str, rate_hz: float, description: Mechanism, weighing: bool = False) -> None:
+        """The Rerun view of ``mode`` ('off', 'save' to ``path``, 'connect'), poses at most ``rate_hz`` Hz;
+        ``weighing``: its layout shows the weighed implement mass."""
         self.rerun_target = path if mode == "save" else "(viewer)"
         self.rerun_gate = DisplayGate(rate_hz)
         if mode != "off":
-            from linkage_monitor.viz.rerun_view import RerunView
-            self.rerun = RerunView.to_file(description, path) if mode == "save" else RerunView.to_viewer(description)
+            from linkage_monitor.viz.rerun_view import RerunView, default_blueprint
+            blueprint = default_blueprint(description, live=mode != "save", weighing=weighing)
+            self.rerun = (RerunView.to_file(description, path, blueprint=blueprint) if mode == "save"
+                          else RerunView.to_viewer(description, blueprint=blueprint))
 
     def begin(self, description: Mechanism, config: MonitorConfig, now: int) -> None:
         """The bag's first messages: the mechanism description and the configuration."""
@@ -83,13 +89,19 @@ class Recording:
 
     def _log_rerun(self, step: Step, dead_centre_transmission_deg: float) -> None:
         """Solved poses at most at rerun_rate; every ERROR's text."""
+        from linkage_monitor.viz.rerun_estimates import budget_bands
         from linkage_monitor.viz.rerun_view import machine_series
 
         if step.pose is not None:
             if self.rerun_gate.due(step.stamp_ns):
-                m, result = step.pose.machine, step.pose.result
+                m, result, budget = step.pose.machine, step.pose.result, step.pose.budget
                 self.rerun.log_pose(step.stamp_ns, result, machine_series(
-                    m.steerability, m.lift_capacity, result.transmission_angle, dead_centre_transmission_deg))
+                    m.steerability, m.lift_capacity, result.transmission_angle, dead_centre_transmission_deg),
+                    budget_bands(self.rerun.mechanism, [budget]) if budget is not None else None)
+                implement = self.rerun.mechanism.implement
+                if step.weighing is not None and implement is not None:
+                    self.rerun.log_weighing(np.array([step.stamp_ns]), result.body_poses[implement.body][None],
+                                            **weighing_series([step.weighing])._asdict())
         elif step.level == Level.ERROR:
             self.rerun.log_status(step.stamp_ns, step.message)
 

@@ -14,6 +14,8 @@ go to a Rerun recording (rerun-sdk 0.41) under these entity paths:
   in degrees, with ``transmission/dead_centre``, the dead-centre threshold in degrees, where it is
   defined: see :func:`machine_series`).
 - ``status``: a text line for every pose whose status is not ok.
+- with the error budget or the weighing on: the 95 % bands of the plotted series, the weighed
+  implement mass and its centre of gravity on the linkage (``viz.rerun_estimates``).
 
 Drawing frame: Rerun's 2D y axis points down, so a point (x, z) is drawn at (x, -z): the
 tractor stands upright, forward is to the right and the rear hitch (x < 0) on the left.
@@ -31,6 +33,7 @@ import rerun.blueprint as rrb
 
 from linkage_monitor.mechanics import BatchResult, Mechanism, Result, Status
 
+from . import rerun_estimates as estimates
 from .drawing import BODY_COLORS, CYLINDER_COLOR, GROUND_COLOR, HINGE_FORCE_COLOR, body_outline, force_scale
 
 APPLICATION_ID = "linkage_monitor"
@@ -57,6 +60,7 @@ _SERIES_STYLES: dict[str, tuple[str, tuple[int, int, int], float]] = {
     "lift/reserve_limit": ("1.0 = at capacity", (255, 70, 70), 1.5),
     "transmission/min_angle": ("smallest transmission angle", (200, 140, 255), 2.0),
     "transmission/dead_centre": ("dead-centre threshold", (255, 70, 70), 1.5),
+    estimates.MASS_PATH: ("implement mass weighed", estimates.MASS_COLOR, 2.0),
 }
 _REFERENCE_LINES = {"lift/reserve": ("lift/reserve_limit", 1.0)}  # series -> (reference series, value)
 
@@ -102,18 +106,18 @@ def largest_hinges(batch: BatchResult, n: int = LARGEST_HINGES) -> list[str]:
 
 
 def default_blueprint(mechanism: Mechanism, *, hinges: Sequence[str] | None = None,
-                      extent_xz: np.ndarray | None = None, live: bool = False) -> rrb.Blueprint:
+                      extent_xz: np.ndarray | None = None, live: bool = False, weighing: bool = False) -> rrb.Blueprint:
     """The layout a recording opens in: linkage side view + status log (left), five time series (right).
 
     hinges: hinge names shown in the hinge-reaction plot (default all; see :func:`largest_hinges`);
     extent_xz: points (x, z) in m the 2D view must fit (default the mechanism's reference points);
     live: the time cursor follows the latest pose (a running viewer); else (an .rrd file) it opens
     paused on the first pose. (Rerun 0.41's viewer, following the end of some finished files, draws
-    an empty side view: test_rerun_view.py.)
+    an empty side view: test_rerun_view.py.) weighing: a sixth plot, the weighed implement mass.
     """
     extent = np.array(list(mechanism.points.values())) if extent_xz is None else extent_xz
     hinge_contents = ("$origin/**" if hinges is None
-                      else [f"forces/hinges/{rr.escape_entity_path_part(h)}" for h in hinges])
+                      else [f"forces/hinges/{rr.escape_entity_path_part(h)}/**" for h in hinges])   # with its band
     linkage = rrb.Spatial2DView(origin="linkage", name=f"{mechanism.name}: side view (x forward, z up)",
                                 visual_bounds=linkage_bounds(extent))
     plots = rrb.Vertical(
@@ -124,6 +128,7 @@ def default_blueprint(mechanism: Mechanism, *, hinges: Sequence[str] | None = No
         rrb.TimeSeriesView(origin="steerability", name="Steerability: front axle load share"),
         rrb.TimeSeriesView(origin="lift", name="Lift reserve (< 1: cannot lift)"),
         rrb.TimeSeriesView(origin="transmission", name="Transmission angle, ° (below red: dead centre)"),
+        *([rrb.TimeSeriesView(origin="weighing", name="Implement mass weighed, kg (95 % band)")] if weighing else []),
     )
     status = rrb.TextLogView(origin="/", name="Status", columns=rrb.archetypes.TextLogColumns(text_log_columns=[
         rrb.encodings.TextLogColumn("EntityPath", visible=False), rrb.encodings.TextLogColumn("LogLevel"),
@@ -153,6 +158,7 @@ class RerunView:
         self._hinge_points = [h.point for h in mechanism.hinges]
         self._cylinders = [(c.name, c.base.point, c.rod_end.point) for c in mechanism.cylinders]
         self._styled: set[str] = set()
+        self._weighing_styled = False
         self._scale_logged = False
         recording.set_log_time_enabled(False)
         recording.set_log_tick_enabled(False)
@@ -192,11 +198,14 @@ class RerunView:
             self.recording.disconnect()
 
     # ---- live: one pose -----------------------------------------------------------------------
-    def log_pose(self, stamp_ns: int, result: Result, extra: Mapping[str, float] | None = None) -> None:
+    def log_pose(self, stamp_ns: int, result: Result, extra: Mapping[str, float] | None = None,
+                 bands: Mapping[str, np.ndarray] | None = None) -> None:
         """Log one solved pose at ROS time ``stamp_ns`` (ns since the epoch, header stamp).
 
         extra: machine-level scalars by entity path (e.g. ``steerability/ratio``: 1, ``lift/reserve``: 1);
         non-finite values are skipped. A pose whose status is not ok is also written to ``status``.
+        bands: standard uncertainties (1 sigma) of plotted series by entity path, (1,) each in the
+        series' unit (``rerun_estimates.budget_bands``): their 95 % bands beside them.
         """
         rec = self.recording
         series = _with_reference_lines({k: np.array([v], dtype=float) for k, v in (extra or {}).items()})
@@ -218,11 +227,17 @@ class RerunView:
         if self._cylinders:
             rec.log("linkage/cylinders", rr.LineStrips2D(cyl_strips))
             rec.log("linkage/cylinders/forces", rr.Arrows2D(origins=cyl_strips[:, 1], vectors=cyl_vec))
-        for name, f in zip(self._hinge_names, hinge_f):
-            rec.log(f"forces/hinges/{rr.escape_entity_path_part(name)}", rr.Scalars(np.hypot(*f) / 1e3))
-        for (name, _, _), f in zip(self._cylinders, cyl_f):
-            rec.log(f"forces/cylinders/{rr.escape_entity_path_part(name)}", rr.Scalars(f / 1e3))
+        plotted = {**{f"forces/hinges/{rr.escape_entity_path_part(name)}": np.array([np.hypot(*f) / 1e3])
+                      for name, f in zip(self._hinge_names, hinge_f)},
+                   **{f"forces/cylinders/{rr.escape_entity_path_part(name)}": np.array([f / 1e3])
+                      for (name, _, _), f in zip(self._cylinders, cyl_f)}}
+        for path, value in plotted.items():
+            rec.log(path, rr.Scalars(float(value[0])))
         for path, value in series:
+            if np.isfinite(value[0]):
+                rec.log(path, rr.Scalars(float(value[0])))
+        for path, source, value in estimates.band_series({**plotted, **dict(series)}, bands or {}):
+            self._style_band(path, source)
             if np.isfinite(value[0]):
                 rec.log(path, rr.Scalars(float(value[0])))
 
@@ -233,10 +248,12 @@ class RerunView:
 
     # ---- replay: many poses as columns --------------------------------------------------------
     def log_batch(self, stamps_ns: np.ndarray, batch: BatchResult,
-                  extra: Mapping[str, np.ndarray] | None = None) -> None:
+                  extra: Mapping[str, np.ndarray] | None = None, bands: Mapping[str, np.ndarray] | None = None
+                  ) -> None:
         """Log N solved poses at ROS times ``stamps_ns`` (N,) ns with ``send_columns`` (geometry and scalars).
 
         extra: machine-level series by entity path, each (N,); non-finite samples are skipped.
+        bands: standard uncertainties (1 sigma) of plotted series, (N,) each (as ``log_pose``'s).
         Poses whose status is not ok go to ``status``; poses that could not be solved (NaN) are
         left out of the geometry and of the series.
         """
@@ -262,13 +279,37 @@ class RerunView:
         if ok.any():
             self._fix_scale(int(stamps[np.argmax(ok)]), hinge_f[ok], cyl_f[ok])
             self._send_geometry(times[ok], {k: v[ok] for k, v in batch.points.items()}, hinge_f[ok], cyl_f[ok])
-        for name, f in zip(self._hinge_names, np.moveaxis(hinge_f, 1, 0)):
-            self._send_series(f"forces/hinges/{rr.escape_entity_path_part(name)}", times, np.hypot(f[:, 0], f[:, 1]) / 1e3)
-        for (name, _, _), f in zip(self._cylinders, cyl_f.T):
-            self._send_series(f"forces/cylinders/{rr.escape_entity_path_part(name)}", times, f / 1e3)
+        plotted = {**{f"forces/hinges/{rr.escape_entity_path_part(name)}": np.hypot(f[:, 0], f[:, 1]) / 1e3
+                      for name, f in zip(self._hinge_names, np.moveaxis(hinge_f, 1, 0))},
+                   **{f"forces/cylinders/{rr.escape_entity_path_part(name)}": f / 1e3
+                      for (name, _, _), f in zip(self._cylinders, cyl_f.T)}}
+        for path, values in plotted.items():
+            self._send_series(path, times, values)
         for path, values in _with_reference_lines(series):
             self._style_series(path)  # the reference lines
             self._send_series(path, times, values)
+        for path, source, values in estimates.band_series({**plotted, **series}, bands or {}):
+            self._style_band(path, source)
+            self._send_series(path, times, values)
+
+    def log_weighing(self, stamps_ns: np.ndarray, implement_poses: np.ndarray, mass: np.ndarray,
+                     mass_u: np.ndarray, cg: np.ndarray, cg_u: np.ndarray) -> None:
+        """The weighing's estimate at N poses (ROS times ``stamps_ns`` (N,) ns): the implement ``mass`` (kg)
+        with its 95 % band from ``mass_u`` (kg, 1 sigma), and its centre of gravity ``cg`` (N, 2) m in the
+        reference pose, drawn on the linkage where the implement body is (``implement_poses`` (N, 3): x, z
+        of its origin, m, its rotation from the reference pose, rad) with its 95 % box (``cg_u`` (N, 2) m,
+        1 sigma). NaN where there is no estimate (left out)."""
+        times = np.array(np.asarray(stamps_ns, dtype=np.int64), dtype="datetime64[ns]")
+        if not self._weighing_styled:
+            estimates.log_static(self.recording)
+            self._style_series(estimates.MASS_PATH)
+            self._weighing_styled = True
+        self._send_series(estimates.MASS_PATH, times, mass)
+        for path, source, values in estimates.band_series({estimates.MASS_PATH: mass}, {estimates.MASS_PATH: mass_u}):
+            self._style_band(path, source)
+            self._send_series(path, times, values)
+        estimates.send_implement_cg(self.recording, TIMELINE, times,
+                                    estimates.implement_cg_at(self.mechanism, implement_poses, cg), cg_u)
 
     # ---- internals ----------------------------------------------------------------------------
     def _log_static(self) -> None:
@@ -312,6 +353,15 @@ class RerunView:
             raise ValueError(f"extra series '{path}': use an entity path without a leading slash, e.g. 'lift/reserve'")
         name, color, width = _SERIES_STYLES.get(path, (path, None, 2.0))
         self.recording.log(path, rr.SeriesLines(names=name, colors=color, widths=width), static=True)
+        self._styled.add(path)
+
+    def _style_band(self, path: str, source: str) -> None:
+        """Static SeriesLines for the band ``path`` of the series ``source`` the first time it appears:
+        thin, in the series' colour where the view gives it one."""
+        if path in self._styled:
+            return
+        name, color, _ = _SERIES_STYLES.get(source, (source.rsplit("/", 1)[-1], (160, 160, 160), 2.0))
+        self.recording.log(path, estimates.band_style(name, color), static=True)
         self._styled.add(path)
 
     def _fix_scale(self, stamp_ns: int, hinge_f: np.ndarray, cyl_f: np.ndarray) -> None:
