@@ -74,6 +74,21 @@ def test_a_cut_file_is_named_once_however_often_the_bag_is_read(tmp_path):
     assert len(faults) == 1
 
 
+def test_replay_names_a_cut_on_a_line_of_its_own_beside_its_progress_bar(tmp_path, capsys):
+    """`linkage-monitor replay t.mcap` of a cut file with its progress bar: the cut is written on a line of
+    its own (the bar cleared and drawn again after it), not glued to the bar's "replay: 0msg [...]"."""
+    import re
+
+    from linkage_monitor.cli.main import main
+
+    cut = _cut(DAMPING, tmp_path / "t.mcap", 0.999)
+    assert main(["replay", str(cut), "--out", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    pieces = re.split(r"[\r\n]", err)
+    assert any(p.startswith(f"{cut} is cut off at byte ") for p in pieces), err
+    assert any(p.startswith("replay: ") for p in pieces), err   # the bar is there
+
+
 def _source_messages() -> list[tuple[str, str, int, bytes]]:
     """(topic, type, log time ns, CDR) of a bundled bag's inputs, read by rosbags."""
     with AnyReader([BAGS / "belarus_1221_lift_transport"], default_typestore=get_typestore(Stores.EMPTY)) as reader:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import functools
 import gc
+import logging
 import math
 import sys
 import time
@@ -29,6 +30,7 @@ import numpy as np
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 from tqdm import tqdm
+from tqdm.contrib.logging import logging_redirect_tqdm
 
 from linkage_monitor.bag.reader import read_bag, read_bag_raw
 from linkage_monitor.bag.step_recorder import RecordedInput, StepRecorder
@@ -311,8 +313,9 @@ class _Replayer:
         output: _BagOutput | None = None
         view: _RerunOutput | None = None
         try:
+            # what the reader finds (a cut file, a skipped chunk) is written on a line of its own, not after the bar
             with tqdm(desc="replay", unit="msg", file=self.progress, disable=self.progress is None,
-                      mininterval=0.5) as bar:
+                      mininterval=0.5) as bar, logging_redirect_tqdm([logging.getLogger("linkage_monitor")]):
                 for piece in monitor.runs(_events(self.bag, self.config, raw), self.piece_steps):
                     inputs = raw[:len(piece.steps)]
                     del raw[:len(piece.steps)]
