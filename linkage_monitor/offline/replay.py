@@ -22,6 +22,7 @@ import math
 import sys
 import time
 from collections import Counter
+from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterator, ParamSpec, TextIO, TypeVar
@@ -313,9 +314,10 @@ class _Replayer:
         output: _BagOutput | None = None
         view: _RerunOutput | None = None
         try:
-            # what the reader finds (a cut file, a skipped chunk) is written on a line of its own, not after the bar
-            with tqdm(desc="replay", unit="msg", file=self.progress, disable=self.progress is None,
-                      mininterval=0.5) as bar, logging_redirect_tqdm([logging.getLogger("linkage_monitor")]):
+            # with a bar, what the reader finds (a cut file, a skipped chunk) is written on a line of its own
+            bar_shown = self.progress is not None
+            with tqdm(desc="replay", unit="msg", file=self.progress, disable=not bar_shown, mininterval=0.5) as bar, \
+                    (logging_redirect_tqdm([logging.getLogger("linkage_monitor")]) if bar_shown else nullcontext()):
                 for piece in monitor.runs(_events(self.bag, self.config, raw), self.piece_steps):
                     inputs = raw[:len(piece.steps)]
                     del raw[:len(piece.steps)]
