@@ -63,17 +63,28 @@ class Limit:
     unit: str
     source: str    # 'file' | 'geometry' | 'relief pressure' | 'default'
 
+    def inside(self, value: float | np.ndarray) -> bool | np.ndarray:
+        """Whether ``value`` (one reading, or an array of readings: then elementwise) is inside: the
+        rule ``check`` words. An angle is compared by its equivalent (modulo 2π) nearest the range, and
+        one with |angle| > MAX_ABS_ANGLE is not inside; NaN is not inside."""
+        v = value
+        if self.kind != "angle":
+            return (self.lo <= v) & (v <= self.hi)
+        if self.hi - self.lo < 2.0 * math.pi:
+            centre = 0.5 * (self.lo + self.hi)   # the equivalent (modulo 2π) nearest the range
+            v = centre + (np.array([_remainder(x) for x in (v - centre).tolist()]) if isinstance(v, np.ndarray)
+                          else _remainder(v - centre))
+        size = np.abs(value) if isinstance(value, np.ndarray) else abs(value)
+        return (size <= MAX_ABS_ANGLE) & (self.lo <= v) & (v <= self.hi)
+
     def check(self, value: float) -> str | None:
         """None if ``value`` is inside, else a sentence naming the input, the value and the limit."""
-        v = value
-        if self.kind == "angle" and abs(v) > MAX_ABS_ANGLE:
+        if self.kind == "angle" and abs(value) > MAX_ABS_ANGLE:
             return (f"angle '{self.name}' = {value:.6g} rad is not an angle a sensor reports (|angle| > "
                     f"{MAX_ABS_ANGLE:.6g} rad): sensor fault?")
-        if self.kind == "angle" and math.isfinite(v) and self.hi - self.lo < 2.0 * math.pi:
-            centre = 0.5 * (self.lo + self.hi)   # the equivalent (modulo 2π) nearest the range
-            v = centre + math.remainder(v - centre, 2.0 * math.pi)
-        if self.lo <= v <= self.hi:
+        if self.inside(value):
             return None
+        v = value
         what = {"cylinder": "cylinder length", "angle": "angle", "pressure": "absolute pressure"}[self.kind]
         cause = "sensor fault?"
         if self.kind == "pressure" and self.lo <= v / UNIT_SLIP <= self.hi:
@@ -81,6 +92,12 @@ class Limit:
                      "scaling), or a sensor fault")
         return (f"{what} '{self.name}' = {value:.6g} {self.unit} is outside its plausible range "
                 f"[{self.lo:.6g}, {self.hi:.6g}] {self.unit} (from the {self.source}): {cause}")
+
+
+def _remainder(offset: float) -> float:
+    """``offset`` (rad) moved by whole turns into [−π, π] (IEEE remainder); a NaN or infinite one as it is."""
+    return math.remainder(offset, 2.0 * math.pi) if math.isfinite(offset) else offset
+
 
 
 def input_limits(mech: Mechanism) -> dict[str, Limit]:

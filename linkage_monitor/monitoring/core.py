@@ -31,7 +31,8 @@ from .config import MonitorConfig
 from .events import ConfigEvent, Event, InputEvent, JointStateEvent, PressureEvent, UnreadableEvent
 from .findings import Code, Finding
 from .implement_mass import ImplementMass, effective_mechanism
-from .inputs import InputTracker, Refused
+from .input_columns import InputColumns
+from .inputs import DueRun, InputTracker, Refused
 from .segment_series import INPUT_KINDS, SegmentSeries, input_columns, limit_values, segment_checks
 from .steps import NO_FINDINGS, Due, Pose, Run, Segment, Step
 from .wording import failed_step, pose_findings
@@ -46,6 +47,8 @@ EXCEPTION_STATUS = {InputError: Status.INPUT, AssemblyError: Status.ASSEMBLY, De
 
 _LIFT_OFF = Status.LIFT_OFF.label
 WEIGHING_PIECE = 1024   # with the weighing, the batched path's longest piece: a new estimate is put in use after it
+ACCEPT_BLOCK = 256      # input events the batched path reads before it accepts them (runs of them at once)
+ACCEPT_WINDOW_MIN = 16  # the shortest window a run is tried on; after a miss, this many events taken alone
 
 
 class Monitor:
@@ -153,7 +156,7 @@ class Monitor:
             return self._internal_error(event, exc)
 
     # ---- the batched path: a whole recording -----------------------------------------------------
-    def run(self, events: Iterable[Event]) -> Run:
+    def run(self, events: Iterable[Event | InputColumns]) -> Run:
         """One Step per input event (ConfigEvents give none), the due poses solved in batches: a
         segment's series part by part in a worker thread while the next events are accepted
         (``SegmentSeries``); ``runs`` joined, one ``Segment`` per configuration segment."""
@@ -164,7 +167,7 @@ class Monitor:
             steps.extend(piece.steps)
         return Run(steps, segments)
 
-    def runs(self, events: Iterable[Event], piece_steps: int | None = None) -> Iterator[Run]:
+    def runs(self, events: Iterable[Event | InputColumns], piece_steps: int | None = None) -> Iterator[Run]:
         """``run`` in pieces, in order: a piece ends at each configuration change and, given
         ``piece_steps``, after every ``piece_steps`` Steps of a configuration segment (its series solved on
         across the pieces, each pose from the one before, as ``run`` solves it). A piece's segments
@@ -175,8 +178,23 @@ class Monitor:
         segments: list[Segment] = []
         with ThreadPoolExecutor(max_workers=1, thread_name_prefix="series") as worker:
             segment = SegmentSeries(self.machine, self.config.kinetostatics, worker)
+            pending: list[InputEvent | InputColumns] = []   # read, not yet accepted: ACCEPT_BLOCK at a time
+            size = 0   # the events pending
+
+            def accept_pending() -> None:
+                nonlocal size
+                for due in self._accept_all(pending):
+                    if isinstance(due, Step):
+                        steps.append(due)
+                    else:
+                        segment.add(len(steps), due)
+                        steps.append(None)
+                pending.clear()
+                size = 0
+
             for event in events:
                 if isinstance(event, ConfigEvent):
+                    accept_pending()
                     self._solve_segment(segment, steps, segments)
                     if steps:
                         yield Run(steps, segments)  # type: ignore[arg-type]  # every None was filled by _solve_segment
@@ -184,25 +202,89 @@ class Monitor:
                     self.reconfigure(event.config)
                     segment = SegmentSeries(self.machine, self.config.kinetostatics, worker)
                     continue
-                try:
-                    due = self._accept(event)
-                except Exception as exc:  # noqa: BLE001 - as in step()
-                    due = self._internal_error(event, exc)
-                if isinstance(due, Step):
-                    steps.append(due)
-                else:
-                    segment.add(len(steps), due)
-                    steps.append(None)
-                limit = piece_steps if self.weighing is None else min(piece_steps or WEIGHING_PIECE, WEIGHING_PIECE)
-                if limit is not None and len(steps) >= limit:
-                    self._solve_segment(segment, steps, segments)
-                    yield Run(steps, segments)  # type: ignore[arg-type]  # as above
-                    steps, segments = [], []
-                    if self._use_estimate():   # a new estimate: the next poses solved with it
-                        segment = SegmentSeries(self.machine, self.config.kinetostatics, worker)
+                rest: InputEvent | InputColumns | None = event
+                while rest is not None:   # columns split where a piece ends
+                    limit = piece_steps if self.weighing is None else min(piece_steps or WEIGHING_PIECE, WEIGHING_PIECE)
+                    room = limit - len(steps) - size if limit is not None else None
+                    item, rest = rest, None
+                    if isinstance(item, InputColumns) and room is not None and item.size > room:
+                        item, rest = item.head(room), item.tail(room)
+                    pending.append(item)
+                    size += item.size if isinstance(item, InputColumns) else 1
+                    full = limit is not None and len(steps) + size >= limit
+                    if full or size >= ACCEPT_BLOCK:
+                        accept_pending()
+                    if full:
+                        self._solve_segment(segment, steps, segments)
+                        yield Run(steps, segments)  # type: ignore[arg-type]  # as above
+                        steps, segments = [], []
+                        if self._use_estimate():   # a new estimate: the next poses solved with it
+                            segment = SegmentSeries(self.machine, self.config.kinetostatics, worker)
+            accept_pending()
             self._solve_segment(segment, steps, segments)
             if steps:
                 yield Run(steps, segments)  # type: ignore[arg-type]  # as above
+
+    def _accept_all(self, items: Sequence[InputEvent | InputColumns]) -> list[Due | Step]:
+        """``_accept`` of each event of ``items`` in turn (an internal failure an ERROR Step, as in
+        ``step``), the runs of events of one form taken as columns (``_accept_columns``)."""
+        found: list[Due | Step] = []
+        events: list[InputEvent] = []
+        for item in [*items, None]:
+            if isinstance(item, InputColumns) or item is None:
+                i = 0
+                while i < len(events):
+                    columns = InputColumns.of_events(events[i:i + ACCEPT_BLOCK])
+                    if columns is None:
+                        found.append(self._accept_safely(events[i]))
+                        i += 1
+                    else:
+                        found += self._accept_columns(columns)
+                        i += columns.size
+                events.clear()
+                if item is not None:
+                    found += self._accept_columns(item)
+            else:
+                events.append(item)
+        return found
+
+    def _accept_columns(self, columns: InputColumns) -> list[Due | Step]:
+        """``_accept`` of each event of ``columns``, the runs the tracker accepts at once taken at once
+        (``InputTracker.accept_run``: the same rules on arrays); each event it stops at taken alone, then
+        the next run tried, on a window that grows while the runs are long and shrinks while they are
+        short (after a run of none, a few events taken alone)."""
+        found: list[Due | Step] = []
+        i, window = 0, ACCEPT_BLOCK
+        while i < columns.size:
+            tried = columns.tail(i).head(window)
+            run = self.tracker.accept_run(tried)
+            found += self._dues(tried, run)
+            i += run.accepted
+            window = min(ACCEPT_BLOCK, max(ACCEPT_WINDOW_MIN, 2 * run.accepted))
+            alone = 0 if run.accepted == tried.size else 1 if run.accepted else ACCEPT_WINDOW_MIN
+            for k in range(i, min(i + alone, columns.size)):
+                found.append(self._accept_safely(columns.event(k)))
+            i = min(i + alone, columns.size)
+        return found
+
+    def _accept_safely(self, event: InputEvent) -> Due | Step:
+        """``_accept``, an internal failure an ERROR Step (as in ``step``)."""
+        try:
+            return self._accept(event)
+        except Exception as exc:  # noqa: BLE001 - as in step()
+            return self._internal_error(event, exc)
+
+    def _dues(self, columns: InputColumns, run: DueRun) -> list[Due]:
+        """The due solves of the first ``run.accepted`` events of ``columns``, accepted at once (``_accept``'s)."""
+        kinds = [run.cylinders, run.angles, run.pressures]
+        rows = [list(zip(*(column.tolist() for column in kind.values()))) or [()] * run.accepted for kind in kinds]
+        dues = []
+        for stamp, topic, cylinders, angles, pressures in zip(columns.stamps_ns[:run.accepted].tolist(), columns.topics,
+                                                              *rows):
+            inputs = Inputs(cylinders=dict(zip(kinds[0], cylinders)), angles=dict(zip(kinds[1], angles)),
+                            pressures=dict(zip(kinds[2], pressures)), rates={}, accelerations={})
+            dues.append(Due(stamp, topic, inputs, self.motion.motions(inputs) if self.uncertainty is not None else None))
+        return dues
 
     def _solve_segment(self, segment: SegmentSeries, steps: list[Step | None], segments: list[Segment]) -> None:
         """The Steps of the dues ``segment`` holds (solved, checked, put in their places in ``steps``)

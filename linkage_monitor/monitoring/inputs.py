@@ -16,10 +16,13 @@ from __future__ import annotations
 import math
 from typing import Mapping, NamedTuple, Sequence
 
+import numpy as np
+
 from linkage_monitor.mechanics import Inputs, Mechanism
 from linkage_monitor.mechanics.limits import Limit, input_limits
 
 from .config import MonitorConfig
+from .input_columns import InputColumns
 from .findings import Code, Finding, fmt
 
 NS = 1_000_000_000
@@ -87,17 +90,18 @@ class InputTracker:
     def check_stamp(self, what: str, stamp_ns: int, now_ns: int) -> None:
         """Refuse a header stamp that is ≤ 0 or farther than stamp_tolerance_s from ``now_ns``."""
         tolerance = self.config.stamp_tolerance_s
+        if not stamp_refused(stamp_ns, now_ns, tolerance):
+            return
         if stamp_ns <= 0:
             raise Refused(Finding(Code.BAD_STAMP, f"{what}: header stamp {stamp_ns} ns is not after 1970: "
                                   "the sensor's clock is not set"))
-        offset = (stamp_ns - now_ns) / NS
-        if abs(offset) > tolerance:
-            side = "ahead of" if offset > 0 else "behind"
-            cause = ("check the sensor's clock synchronisation" if offset > 0 else
-                     "check the sensor's clock synchronisation, or the monitor is behind its inputs (more "
-                     "messages per second than it solves: they wait in its queue)")
-            raise Refused(Finding(Code.BAD_STAMP, f"{what}: header stamp is {fmt(abs(offset))} s {side} the "
-                                  f"monitor's clock (stamp_tolerance {fmt(tolerance)} s): {cause}"))
+        offset = (stamp_ns - now_ns) / NS   # refused after 1970: too far from the clock
+        side = "ahead of" if offset > 0 else "behind"
+        cause = ("check the sensor's clock synchronisation" if offset > 0 else
+                 "check the sensor's clock synchronisation, or the monitor is behind its inputs (more "
+                 "messages per second than it solves: they wait in its queue)")
+        raise Refused(Finding(Code.BAD_STAMP, f"{what}: header stamp is {fmt(abs(offset))} s {side} the "
+                              f"monitor's clock (stamp_tolerance {fmt(tolerance)} s): {cause}"))
 
     def accept_joint_state(self, names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
                            stamp_ns: int, now_ns: int) -> None:
@@ -204,6 +208,62 @@ class InputTracker:
         if problem:
             raise Refused(Finding(Code.OUT_OF_RANGE, f"{problem} ({source} '{source_name}')"))
 
+    # ---- many events at once (the replay) ------------------------------------------------------
+    def accept_run(self, run: InputColumns) -> DueRun:
+        """The longest leading run of the events in ``run`` that ``accept_joint_state`` /
+        ``accept_pressure`` each accept with every input then fresh (``inputs_at`` gives inputs),
+        accepted at once: the readings as after taking them one by one, and their solves' inputs. The
+        run ends before the first event refused or lacking an input, or on a topic that maps to no
+        pressure sensor or to one another topic also does (none with kinetostatics): the caller takes
+        that one alone. The same rules with the same arithmetic, on arrays (``Limit.inside``,
+        ``stamp_refused``, the newest stamp per input, the staleness limit)."""
+        if self.config.kinetostatics:
+            return _no_run()
+        sources, end = _sources(self, run)
+        if sources is None or end == 0:
+            return _no_run()
+        run = run.head(end)
+        sources = [s.head(end) for s in sources]
+        ok = ~stamp_refused(run.stamps_ns, run.receive_ns, self.config.stamp_tolerance_s)
+        ok &= np.abs(run.stamps_ns - run.receive_ns) < _EXACT_NS
+        for source in sources:
+            ok[source.at] &= source.clean & (source.stamps >= source.previous)
+        end = int(np.argmin(ok)) if not ok.all() else run.size   # the first refused: every one before accepted
+        count = self._fresh_count(run.stamps_ns[:end], [s.head(end) for s in sources])
+        if not count:
+            return _no_run()
+        taken = [s.head(count) for s in sources]
+        due = DueRun(count, *({n: _filled_at(count, taken, n, self.readings) for n in order}
+                              for order in (self._cylinder_order, self._angle_order, self._pressure_order)))
+        self._take(taken)
+        return due
+
+    def _fresh_count(self, stamps: np.ndarray, sources: list[_Source]) -> int:
+        """How many of the accepted events at ``stamps`` (ns) in a row from the first have every input
+        there and none stale at their stamp (``inputs_at``'s rule)."""
+        fresh = np.ones(len(stamps), bool)
+        limit_ns = self.config.staleness_limit_s * NS
+        for name in self._required_order:
+            reading, there = _latest_stamps(len(stamps), sources, name, self.readings)
+            age = np.abs(stamps - reading)
+            fresh &= there & (age <= limit_ns) & (age < _EXACT_NS)
+        return int(np.argmin(fresh)) if not fresh.all() else len(stamps)
+
+    def _take(self, sources: list[_Source]) -> None:
+        """The readings after the events of ``sources`` (accepted), as ``accept_*`` leave them."""
+        for source in sources:
+            if not len(source.at):
+                continue
+            for target, values, rates in zip(source.targets, source.values, source.rates):
+                previous = self.readings.get(target)
+                if len(source.at) > 1:   # the reading before the last, for the last's acceleration
+                    previous = Reading(float(values[-2]), float(rates[-2]), math.nan, int(source.stamps[-2]))
+                value, rate, stamp = float(values[-1]), float(rates[-1]), int(source.stamps[-1])
+                self.readings[target] = (previous.then(value, rate, stamp) if previous is not None
+                                         else Reading(value, rate, math.nan, stamp))
+            if source.unknown is not None:
+                self.unknown_joints = source.unknown
+
     # ---- the inputs of a solve ----------------------------------------------------------------
     def inputs_at(self, stamp_ns: int) -> Inputs | Finding:
         """The inputs of a solve triggered at ``stamp_ns`` (ns), or the Finding why there is none.
@@ -230,6 +290,141 @@ class InputTracker:
                       accelerations={n: _zero_if_nan(r[n].acceleration) for n in kinematic} if dynamic else {})
 
 
+class DueRun(NamedTuple):
+    """``InputTracker.accept_run``'s answer: its first ``accepted`` events were accepted, each with its
+    solve due, and the inputs of each solve as
+    ``inputs_at`` gives them: cylinders (m), angles (rad), pressures (Pa gauge), by name, arrays (accepted,)."""
+
+    accepted: int
+    cylinders: dict[str, np.ndarray]
+    angles: dict[str, np.ndarray]
+    pressures: dict[str, np.ndarray]
+
+
+def stamp_refused(stamp_ns: int | np.ndarray, now_ns: int | np.ndarray, tolerance_s: float) -> bool | np.ndarray:
+    """Whether a header stamp (ns) is refused: ≤ 0, or farther than ``tolerance_s`` (s) from the monitor's
+    clock ``now_ns`` (ns); one stamp, or arrays of them elementwise (the same division and comparison:
+    exact alike for stamps less than 2**53 ns apart)."""
+    return (stamp_ns <= 0) | (abs((stamp_ns - now_ns) / NS) > tolerance_s)
+
+
 def _zero_if_nan(value: float) -> float:
     """A rate not given (or not yet differenced) counts as 0 (quasi-static)."""
     return 0.0 if math.isnan(value) else value
+
+
+_EXACT_NS = 2**53                       # ns: differences of stamps below it are exact as float64 (the rules' arithmetic)
+_NONE_BEFORE = np.iinfo(np.int64).min   # the stamp before an input's first reading: any stamp is newer
+
+
+class _Source:
+    """The events of a run that carry the same inputs (the JointStates, or one pressure sensor's
+    FluidPressures): ``at`` their places in the run, ``stamps`` (ns), per input (``targets``) their
+    ``values`` and ``rates`` as a reading takes them, ``clean`` where the rules that need no reading
+    before pass, ``previous`` the stamp of the reading before each (the state's, then the one
+    before in the run); ``unknown``: the JointStates' names that map to no input (None: pressures)."""
+
+    def __init__(self, at: np.ndarray, stamps: np.ndarray, targets: tuple[str, ...], values: list[np.ndarray],
+                 rates: list[np.ndarray], clean: np.ndarray, previous: np.ndarray,
+                 unknown: tuple[str, ...] | None) -> None:
+        self.at, self.stamps, self.targets, self.values, self.rates = at, stamps, targets, values, rates
+        self.clean, self.previous, self.unknown = clean, previous, unknown
+
+    @staticmethod
+    def of(tracker: InputTracker, at: np.ndarray, stamps: np.ndarray, targets: tuple[str, ...],
+           values: list[np.ndarray], rates: list[np.ndarray], clean: np.ndarray,
+           unknown: tuple[str, ...] | None) -> _Source:
+        """The source of the events at ``at`` of a run whose stamps are ``stamps``."""
+        before = max((tracker.readings[t].stamp_ns for t in targets if t in tracker.readings), default=_NONE_BEFORE)
+        own = stamps[at]
+        return _Source(at, own, targets, values, rates, clean, np.concatenate(([before], own[:-1])), unknown)
+
+    def head(self, end: int) -> _Source:
+        """This source's events before place ``end`` of the run."""
+        m = int(np.searchsorted(self.at, end))
+        return _Source(self.at[:m], self.stamps[:m], self.targets, [v[:m] for v in self.values],
+                       [r[:m] for r in self.rates], self.clean[:m], self.previous[:m], self.unknown)
+
+
+def _inside(tracker: InputTracker, target: str, values: np.ndarray) -> np.ndarray | bool:
+    """Where ``values`` of input ``target`` are inside its plausibility limit (everywhere without one)."""
+    limit = tracker.limits.get(target)
+    return limit.inside(values) if limit is not None else True
+
+
+def _latest(size: int, sources: list[_Source], name: str) -> tuple[_Source | None, np.ndarray]:
+    """The source carrying input ``name`` (None: no event of the run does) and, after each of the
+    run's first ``size`` events, the index (in that source) of its reading of ``name`` in use
+    (−1: the one before the run, if any)."""
+    for source in sources:
+        if name in source.targets and len(source.at):
+            index = np.full(size, -1, np.intp)
+            index[source.at] = np.arange(len(source.at))
+            return source, np.maximum.accumulate(index)
+    return None, np.full(size, -1, np.intp)
+
+
+def _latest_stamps(size: int, sources: list[_Source], name: str, readings: Mapping[str, Reading]
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """After each of the run's first ``size`` events: the stamp (ns) of the reading of ``name`` in use,
+    and whether there is one."""
+    source, index = _latest(size, sources, name)
+    before = readings.get(name)
+    own = source.stamps[index] if source is not None else np.zeros(size, np.int64)
+    earlier = before.stamp_ns if before is not None else 0
+    return np.where(index >= 0, own, earlier), (index >= 0) | (before is not None)
+
+
+def _filled_at(size: int, sources: list[_Source], name: str, readings: Mapping[str, Reading]) -> np.ndarray:
+    """After each of the run's first ``size`` events (every input there): the value of the reading of ``name``."""
+    source, index = _latest(size, sources, name)
+    if source is None:
+        return np.full(size, readings[name].value)
+    own = source.values[source.targets.index(name)]
+    return np.where(index >= 0, own[index], readings[name].value if name in readings else math.nan)
+
+
+def _no_run() -> DueRun:
+    """No event accepted at once."""
+    return DueRun(0, {}, {}, {})
+
+
+def _sources(tracker: InputTracker, run: InputColumns) -> tuple[list[_Source] | None, int]:
+    """The sources (``_Source``) of ``run``'s events before the first one on a pressure topic that maps
+    to no sensor or to one another topic also does, and that place; None when its JointStates are
+    refused whatever their values (a name twice, no name of an input) or feed an input twice or a
+    pressure sensor's."""
+    found = []
+    end, topics = run.size, tracker.config.pressure_topics
+    sensors = [topics.get(t) for t in run.pressure_at]
+    for topic, sensor in zip(run.pressure_at, sensors):
+        if sensor is None or sensors.count(sensor) > 1:
+            end = min(end, int(run.pressure_at[topic][0]))
+    if len(run.joint_at):
+        names = run.names
+        mapped = [(k, tracker._joint_to_input.get(n)) for k, n in enumerate(names)]
+        targets = tuple(t for _, t in mapped if t is not None)
+        if (len(set(names)) != len(names) or not targets or len(set(targets)) != len(targets)
+                or set(targets) & tracker.pressure_names):
+            return None, 0
+        columns = [k for k, t in mapped if t is not None]
+        values = [run.positions[:, k] for k in columns]
+        velocity = run.velocities
+        rates = [velocity[:, k] if velocity is not None else np.full(len(run.joint_at), math.nan) for k in columns]
+        clean = np.isfinite(run.positions[:, columns]).all(axis=1)
+        if velocity is not None:
+            clean &= np.isfinite(velocity[:, columns]).all(axis=1)
+        for target, value in zip(targets, values):
+            clean &= _inside(tracker, target, value)
+        found.append(_Source.of(tracker, run.joint_at, run.stamps_ns, targets, values, rates, clean,
+                                tuple(n for n, (_, t) in zip(names, mapped) if t is None)))
+    cfg = tracker.config
+    for topic, sensor in zip(run.pressure_at, sensors):
+        if sensor is None or sensors.count(sensor) > 1:
+            continue
+        value, at = run.pressures[topic], run.pressure_at[topic]
+        absolute = value if cfg.pressure_absolute else value + cfg.atmospheric_pressure
+        clean = np.isfinite(value) & (absolute >= 0.0) & _inside(tracker, sensor, absolute)
+        found.append(_Source.of(tracker, at, run.stamps_ns, (sensor,), [absolute - cfg.atmospheric_pressure],
+                                [np.full(len(at), math.nan)], clean, None))
+    return found, end

@@ -33,19 +33,21 @@ from std_msgs.msg import String
 from tqdm import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
-from linkage_monitor.bag.reader import read_bag, read_bag_raw
+from linkage_monitor.bag.reader import RawMessage, read_bag, read_bag_raw
 from linkage_monitor.bag.step_recorder import RecordedInput, StepRecorder
 from linkage_monitor.bag.errors import BagError
 from linkage_monitor.bag.writer import MECHANISM_TOPIC, BagWriter
 from linkage_monitor.mechanics import Mechanism, Status, mechanism_from_text
 from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
 from linkage_monitor.monitoring.core import Monitor, Run, Segment, Step
-from linkage_monitor.monitoring.events import ConfigEvent, Event
+from linkage_monitor.monitoring.events import ConfigEvent, Event, InputEvent
+from linkage_monitor.monitoring.input_columns import InputColumns
 from linkage_monitor.monitoring.findings import Level
 from linkage_monitor.monitoring.implement_mass import weighing_series
 from linkage_monitor.monitoring.weighing import WeighingEstimate, estimate_text
 from linkage_monitor.wire.outputs import OutputEncoder, per_step
-from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, input_event
+from linkage_monitor.wire.input_block import input_items
+from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE
 
 from .history import HistoryRecorder, LoadHistory
 
@@ -53,6 +55,7 @@ if TYPE_CHECKING:
     from linkage_monitor.viz.rerun_view import RerunView
 
 ENCODE_BLOCK = 4096   # inputs replayed at once: read, solved, accounted, encoded and written, then let go
+READ_BLOCK = 256      # input messages read from their bytes at once
 
 
 @dataclass
@@ -155,36 +158,58 @@ def _default_config(bag: Path, description: Mechanism) -> MonitorConfig:
     return replace(config, pressure_topics={t: s for t, s in config.pressure_topics.items() if t in held})
 
 
-def _events(path: Path, config: MonitorConfig, raw: list[RecordedInput]) -> Iterator[Event]:
-    """The bag's input and configuration events in recording order, read as they are asked for;
-    inputs also appended to ``raw`` (the caller takes them out piece by piece).
+def _events(path: Path, config: MonitorConfig, raw: list[RecordedInput]) -> Iterator[Event | InputColumns]:
+    """The bag's input and configuration events in recording order, read as they are asked for, the
+    inputs READ_BLOCK messages at a time as runs of columns and single events
+    (``wire.input_block``); inputs also appended to ``raw`` (the caller takes them out piece by piece).
     The inputs are read from their bytes as the node reads them (``wire.sensor_messages``); bytes
     that are not their type (the node records them as they came) are an UnreadableEvent, as in the node."""
     wanted = [config.topics.joint_states, *config.pressure_topics, CONFIG_TOPIC]
     first_config = True
+    block: list[RawMessage] = []
     for message in read_bag_raw(path, topics=wanted):
-        topic, type_name, log_time, data = message.topic, message.type_name, message.log_time_ns, message.data
+        topic, type_name = message.topic, message.type_name
         if topic == CONFIG_TOPIC:
+            yield from _read_inputs(block, raw)
             if not first_config:
-                try:
-                    text = deserialize_message(data, String).data
-                except Exception as exc:  # noqa: BLE001 - rclpy raises RMWError for bytes it cannot read
-                    raise BagError(f"bag {path}: a configuration change on {CONFIG_TOPIC} (log time {log_time} ns) "
-                                   f"does not decode as std_msgs/msg/String ({exc}): the bag is damaged") from None
-                recorded = MonitorConfig.from_yaml(text, source=f"{path} ({CONFIG_TOPIC})")
-                yield ConfigEvent(replace(config, overrides=recorded.overrides,
-                                          staleness_limit_s=recorded.staleness_limit_s,
-                                          stamp_tolerance_s=recorded.stamp_tolerance_s,
-                                          dead_centre_transmission_deg=recorded.dead_centre_transmission_deg,
-                                          implement=recorded.implement))
+                yield ConfigEvent(_recorded_change(path, config, message))
             first_config = False
             continue
-        if not ((type_name == JOINT_STATE and topic == config.topics.joint_states)
+        if ((type_name == JOINT_STATE and topic == config.topics.joint_states)
                 or (type_name == FLUID_PRESSURE and topic in config.pressure_topics)):
-            continue
-        event = input_event(type_name, data, topic, log_time)
-        raw.append(RecordedInput(topic, type_name, event.stamp_ns, log_time, data))
-        yield event
+            block.append(message)
+            if len(block) >= READ_BLOCK:
+                yield from _read_inputs(block, raw)
+    yield from _read_inputs(block, raw)
+
+
+def _recorded_change(path: Path, config: MonitorConfig, message: RawMessage) -> MonitorConfig:
+    """``config`` with the runtime parameters of the configuration change ``message`` recorded."""
+    try:
+        text = deserialize_message(message.data, String).data
+    except Exception as exc:  # noqa: BLE001 - rclpy raises RMWError for bytes it cannot read
+        raise BagError(f"bag {path}: a configuration change on {CONFIG_TOPIC} (log time {message.log_time_ns} ns) "
+                       f"does not decode as std_msgs/msg/String ({exc}): the bag is damaged") from None
+    recorded = MonitorConfig.from_yaml(text, source=f"{path} ({CONFIG_TOPIC})")
+    return replace(config, overrides=recorded.overrides, staleness_limit_s=recorded.staleness_limit_s,
+                   stamp_tolerance_s=recorded.stamp_tolerance_s,
+                   dead_centre_transmission_deg=recorded.dead_centre_transmission_deg, implement=recorded.implement)
+
+
+def _read_inputs(block: list[RawMessage], raw: list[RecordedInput]) -> Iterator[InputColumns | InputEvent]:
+    """The input messages ``block`` read (``wire.input_block.input_items``), each recorded in ``raw``;
+    ``block`` is left empty."""
+    if not block:
+        return
+    items = input_items([m.topic for m in block], [m.type_name for m in block], [m.data for m in block],
+                        [m.log_time_ns for m in block])
+    stamps: list[int] = []
+    for item in items:
+        stamps += item.stamps_ns.tolist() if isinstance(item, InputColumns) else [item.stamp_ns]
+    raw += map(RecordedInput, (m.topic for m in block), (m.type_name for m in block), stamps,
+               (m.log_time_ns for m in block), (m.data for m in block))
+    block.clear()
+    yield from items
 
 
 _P = ParamSpec("_P")

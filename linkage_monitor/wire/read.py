@@ -18,8 +18,11 @@ The two readings give the same dict (test_sensor_messages.py).
 from __future__ import annotations
 
 import functools
+import re
 import struct
-from typing import Any, Callable, NamedTuple
+from typing import Any, Callable, NamedTuple, Sequence
+
+import numpy as np
 
 from .cdr import Reader
 from .layout import Field, LayoutError, layout
@@ -39,6 +42,68 @@ def read_message(type_name: str, data: bytes) -> dict[str, Any]:
             if int.from_bytes(data[:shape.end], "little") & shape.mask == shape.skeleton:
                 return shape.read(data)
     return _read_whole(type_name, data)
+
+
+class Block(NamedTuple):
+    """Messages of one type and size read at once by a shape (``read_block``): ``fits`` (n,) whether each
+    has the shape's bytes (the others are not read: their values below are not theirs); ``values``
+    by field path as ``read_message``'s, a column each: a time int64 ns (n,), a float (n,), floats
+    (n, k); a field of the shape's own bytes (texts, an empty sequence) its one value."""
+
+    fits: np.ndarray
+    values: dict[str, Any]
+
+
+def read_block(type_name: str, datas: Sequence[bytes]) -> Block | None:
+    """The ``type_name`` messages ``datas`` (their CDR bytes, all of one size) read at once by the shape
+    of the first (one a message of that type and size read before left, ``read_message``); None when
+    there is none."""
+    first = datas[0] if datas else b""
+    shape = next((shape for shape in _SHAPES.get((type_name, len(first)), ())
+                  if int.from_bytes(first[:shape.end], "little") & shape.mask == shape.skeleton), None)
+    if shape is None:
+        return None
+    size, n = len(datas[0]), len(datas)
+    joined = b"".join(datas)
+    rows = np.frombuffer(joined, np.uint8).reshape(n, size)
+    mask = np.frombuffer(shape.mask.to_bytes(shape.end, "little"), np.uint8)
+    skeleton = np.frombuffer(shape.skeleton.to_bytes(shape.end, "little"), np.uint8)
+    fits = ((rows[:, :shape.end] & mask) == skeleton).all(axis=1)
+
+    def column(code: str, offset: int, count: int = 1) -> np.ndarray:
+        dtype = np.dtype(code)
+        return np.ndarray((n, count), dtype, joined, offset, (size, dtype.itemsize))
+
+    offsets = _offsets(shape.numbers.format)
+    values: dict[str, Any] = {}
+    k = 0
+    for field in shape.fields:
+        if field.kind == "same":
+            values[field.path] = field.value
+        elif field.kind == "time":
+            values[field.path] = (column("<i4", offsets[k])[:, 0].astype(np.int64) * _NS
+                                  + column("<u4", offsets[k + 1])[:, 0].astype(np.int64))
+        elif field.kind == "float":
+            values[field.path] = column("<f8", offsets[k])[:, 0]
+        else:
+            values[field.path] = column("<f8", offsets[k], field.numbers)
+        k += field.numbers
+    return Block(fits, values)
+
+
+@functools.lru_cache(maxsize=SIZES_KEPT)
+def _offsets(layout: str) -> tuple[int, ...]:
+    """The byte offset of each number a ``Shape``'s struct format (``<``, ``Nx``, ``i``, ``I``, ``Nd``) unpacks."""
+    found, at = [], 0
+    for count, code in re.findall(r"(\d*)([xiId])", layout):
+        many = int(count or 1)
+        if code == "x":
+            at += many
+            continue
+        width = 4 if code in "iI" else 8
+        found += [at + width * j for j in range(many)]
+        at += width * many
+    return tuple(found)
 
 
 class ShapeField(NamedTuple):
