@@ -152,6 +152,17 @@ def test_a_factor_of_zero_is_refused_at_load(tmp_path: Path) -> None:
                           "pressure: gauge}\n", "m.yaml", tmp_path)
 
 
+@pytest.mark.parametrize("written, value", [("1e-3", 1e-3), ("2E+2", 200.0), ("-5e0", -5.0)])
+def test_a_number_yaml_reads_as_text_is_read_as_in_a_mechanism_file(written: str, value: float) -> None:
+    """`scale: 1e-3` (no dot: YAML 1.1 leaves it a string) was refused as "'1e-3' is not a finite number",
+    where a mechanism file reads 20e6 as the number; both read it as the number now."""
+    text = MAP.read_text().replace("    unit: kPa\n", f"    unit: kPa\n    scale: {written}\n    offset: {written}\n")
+    [item] = [i for i in mapping_from_text(text, "m.yaml", ROOT).inputs if i.name == "lift_cap_pressure"]
+    assert (item.scale, item.offset) == (value, value)
+    with pytest.raises(InputError, match=r"inputs.lift_cap_pressure.scale: '1e-3x' is not a finite number"):
+        mapping_from_text(text.replace(f"scale: {written}", "scale: 1e-3x"), "m.yaml", ROOT)
+
+
 PLAIN_DBC = """VERSION ""
 
 NS_ :

@@ -14,6 +14,7 @@ from typing import Any, Mapping
 import yaml
 
 from linkage_monitor.mechanics import InputError
+from linkage_monitor.mechanics.schema_values import yaml_number
 
 from .position_table import PositionTable, TableError
 
@@ -69,6 +70,7 @@ def _fail(source: str, key: str, problem: str) -> InputError:
 
 
 def _number(value: Any, source: str, key: str) -> float:
+    value = yaml_number(value)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise _fail(source, key, f"{value!r} is not a finite number")
     return float(value)

@@ -18,6 +18,13 @@ MAX_MAGNITUDE = 1e9          # no number of the schema (m, kg, N, Pa, N/m) is la
 _FLOAT = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
 
+def yaml_number(value: Any) -> Any:
+    """``value``, or the float a string of it writes: YAML 1.1 reads a number without a dot or without a
+    sign in its exponent (``20e6``, ``1e-3``) as a string. Used by every YAML the package reads numbers
+    from (mechanism files, CAN mappings)."""
+    return float(value) if isinstance(value, str) and _FLOAT.match(value.strip()) else value
+
+
 class _HasName(Protocol):
     @property
     def name(self) -> str: ...
@@ -59,8 +66,7 @@ class ValueReader:
 
     def number(self, value: Any, key: str, minimum: float | None = None, positive: bool = False,
                maximum: float | None = None) -> float:
-        if isinstance(value, str) and _FLOAT.match(value.strip()):
-            value = float(value)  # YAML 1.1 reads 20e6 / 1.5e-3 (no sign in the exponent) as strings
+        value = yaml_number(value)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.fail(key, f"expected a number, got {value!r}")
         try:
