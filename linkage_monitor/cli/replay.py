@@ -33,8 +33,9 @@ def add_replay_parser(subparsers: argparse._SubParsersAction) -> argparse.Argume
     parser.add_argument("--rate", type=bounded(0.0, 1e6, "times real time", lo_open=True), metavar="X",
                         help="write at X times real time (default: as fast as possible)")
     parser.add_argument("--uncertainty", action="store_true",
-                        help="judge the limits on their 95 %% intervals (each pose's error budget from the "
-                             "mechanism's declared error sources, docs/accuracy.md), whatever the bag recorded")
+                        help="write every output's standard uncertainty (1 sigma, the *_u fields) and judge the "
+                             "limits on their 95 %% intervals (each pose's error budget from the mechanism's "
+                             "declared error sources, docs/accuracy.md), whatever the bag recorded")
     parser.add_argument("--implement-mass-source", choices=IMPLEMENT_MASS_SOURCES, metavar="SOURCE",
                         help="where the machine-level results take the implement's mass and cg from: "
                              f"{', '.join(IMPLEMENT_MASS_SOURCES)} (default: as recorded, else file); other than "

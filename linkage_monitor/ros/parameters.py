@@ -85,7 +85,8 @@ PARAMETERS: dict[str, Declaration] = {d.name: d for d in (
                 "'file' (the mechanism or implement file's), 'estimate' (weighed while working) or "
                 "'estimate_when_confident' (docs/weighing.md); applies from the next message", True,
                 config="implement_mass_source"),
-    Declaration("uncertainty", False, "", "carry each pose's error budget and judge the limits on their 95 % "
+    Declaration("uncertainty", False, "", "carry each pose's error budget: publish every output's standard "
+                "uncertainty (1 sigma, the *_u fields; NaN when off) and judge the limits on their 95 % "
                 "intervals (steerability_uncertain, lift_reserve_uncertain, axle_load_uncertain; docs/accuracy.md); "
                 "about 8x the step's CPU time; applies from the next message", True, config="uncertainty"),
     Declaration("tractor_mass", -1.0, "kg", "tractor operating mass without ballast; -1 (exactly) keeps the file's "
