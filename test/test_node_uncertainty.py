@@ -5,7 +5,8 @@ The standard uncertainties (1 sigma) it publishes are the budget that ``mechanic
 computes here, offline, for the same inputs; the weighing fields of HitchState follow a simulated
 work cycle (``sim.work_cycle``: lifts, lowers, transport, 4 % seal friction) whose true implement
 the node does not see; what it records reads back with rosbags and with mcap-ros2-support as it was
-published. With both off (the default node) the fields are NaN and the weighing OFF.
+published, and its Rerun recording holds the 95 % bands and the weighed mass and cg. With both off
+(the default node) the fields are NaN and the weighing OFF.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from linkage_monitor.sim.telemetry import Noise
 from linkage_monitor.sim.work_cycle import ImplementTruth, WorkCycle, simulate_work
 from support.lift_pose import lift_pose
 from support.ros_harness import node_bag, read_bag_rosbags, running_node, settle, stop
+from test_rerun_view import temporal_tables
 
 T0 = (time.time_ns() // 10**9) * 10**9  # ns, now (whole s): the node refuses stamps far from its clock
 JOINTS = ["lift_cylinder", "lift_arm_angle"]
@@ -42,11 +44,13 @@ REL = 1e-6
 
 @pytest.fixture(scope="module")
 def budget_node(ros, tmp_path_factory):
-    """A belarus_1221 node with the error budget and the weighing on, recording; (client, process, dir)."""
+    """A belarus_1221 node with the error budget and the weighing on, recording a bag and a Rerun .rrd
+    (every solved pose); (client, process, dir)."""
     tmp = tmp_path_factory.mktemp("budget_node")
     with running_node({"mechanism": "belarus_1221", "record_dir": str(tmp / "bags"), "sensor_qos": "reliable",
                        "staleness_limit": 3600.0, "stamp_tolerance": 3600.0, "uncertainty": True,
-                       "implement_mass_source": "estimate"}, tmp / "node.log") as (client, proc):
+                       "implement_mass_source": "estimate", "rerun": "save", "rerun_path": str(tmp / "live.rrd"),
+                       "rerun_rate": 1000.0}, tmp / "node.log") as (client, proc):
         yield client, proc, tmp
 
 
@@ -152,6 +156,13 @@ def test_the_weighing_of_a_work_cycle_is_published_and_recorded(budget_node):
         assert np.array_equal([float(getattr(m, f)) for f in fields], [float(getattr(sent, f)) for f in fields],
                               equal_nan=True)
         assert np.array_equal([m.cylinders[0].force_u], [sent.cylinders[0].force_u], equal_nan=True)
+    # the node's Rerun recording: the bands, the weighed mass and its cg drawn (viz.rerun_estimates)
+    tables = temporal_tables(tmp / "live.rrd")
+    for entity in ("forces/cylinders/lift_cylinder/low95", "steerability/ratio/high95", "lift/reserve/low95",
+                   "weighing/mass", "weighing/mass/high95", "linkage/implement_cg", "linkage/implement_cg/interval"):
+        assert entity in tables, entity
+    masses = [v[0] for rb in tables["weighing/mass"] for v in rb.column("Scalars:scalars").to_pylist()]
+    assert last.implement_mass_estimate in masses
     with open(next(bag.glob("*.mcap")), "rb") as file:
         decoded = [msg for _, channel, _, msg in make_reader(file, decoder_factories=[DecoderFactory()])
                    .iter_decoded_messages() if channel.topic == "/hitch_state"]
