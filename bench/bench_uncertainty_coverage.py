@@ -4,8 +4,8 @@ seals' level in their friction band once per run, noise per sample, readings qua
 ``sim.sensor_errors``), a fresh monitor with ``MonitorConfig.uncertainty`` fed the erroneous readings only,
 each step's outputs compared with the same mechanics solved from the true inputs.
 
-Goals, per preset and output kind, over >= 200 runs and >= 5,000 steps: the 95 % interval (value ± 1.96 u)
-holds the true value in 93-97 % of the steps (coverage); the mean 95 % half-width is <= 2.5 times the RMS of
+Goals, per preset and output kind, over >= 200 runs and >= 5,000 steps: the 95 % interval (value ± k·u,
+k from the budget's shape) holds the true value in 93-97 % of the steps (coverage); the mean 95 % half-width is <= 2.5 times the RMS of
 the actual error (sharpness); no step passed by the monitor (no finding about the limit) whose true
 steerability margin, lift reserve or axle load is beyond its limit (wrong with OK). Every figure printed,
 with the goal it meets or misses.

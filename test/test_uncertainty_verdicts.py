@@ -1,5 +1,6 @@
 """Verdicts on the bounds (monitoring.bounds, ``MonitorConfig.uncertainty``): a limit passes only
-when the whole 95 % interval (value ± 1.96 u) clears it; an interval across it is a WARN of its own
+when the whole 95 % interval (value ± k·u, k from the budget's shape and at least 1.96:
+``bounds.verdict_half_width``) clears it; an interval across it is a WARN of its own
 code naming the dominant source; below the limit the finding it always was, with the ballast that
 clears it at the interval's bound. The live path (``Monitor.step``) and the replay's (``Monitor.run``)
 give the same verdicts and budgets; without the option the verdicts are today's."""
@@ -16,8 +17,8 @@ from linkage_monitor.cli.verdict import judge
 from linkage_monitor.mechanics import Inputs, Solver, apply_overrides, load_preset
 from linkage_monitor.mechanics.error_sources import Motion
 from linkage_monitor.mechanics.machine import MachineModel
-from linkage_monitor.monitoring.bounds import (COVERAGE_FACTOR, LimitUncertainties, MotionTracker, ballast_at_bound,
-                                               interval_checks, uncertain_findings)
+from linkage_monitor.monitoring.bounds import (LimitUncertainties, MotionTracker, ballast_at_bound, interval_checks,
+                                               uncertain_findings, verdict_half_width)
 from linkage_monitor.monitoring.checks import Check
 from linkage_monitor.monitoring.core import Monitor
 from linkage_monitor.monitoring.events import ConfigEvent
@@ -42,14 +43,14 @@ def _judged(pressure: float, uncertainty: bool = True):
 def test_a_margin_whose_interval_clears_zero_is_ok() -> None:
     step = _judged(10.132e6)   # Popov 2009's working pose: margin 0.055, u 0.0043
     margin = step.pose.budget.line("steerability_margin")
-    assert margin.value - COVERAGE_FACTOR * margin.u > 0.0
+    assert margin.value - verdict_half_width(step.pose.budget, "steerability_margin") > 0.0
     assert step.level is Level.OK
 
 
 def test_a_margin_whose_interval_straddles_zero_warns_naming_the_source() -> None:
     step = _judged(13.6e6)
     margin = step.pose.budget.line("steerability_margin")
-    assert 0.0 < margin.value < COVERAGE_FACTOR * margin.u
+    assert 0.0 < margin.value < verdict_half_width(step.pose.budget, "steerability_margin")
     codes = [f.code for f in step.findings]
     assert codes == [Code.STEERABILITY_UNCERTAIN]
     text = step.findings[0].text
@@ -70,7 +71,7 @@ def test_the_ballast_at_the_bound_brings_the_lower_bound_to_ratio_min() -> None:
     minus the old 95 % half-width is ratio_min (Popov 2009's moment balance is exact in Δm)."""
     step = _judged(14.5e6)
     ratio = step.pose.budget.line("steerability_ratio")
-    half_width = COVERAGE_FACTOR * ratio.u
+    half_width = verdict_half_width(step.pose.budget, "steerability_ratio")
     total = step.pose.machine.value("total_weight")
     mass = ballast_at_bound(MECH, ratio.value, half_width, total)
     heavier = apply_overrides(MECH, {"tractor.front_ballast.mass": MECH.tractor.front_ballast.mass + mass})
@@ -158,7 +159,8 @@ def test_the_fleet_row_gives_the_time_uncertain() -> None:
 
 
 def test_the_interval_rule_one_pose_and_many_alike() -> None:
-    """``interval_checks``: a value clearing its limit by less than 1.96 u, or of unbounded u, straddles;
+    """``interval_checks``: a value clearing its limit by less than its half-width (here 1.96 u), or of
+    unbounded u, straddles;
     one clearing by more, one beyond the limit (its own finding), NaN (not computed) and an infinite
     reserve (no load) do not; a pose's floats and a segment's arrays give the same bits."""
     margin = np.array([0.05, 0.005, -0.01, np.nan, 0.05])
@@ -167,7 +169,7 @@ def test_the_interval_rule_one_pose_and_many_alike() -> None:
     u_reserve = np.array([0.04, 0.04, np.nan, 0.04, 0.01])
     axle = np.array([1e4, 50.0, 1e4, -5.0, 1e4])
     u_axle = np.array([100.0, 100.0, 100.0, 100.0, 100.0])
-    u = LimitUncertainties(u_axle, u_axle, u_margin, u_reserve)
+    u = LimitUncertainties(*(1.96 * a for a in (u_axle, u_axle, u_margin, u_reserve)))   # 95 % half-widths
     bits = interval_checks(axle, axle, margin, reserve, u)
     steer, res = int(Check.STEERABILITY_UNCERTAIN), int(Check.LIFT_RESERVE_UNCERTAIN)
     front, rear = int(Check.FRONT_AXLE_UNCERTAIN), int(Check.REAR_AXLE_UNCERTAIN)

@@ -61,8 +61,15 @@ def solve_general(solver: SolverParts, previous: KinematicState | None, cylinder
         sine, weakest = sol.transmission.sine, sol.transmission.weakest
         smallest = smallest_sine(sine, weakest)
         names = weakest_names(reduced, weakest)
-        for i in np.flatnonzero((status == Status.OK) & ~(smallest >= solver.dead_centre_sine)):
+        amplification = sol.amplification
+        below = (status == Status.OK) & ~(smallest >= solver.dead_centre_sine)
+        for i in np.flatnonzero(below & ~inferred_load_spared(sine, weakest, amplification, solver.dead_centre_sine)):
             status[i] = Status.DEAD_CENTRE
+            if np.isinf(amplification[i]):
+                messages[i] = (f"dead centre at {kin.describe_inputs(s[i])}: {names[i]} passes through its pivot "
+                               "(the load does no work there: its interval is unbounded, it cannot be inferred "
+                               "from the measured force)")
+                continue
             messages[i] = (f"dead centre at {kin.describe_inputs(s[i])}: transmission angle "
                            f"{math.degrees(math.asin(smallest[i])):.3g} deg at {names[i]} < "
                            f"{solver.dead_centre_transmission_deg:g} deg (the linkage cannot hold a load there; "
@@ -72,6 +79,7 @@ def solve_general(solver: SolverParts, previous: KinematicState | None, cylinder
         general = sol = layout.solve(p, measured_force, accel)
         static_dead_centre_verdicts(kin, s, general.condition, solver.dead_centre_cond, status, messages)
         angle, names, statics_condition = np.full(n_pose, np.nan), [""] * n_pose, general.condition
+        amplification = np.full(n_pose, np.nan)
     u = sol.unknowns
     lift_off_verdicts(mech, layout, u, status, messages)
     failed = status >= Status.INPUT
@@ -85,7 +93,23 @@ def solve_general(solver: SolverParts, previous: KinematicState | None, cylinder
     batch.condition = np.fmax(statics_condition, ks.condition)
     batch.transmission_angle = np.where(failed, np.nan, angle)
     batch.weakest_transmission = names
+    batch.load_amplification = np.where(failed, np.nan, amplification)
     return batch, ks
+
+
+def inferred_load_spared(sine: np.ndarray, weakest: np.ndarray, amplification: np.ndarray, dead_centre_sine: float
+                         ) -> np.ndarray:
+    """Where (N,) a pose whose transmission measure is below the dead-centre's is no dead centre: its
+    weakest measure is the free load's (the last column of ``sine`` (N, S + 1)), inferred from a
+    measured cylinder force with a finite ``amplification`` (N,), and every step's own measure (links,
+    cylinders: what holds the load) is at or above ``dead_centre_sine``. The linkage holds the load
+    there; what is weak is inferring it from the pressure (a WARN on the amplification, published with
+    its uncertainty; docs/dead-centre.md)."""
+    n_steps = sine.shape[1] - 1
+    steps = sine[:, :n_steps]
+    with np.errstate(invalid="ignore"):
+        steps_hold = np.all(np.isnan(steps) | (steps >= dead_centre_sine), axis=1)
+    return (weakest == n_steps) & np.isfinite(amplification) & steps_hold
 
 
 def static_dead_centre_verdicts(kin: KinematicLayout, s: np.ndarray, condition: np.ndarray, limit: float,

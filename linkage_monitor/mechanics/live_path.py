@@ -161,7 +161,8 @@ class LivePath:
                                  pose["residual"], pose["consistency_residual"], pose["condition"],
                                  pose["largest_force"], _OK, state=state,
                                  transmission_angle=pose["transmission_angle"],
-                                 weakest_transmission=live.measure_names[pose["weakest"]]),
+                                 weakest_transmission=live.measure_names[pose["weakest"]],
+                                 load_amplification=pose["load_amplification"]),
                           rows.steerability[i], rows.capacity[i], rows.values[i])
 
     def solve_moved(self, inputs: Inputs, start: KinematicState | None, machine: MachineProgram, moves: InputMoves

@@ -168,11 +168,12 @@ class MachineProgram(NamedTuple):
 POSE_VALUES = np.dtype([("implement_load", np.float64), ("residual", np.float64),
                         ("consistency_residual", np.float64), ("condition", np.float64),
                         ("transmission_angle", np.float64), ("largest_force", np.float64),
-                        ("weakest", np.int64)])
+                        ("weakest", np.int64), ("load_amplification", np.float64)])
 """The scalars of one pose in ``LiveRows.pose``: implement load N, equilibrium residual N (N·m on
 the reduced path), consistency residual m, condition number (the kinematic one on the reduced
 path), smallest transmission angle rad (NaN on the general path), the largest hinge or cylinder
-force N (``kernels.largest_force``) and the index of the transmission measure (−1: none)."""
+force N (``kernels.largest_force``), the index of the transmission measure (−1: none) and the free
+load's amplification (N per N of the measured force it is inferred from; NaN: not inferred)."""
 
 
 ROW_SCALARS = ("residual", "consistency_residual", "implement_load", "transmission_angle")

@@ -65,12 +65,15 @@ class Transmission(NamedTuple):
 
 class ReducedSolution(NamedTuple):
     """``StaticsLayout.solve``'s unknowns in its column order (N, n_unknowns) N, the residual (N,)
-    N·m left in the closing equation, the transmission, and the members' axes (from end a to end b)
-    and lengths (m) as ``StaticsSolution`` has them."""
+    N·m left in the closing equation, the transmission, the free load's amplification (N,) (N of
+    load per N of the measured force it is inferred from; NaN where it is not inferred:
+    ``kernels.reduced._reduced_pose``), and the members' axes (from end a to end b) and lengths (m)
+    as ``StaticsSolution`` has them."""
 
     unknowns: np.ndarray
     residual: np.ndarray
     transmission: Transmission
+    amplification: np.ndarray
     cylinder_axis: np.ndarray
     cylinder_length: np.ndarray
     spring_force: np.ndarray
@@ -196,11 +199,12 @@ class ReducedStatics:
         layout = self.layout
         ns = layout.n_springs
         member_force, lin, alpha, has_accel = layout.kernel_loads(p, cylinder_force, accel)
-        u, residual, sine, weakest, axes, length = kernels.solve_reduced_statics(
+        u, residual, sine, weakest, amplification, axes, length = kernels.solve_reduced_statics(
             np.ascontiguousarray(p, dtype=float), member_force, lin, alpha, has_accel, layout.n_unknowns,
             layout.program, self.program)
         return ReducedSolution(unknowns=u, residual=residual,
                                transmission=Transmission(sine, weakest, transmission_angle(sine, weakest)),
+                               amplification=amplification,
                                cylinder_axis=axes[:, ns:], cylinder_length=length[:, ns:],
                                spring_force=member_force[:, :ns], spring_axis=axes[:, :ns])
 

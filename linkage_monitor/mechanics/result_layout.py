@@ -115,4 +115,5 @@ class ResultLayout:
             residual=np.where(failed, np.nan, sol.residual), consistency_residual=np.zeros(n_pose),
             condition=np.zeros(n_pose), largest_force=largest, status=np.zeros(n_pose, dtype=int),
             messages=[""] * n_pose,
-            transmission_angle=np.full(n_pose, np.nan), weakest_transmission=[""] * n_pose)
+            transmission_angle=np.full(n_pose, np.nan), weakest_transmission=[""] * n_pose,
+            load_amplification=np.full(n_pose, np.nan))

@@ -119,7 +119,10 @@ class Result:
     ``transmission_angle``), ``consistency_residual`` =
     norm of the kinematic constraint residual (m). ``largest_force`` = the largest hinge reaction or
     cylinder force magnitude (N; 0 with neither; ``kernels.largest_force``). ``status`` = "ok" or
-    "lift_off" (a contact pulls: N < 0; ``message`` names it).
+    "lift_off" (a contact pulls: N < 0; ``message`` names it). ``load_amplification``: where the
+    reduced path infers a free load (the implement's, a contact's) from a measured cylinder force, N
+    of that load per N of the force (|∂λ/∂F|; large where the load's line passes near the closing
+    step's pivot: docs/dead-centre.md); NaN where no load is so inferred.
     """
 
     names: ResultNames
@@ -141,6 +144,7 @@ class Result:
     state: object = field(default=None, repr=False)  # the solver's pose, to warm-start the next solve
     transmission_angle: float = math.nan
     weakest_transmission: str = ""
+    load_amplification: float = math.nan
 
     @cached_property
     def hinge_magnitude(self) -> np.ndarray:
@@ -181,7 +185,8 @@ class BatchResult:
     ``status`` (N,) int: a :class:`Status` value per pose; ``messages[i]`` says what went wrong with pose i ("" when ok).
     ``hinge_force[name]`` (N, 2) N on bodies[1] from bodies[0]; ``frame_load_points`` and
     ``frame_load_forces`` (N, K, 2) in the order of ``frame_load_names``. ``largest_force`` (N,) N,
-    ``transmission_angle`` (N,) rad and ``weakest_transmission`` (N names) as :class:`Result`'s.
+    ``transmission_angle`` (N,) rad, ``weakest_transmission`` (N names) and ``load_amplification`` (N,)
+    as :class:`Result`'s.
     """
 
     points: dict[str, np.ndarray]
@@ -208,6 +213,7 @@ class BatchResult:
     messages: list[str]
     transmission_angle: np.ndarray
     weakest_transmission: list[str]
+    load_amplification: np.ndarray
 
     def __len__(self) -> int:
         return len(self.status)
@@ -253,13 +259,13 @@ class BatchResult:
                                                                   self.frame_load_forces))
         scalars = zip(*(a[span].tolist() for a in (self.implement_load, self.residual, self.consistency_residual,
                                                     self.condition, self.largest_force, self.status,
-                                                    self.transmission_angle)))
+                                                    self.transmission_angle, self.load_amplification)))
         rows = zip(points, poses, hinges, cylinders, contacts, cgs, load_points, load_forces)   # views, one per pose
         return [Result(names, point, pose, hinge, cylinder, contact, load, cg, load_point, load_force, residual,
                        consistency, condition, largest_force, STATUS_LABELS[int(status)], message,
-                       transmission_angle=angle, weakest_transmission=weakest)
+                       transmission_angle=angle, weakest_transmission=weakest, load_amplification=amplification)
                 for (point, pose, hinge, cylinder, contact, cg, load_point, load_force),
-                (load, residual, consistency, condition, largest_force, status, angle), message, weakest
+                (load, residual, consistency, condition, largest_force, status, angle, amplification), message, weakest
                 in zip(rows, scalars, self.messages[span], self.weakest_transmission[span])]
 
     @classmethod
@@ -268,8 +274,8 @@ class BatchResult:
                      contact_values: np.ndarray, implement_load: np.ndarray, implement_cg: np.ndarray,
                      frame_load_names: list[str], frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
                      residual: np.ndarray, consistency_residual: np.ndarray, condition: np.ndarray,
-                     largest_force: np.ndarray, transmission_angle: np.ndarray, weakest_transmission: list[str]
-                     ) -> "BatchResult":
+                     largest_force: np.ndarray, transmission_angle: np.ndarray, weakest_transmission: list[str],
+                     load_amplification: np.ndarray) -> "BatchResult":
         """N solved poses (status OK) from arrays stacked as :class:`Result`'s, with a first axis of
         poses (``results`` the other way round); each column is a view of the stack."""
         n_pose = len(residual)
@@ -286,7 +292,8 @@ class BatchResult:
             frame_load_points=frame_load_points, frame_load_forces=frame_load_forces, residual=residual,
             consistency_residual=consistency_residual, condition=condition, largest_force=largest_force,
             status=np.zeros(n_pose, dtype=int),
-            messages=[""] * n_pose, transmission_angle=transmission_angle, weakest_transmission=weakest_transmission)
+            messages=[""] * n_pose, transmission_angle=transmission_angle, weakest_transmission=weakest_transmission,
+            load_amplification=load_amplification)
 
     @property
     def names(self) -> ResultNames:

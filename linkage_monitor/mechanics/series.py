@@ -99,7 +99,7 @@ class Series:
             rows.implement_cg, list(solver.frame_load_names), rows.frame_load_points, rows.frame_load_forces,
             rows.pose["residual"], rows.pose["consistency_residual"], rows.pose["condition"],
             rows.pose["largest_force"], rows.pose["transmission_angle"],
-            weakest_names(solver.reduced[force_known], rows.pose["weakest"]))
+            weakest_names(solver.reduced[force_known], rows.pose["weakest"]), rows.pose["load_amplification"])
         general = np.flatnonzero(~plain)
         if general.size:
             def taken(group: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:

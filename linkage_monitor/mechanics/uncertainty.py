@@ -20,6 +20,8 @@ the same compiled solve as the pose (``Solver.solve_moved``; a moved pose it doe
   Richardson estimate).
 What moves for a set of input names is worked out once (``_Plan``).
 u_y² = Σ_s (∂y/∂s · u_s)² (the sources independent); the share of s is (∂y/∂s · u_s)² / u_y².
+The 95 % interval is y ± k·u_y, k from the shape of the budget (``coverage_factor``: 1.96 for normal
+sources, down to 1.645 where one uniform source, a seal's friction or a quantization step, dominates).
 Units SI (m, rad, Pa, N, kg); frame x forward, z up, origin at the rear wheels' ground contact.
 """
 
@@ -32,6 +34,7 @@ from typing import Mapping, NamedTuple
 
 import numpy as np
 
+from .coverage_factor import coverage_factors
 from .error_sources import ErrorSources, Motion
 from .errors import LinkageError
 from .inputs import Inputs
@@ -74,17 +77,36 @@ class Source:
     u: float
     unit: str
 
+    @property
+    def uniform(self) -> bool:
+        """Whether the error is uniform over ±√3·u (a quantization step, a seal's friction band), else
+        normal (a bias, noise, the implement's mass): the simulator draws them so (``sim.sensor_errors``)."""
+        return self.part in UNIFORM_PARTS
+
+
+UNIFORM_PARTS = frozenset({"resolution", "friction"})
+# the sign of a seal's friction in the force the pressure carries (+ the cylinder pushes harder) by its
+# motion: extending it opposes the motion, so does retracting; standing, either sign (0)
+FRICTION_SIGN = {Motion.LIFTING: 1.0, Motion.LOWERING: -1.0, Motion.STANDING: 0.0}
+
 
 @dataclass(frozen=True)
 class OutputUncertainty:
     """One output's line of a budget: its value and standard uncertainty ``u`` (both in the output's
-    unit; u NaN where a derivative could not be taken: the interval is unbounded) and each source's
-    share of u² (source name -> 0..1, summing to 1 where u > 0)."""
+    unit; u NaN where a derivative could not be taken: the interval is unbounded), its 95 % coverage
+    factor ``k`` (the 95 % interval is value ± k·u, ``coverage_factor``) and each source's share of u²
+    (source name -> 0..1, summing to 1 where u > 0)."""
 
     output: Output
     value: float
     u: float
+    k: float
     shares: Mapping[str, float]
+
+    @property
+    def half_width(self) -> float:
+        """The 95 % interval's half-width k·u (the output's unit; NaN where unbounded)."""
+        return self.k * self.u
 
     @property
     def dominant(self) -> str:
@@ -111,6 +133,21 @@ class Budget:
         return np.sqrt(np.sum(self.contributions**2, axis=1))
 
     @cached_property
+    def k(self) -> np.ndarray:
+        """The 95 % coverage factor (n_out,) of every output from the shape of its budget: 1.96 where the
+        normal sources dominate, down to 1.645 where one uniform source does, 1.69 where a moving seal's
+        friction (its sign known) does (``coverage_factor.coverage_factors``)."""
+        uniform = np.array([s.uniform for s in self.sources], dtype=bool)
+        sign = np.array([FRICTION_SIGN[self.motions[s.input]] if s.part == "friction" else 0.0
+                         for s in self.sources])
+        return coverage_factors(self.contributions.reshape(len(self.outputs), len(self.sources)), uniform, sign)
+
+    @cached_property
+    def half_width(self) -> np.ndarray:
+        """The 95 % interval's half-width k·u (n_out,) of every output (its unit; NaN where unbounded)."""
+        return self.k * self.u
+
+    @cached_property
     def index(self) -> dict[str, int]:
         """Output name -> its row."""
         return {o.name: k for k, o in enumerate(self.outputs)}
@@ -122,7 +159,7 @@ class Budget:
         squares = self.contributions[k] ** 2
         shares = ({s.name: float(c / u**2) for s, c in zip(self.sources, squares)} if u > 0.0
                   else {s.name: 0.0 for s in self.sources})
-        return OutputUncertainty(self.outputs[k], float(self.values[k]), u, shares)
+        return OutputUncertainty(self.outputs[k], float(self.values[k]), u, float(self.k[k]), shares)
 
     def lines(self) -> list[OutputUncertainty]:
         """Every output's budget line, in the order of ``outputs``."""
@@ -132,6 +169,11 @@ class Budget:
         """The standard uncertainty of the output ``name`` (NaN for an output this budget lacks)."""
         k = self.index.get(name)
         return float(self.u[k]) if k is not None else math.nan
+
+    def half_width_of(self, name: str) -> float:
+        """The 95 % half-width of the output ``name`` (NaN for an output this budget lacks)."""
+        k = self.index.get(name)
+        return float(self.half_width[k]) if k is not None else math.nan
 
 
 class OutputTable:

@@ -355,7 +355,8 @@ class Monitor:
         limits = (machine.value("front_axle_load"), machine.value("rear_axle_load"), machine.value("margin"),
                   machine.value("reserve"))
         checks = int(pose_checks(CheckedValues(result.status == _LIFT_OFF, result.consistency_residual,
-                                               result.residual, result.largest_force, *limits)))
+                                               result.residual, result.largest_force, *limits,
+                                               result.load_amplification)))
         budget = self._budgets([due], [result], [machine], [Status.OK])[0]
         if budget is not None:
             checks += int(interval_checks(*limits, LimitUncertainties.of(budget)))

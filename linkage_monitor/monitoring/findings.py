@@ -40,6 +40,7 @@ class Code(Enum):
     LIFT_OFF = ("lift_off", Level.WARN)                     # a ground contact would pull
     SENSORS_DISAGREE = ("sensors_disagree", Level.WARN)     # redundant kinematic inputs disagree
     PRESSURES_DISAGREE = ("pressures_disagree", Level.WARN)  # redundant forces disagree (equilibrium residual)
+    LOAD_INFERENCE_WEAK = ("load_inference_weak", Level.WARN)  # a load inferred from a pressure, amplified
     # machine-level limits
     AXLE_LIFT_OFF = ("axle_lift_off", Level.ERROR)          # an axle's ground load < 0: the machine tips over
     STEERABILITY_LOW = ("steerability_low", Level.WARN)     # steerability margin < 0

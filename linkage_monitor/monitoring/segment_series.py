@@ -84,4 +84,4 @@ def segment_checks(batch: BatchResult, machine: MachineBatch) -> np.ndarray:
     values pass every check, and its verdict is worded from its status)."""
     return np.asarray(pose_checks(CheckedValues(
         batch.status == Status.LIFT_OFF, batch.consistency_residual, batch.residual, batch.largest_force,
-        *limit_values(machine, len(batch)))))
+        *limit_values(machine, len(batch)), batch.load_amplification)))

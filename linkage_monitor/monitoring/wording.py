@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from linkage_monitor.mechanics import Mechanism, Status
 
-from .bounds import ballast_at_bound_text, uncertain_findings
+from .bounds import ballast_at_bound_text, uncertain_findings, weak_inference_finding
 from .checks import CONSISTENCY_WARN_M, RESIDUAL_WARN_SHARE, Check
 from .findings import Code, Finding, fmt
 from .steps import Due, Pose, Step
@@ -38,6 +38,8 @@ def pose_findings(checks: Check, pose: Pose, mechanism: Mechanism) -> tuple[Find
         findings.append(Finding(Code.PRESSURES_DISAGREE, f"equilibrium residual {fmt(result.residual)} N > "
                                 f"{RESIDUAL_WARN_SHARE:.0%} of the largest force ({fmt(result.largest_force)} N): the measured "
                                 "pressures disagree"))
+    if Check.LOAD_INFERENCE_WEAK in checks:
+        findings.append(weak_inference_finding(result, pose.budget))
     for axle, check in (("front", Check.FRONT_AXLE_LIFT_OFF), ("rear", Check.REAR_AXLE_LIFT_OFF)):
         if check in checks:
             load = machine.value(f"{axle}_axle_load")

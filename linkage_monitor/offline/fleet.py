@@ -79,9 +79,10 @@ def analyse_bag(bag: Path, mech: Mechanism | None = None, slope: float = DEFAULT
         "min_reserve_at_s": summary.min_reserve[1] if summary.min_reserve else math.nan,
         "below_reserve_s": history.time_below(history.reserve, RESERVE_LIMIT),
     }
-    if history.margin_u is not None and history.reserve_u is not None:
-        row["uncertain_margin_s"] = history.time_uncertain(history.margin, history.margin_u, MARGIN_LIMIT)
-        row["uncertain_reserve_s"] = history.time_uncertain(history.reserve, history.reserve_u, RESERVE_LIMIT)
+    if history.margin_half_width is not None and history.reserve_half_width is not None:
+        row["uncertain_margin_s"] = history.time_uncertain(history.margin, history.margin_half_width, MARGIN_LIMIT)
+        row["uncertain_reserve_s"] = history.time_uncertain(history.reserve, history.reserve_half_width,
+                                                            RESERVE_LIMIT)
     counts = {code.ident: 0 for code in Code}
     for (_, ident), count in summary.kinds.items():
         counts[ident] += count

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from linkage_monitor.monitoring.bounds import straddles
+from linkage_monitor.monitoring.bounds import straddles, verdict_half_width
 from linkage_monitor.monitoring.core import Run
 
 from .spectra import Spectrum, rainflow_spectrum
@@ -22,17 +22,17 @@ from .spectra import Spectrum, rainflow_spectrum
 class LoadHistory:
     """Solved poses of one run: t (N,) s; hinge[name] (N,) reaction magnitude N; margin (N,)
     and reserve (N,) (NaN where the machine model has none); duration_s from the first to the
-    last input stamp; margin_u and reserve_u (N,): their standard uncertainties where the run
-    computed the error budget (``MonitorConfig.uncertainty``; NaN at a pose whose u is unbounded),
-    None where it did not."""
+    last input stamp; margin_half_width and reserve_half_width (N,): the half-widths their verdicts
+    judge (``monitoring.bounds.verdict_half_width``) where the run computed the error budget
+    (``MonitorConfig.uncertainty``; NaN at a pose whose u is unbounded), None where it did not."""
 
     t: np.ndarray
     hinge: dict[str, np.ndarray]
     margin: np.ndarray
     reserve: np.ndarray
     duration_s: float
-    margin_u: np.ndarray | None = None
-    reserve_u: np.ndarray | None = None
+    margin_half_width: np.ndarray | None = None
+    reserve_half_width: np.ndarray | None = None
 
     @classmethod
     def from_run(cls, run: Run) -> LoadHistory:
@@ -47,12 +47,12 @@ class LoadHistory:
         dt = np.diff(self.t)
         return float(np.sum(np.where(values[:-1] < limit, dt, 0.0)))
 
-    def time_uncertain(self, values: np.ndarray, u: np.ndarray, limit: float) -> float:
-        """Seconds spent with ``values`` ≥ limit but their 95 % interval (± 1.96 ``u``) reaching below
-        it, or u unbounded (``monitoring.bounds.straddles``): each solved pose holds until the next one."""
+    def time_uncertain(self, values: np.ndarray, half_width: np.ndarray, limit: float) -> float:
+        """Seconds spent with ``values`` ≥ limit but their 95 % interval (± ``half_width``) reaching below
+        it, or unbounded (``monitoring.bounds.straddles``): each solved pose holds until the next one."""
         if self.t.size < 2:
             return 0.0
-        return float(np.sum(np.where(straddles(values[:-1], u[:-1], limit), np.diff(self.t), 0.0)))
+        return float(np.sum(np.where(straddles(values[:-1], half_width[:-1], limit), np.diff(self.t), 0.0)))
 
     def spectra(self) -> dict[str, Spectrum]:
         """Rainflow spectrum of each hinge's reaction magnitude over the bag's duration."""
@@ -71,7 +71,7 @@ class HistoryRecorder:
         self._magnitudes: list[np.ndarray] = []
         self._margin: list[np.ndarray] = []
         self._reserve: list[np.ndarray] = []
-        self._u: list[np.ndarray] = []   # (n, 2): the margin's and the reserve's u, where budgets were computed
+        self._u: list[np.ndarray] = []   # (n, 2): the margin's and the reserve's verdict half-widths, where budgets were computed
         self._budgets = True             # every solved pose so far carried its error budget
 
     def add(self, run: Run) -> None:
@@ -93,7 +93,7 @@ class HistoryRecorder:
         self._reserve.append(np.array([p.machine.value("reserve") for _, p in poses]))
         self._budgets = self._budgets and all(p.budget is not None for _, p in poses)
         if self._budgets:
-            self._u.append(np.array([[p.budget.u_of("steerability_margin"), p.budget.u_of("lift_reserve")]
+            self._u.append(np.array([[verdict_half_width(p.budget, "steerability_margin"), verdict_half_width(p.budget, "lift_reserve")]
                                      for _, p in poses if p.budget is not None]).reshape(len(poses), 2))
 
     def history(self) -> LoadHistory:

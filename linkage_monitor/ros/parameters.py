@@ -73,7 +73,8 @@ PARAMETERS: dict[str, Declaration] = {d.name: d for d in (
                 "(Naumenko et al. 2021)", False, config="kinetostatics"),
     Declaration("dead_centre_transmission_deg", DEAD_CENTRE_TRANSMISSION_DEG, "degrees", "a pose whose smallest "
                 "transmission angle along the linkage's chain of dyads is below this is a dead centre (ERROR, no "
-                "outputs); applies from the next message", True, (0.0, 45.0),
+                "outputs), except a load inferred from a pressure whose own is (published, WARN load_inference_weak "
+                "on its amplification: docs/dead-centre.md); applies from the next message", True, (0.0, 45.0),
                 config="dead_centre_transmission_deg"),
     Declaration("implement_mass", -1.0, "kg", "implement mass; -1 (exactly) keeps the mechanism file's value, other "
                 "negatives are refused; applies from the next message", True, (-1.0, 100_000.0),

@@ -5,8 +5,9 @@ errors from the declared sources (``sim.sensor_errors``: biases and the seals' l
 noise per sample) and feeds a fresh ``Monitor`` (``MonitorConfig.uncertainty``) the erroneous readings
 only, one JointState and the pressures per sample. The truth of each sample is the same mechanics
 solved from the true inputs (the pressures of the true loads, the true lengths and angles). Tallied
-per output kind (``KIND_GROUPS``): the share of steps whose 95 % interval (value ± 1.96 u) holds the
-true value, the mean 95 % half-width over the RMS of the actual error (sharpness), and per
+per output kind (``KIND_GROUPS``): the share of steps whose 95 % interval (value ± k·u) holds the
+true value, the mean 95 % half-width (k·u, ``Budget.half_width``) over the RMS of the actual error
+(sharpness), and per
 machine-level limit the steps the monitor passed (no finding about that limit) whose true value is
 beyond it (wrong with OK). Units SI (N, -).
 """
@@ -18,7 +19,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from linkage_monitor.mechanics import LinkageError, Mechanism
-from linkage_monitor.monitoring.bounds import COVERAGE_FACTOR
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Monitor, Step
 from linkage_monitor.monitoring.findings import Code
@@ -101,11 +101,11 @@ class CoverageTally:
         if budget is None:
             self.refused += 1
             return
-        u = budget.u
+        u, half_width = budget.u, budget.half_width
         with np.errstate(invalid="ignore"):   # an infinite reserve (no load) on both sides
             error = budget.values - truth
             valid = np.isfinite(error) & np.isfinite(u)
-            covered = np.abs(error) <= COVERAGE_FACTOR * u + SCALE_TOLERANCE * np.maximum(1.0, np.abs(truth))
+            covered = np.abs(error) <= half_width + SCALE_TOLERANCE * np.maximum(1.0, np.abs(truth))
         for k in np.flatnonzero(valid):
             group = KIND_GROUPS.get(kinds[k])
             if group is None:
@@ -113,7 +113,7 @@ class CoverageTally:
             tally = self.groups.setdefault(group, GroupTally())
             tally.steps += 1
             tally.covered += int(covered[k])
-            tally.half_width += COVERAGE_FACTOR * float(u[k])
+            tally.half_width += float(half_width[k])
             tally.squared_error += float(error[k]) ** 2
         index = {name: k for k, name in enumerate(names)}
         for limit in LIMITS:

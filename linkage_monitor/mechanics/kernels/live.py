@@ -100,18 +100,21 @@ def live_series(programs, buffer, q_start, s_start, limit, max_condition, first,
 @njit(cache=True)
 def _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition, statics, outputs, reduced) -> bool:
     """Equilibrium of pose i of ``live_series`` into u_out (1, n_unknowns), member axes and lengths,
-    its residual, condition and transmission into ``rows``: False at a dead centre — the smallest
+    its residual, condition, transmission and the free load's amplification into ``rows``: False at a
+    dead centre (the general path then words the verdict, and spares an inferred load: ``general_path``) — the smallest
     transmission below ``outputs.dead_centre_sine`` (reduced path) or the condition number above
     ``max_condition`` (general path)."""
     residual, no_accel, no_alpha = np.empty(1), np.zeros((1, 1, 2)), np.zeros((1, 1))
     if outputs.reduced:
         sine, weakest = np.empty((1, outputs.measure_count)), np.empty(1, dtype=np.int64)
-        _reduced_pose(0, u_out, residual, sine, weakest, axes, lengths, p, member_force, no_accel, no_alpha, False,
-                      statics, reduced, _reduced_work(statics, reduced, u_out.shape[1]))
+        amplification = np.empty(1)
+        _reduced_pose(0, u_out, residual, sine, weakest, amplification, axes, lengths, p, member_force, no_accel,
+                      no_alpha, False, statics, reduced, _reduced_work(statics, reduced, u_out.shape[1]))
         smallest = smallest_sine(sine[0], weakest[0])
         if not smallest >= outputs.dead_centre_sine:
             return False
         rows.pose[i].transmission_angle, rows.pose[i].weakest = math.asin(smallest), weakest[0]
+        rows.pose[i].load_amplification = amplification[0]
         rows.pose[i].condition = rows.kinematic_condition[i]
     else:
         cond = np.empty(1)
@@ -119,6 +122,7 @@ def _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition,
         if not cond[0] <= max_condition:
             return False
         rows.pose[i].transmission_angle, rows.pose[i].weakest = math.nan, -1
+        rows.pose[i].load_amplification = math.nan
         rows.pose[i].condition = max(cond[0], rows.kinematic_condition[i])
     rows.pose[i].residual = residual[0]
     return True
@@ -136,6 +140,7 @@ def _live_pose_at(i, rows, s, pressures, q_start, s_start, capacity_start, limit
     rows.implement_cg[i, 0], rows.implement_cg[i, 1] = math.nan, math.nan
     rows.capacity[i, :] = math.nan
     rows.pose[i].transmission_angle, rows.pose[i].weakest = math.nan, -1
+    rows.pose[i].load_amplification = math.nan
     member_att = statics.member_att   # (2, M): the ends of springs then cylinders
     n, m = rows.q.shape[1], rows.phi.shape[1]
     n_springs, n_cylinders = outputs.spring_stiffness.shape[0], outputs.per_cap_area.shape[0]

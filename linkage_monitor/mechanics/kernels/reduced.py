@@ -178,26 +178,28 @@ def solve_reduced_statics(p: np.ndarray, member_force: np.ndarray, accel: np.nda
     Returns u, the equilibrium residual (N,) N·m (the closing equation's moment left over; 0
     without one), the transmission (N, S + 1): each step's |sin| (``step_transmission``) then the
     free load's (``_reduced_pose``; NaN without one), the weakest of them (N,) (S: the free load;
-    −1: none), member unit axes (N, M, 2) and lengths (N, M) m.
+    −1: none), the free load's amplification (N,) (``_reduced_pose``), member unit axes (N, M, 2)
+    and lengths (N, M) m.
     """
     n_pose = p.shape[0]
     n_members = member_force.shape[1]
     out = (np.empty((n_pose, n_unknowns)), np.empty(n_pose), np.empty((n_pose, reduced.chain_int.shape[0] + 1)),
-           np.empty(n_pose, dtype=np.int64), np.empty((n_pose, n_members, 2)), np.empty((n_pose, n_members)))
+           np.empty(n_pose, dtype=np.int64), np.empty(n_pose), np.empty((n_pose, n_members, 2)),
+           np.empty((n_pose, n_members)))
     driver = _reduced_parallel if _parallel(n_pose) else _reduced_serial
     driver(n_pose, *out, p, member_force, accel, alpha, has_accel, *layout, *reduced)
     return out
 
 
-_REDUCED_ARGS = 11   # ``_reduced_pose``'s arguments before its programs (outputs, positions, loads)
+_REDUCED_ARGS = 12   # ``_reduced_pose``'s arguments before its programs (outputs, positions, loads)
 
 
 _REDUCED_LAYOUT_END = _REDUCED_ARGS + len(StaticsProgram._fields)
 
 
 @njit(cache=True, error_model="numpy")
-def _reduced_pose(i, u_out, residual, sine, weakest, axes, lengths, p, member_force, accel, alpha, has_accel,
-                  layout: StaticsProgram, reduced: ReducedProgram, work: np.ndarray):
+def _reduced_pose(i, u_out, residual, sine, weakest, amplification, axes, lengths, p, member_force, accel, alpha,
+                  has_accel, layout: StaticsProgram, reduced: ReducedProgram, work: np.ndarray):
     """Pose i of ``solve_reduced_statics``, written into the output arrays; ``work``: room for its
     loads and unknowns (``_reduced_work``), overwritten.
 
@@ -213,6 +215,13 @@ def _reduced_pose(i, u_out, residual, sine, weakest, axes, lengths, p, member_fo
     load's virtual work per unit rotation of the closing step (1 when larger than the radius). At
     0 the load does no work on the motion the closing equation balances, and it is not determined:
     a static dead centre of the general path that no link's transmission shows.
+
+    Where the closing step is a cylinder whose force is measured, the free load is inferred from
+    that force (the linkage holds it whatever its size): its amplification, N of load per N of the
+    cylinder's force, is |∂λ/∂F| = |m / M_unit|, m the cylinder's moment about the closing pivot per
+    N of its force on the step's body (its other end on a body already placed, as a chain's cylinder
+    step has it); infinite where M_unit is 0: the load is not determined. NaN otherwise (no free
+    load, or one closed by an angle-driven step: a reaction, not an inference).
     """
     lc, t_col = layout.lc, layout.t_col
     chain_int, free_col, closing_step = reduced.chain_int, reduced.free_col, reduced.closing_step
@@ -239,7 +248,14 @@ def _reduced_pose(i, u_out, residual, sine, weakest, axes, lengths, p, member_fo
         loads[1], u[1], p[i], axes[i], lc, reduced.att_body, reduced.hinge_att, chain_int, reduced.hinge_cols,
         reduced.step_col, reduced.step_member, reduced.step_sign)
     weakest[i] = transmission_pose(p[i], chain_int, sine[i, :n_steps])
+    amplification[i] = math.nan
     if free_col >= 0:
+        closing = chain_int[closing_step]
+        if closing[KIND] == CYLINDER:   # the free load inferred from the closing cylinder's measured force
+            member, sign, at = reduced.step_member[closing_step], reduced.step_sign[closing_step], closing[A_BODY]
+            arm = ((p[i, closing[A_END], 0] - p[i, at, 0]) * sign * axes[i, member, 1]
+                   - (p[i, closing[A_END], 1] - p[i, at, 1]) * sign * axes[i, member, 0])
+            amplification[i] = abs(arm / closing_unit) if closing_unit != 0.0 else math.inf
         free = -closing_known / closing_unit
         for j in range(u_out.shape[1]):
             u_out[i, j] = u[0, j] + free * u[1, j]
