@@ -19,6 +19,7 @@ from linkage_monitor.can.mapping import load_mapping, mapping_from_text
 from linkage_monitor.can.outcomes import Outcome
 from linkage_monitor.can.position_table import fit_table
 from linkage_monitor.mechanics import InputError, load_description
+from linkage_monitor.mechanics.error_sources import ErrorSources, SensorError
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.events import JointStateEvent, PressureEvent
 from linkage_monitor.monitoring.findings import Code
@@ -235,3 +236,31 @@ def test_recorded_inputs_are_the_messages_rclpy_reads(names, positions) -> None:
     pressure = fluid_pressure_cdr(stamp, 10.2e6)
     assert deserialize_message(pressure, FluidPressure).fluid_pressure == 10.2e6
     assert read_input(FLUID_PRESSURE, pressure, "/pressure", stamp).fluid_pressure == 10.2e6
+
+
+def test_a_mapping_passes_its_dbc_scale_on_as_the_resolution() -> None:
+    """isobus_hitch.dbc: RearHitchPosition 0.4 %/bit, through the mapping's tables (the steepest segment's
+    slope, per % of position); LiftCylinderCapPressure 1 kPa/bit = 1000 Pa. The error budget takes them
+    as the sensors' resolution unless the mechanism declares a coarser one (belarus_1221 declares none:
+    the stroke's default 1 mm is coarser than the table's step, the angle's and the pressure's have none)."""
+    mapping = load_mapping(MAP)
+    mech = load_description("belarus_1221")
+    decoder = CanDecoder(load_databases(mapping.dbc), mapping, mech, MonitorConfig.default("belarus_1221", mech), "can0")
+    steps = decoder.resolutions
+    tables = {item.name: item.table for item in mapping.inputs if item.table is not None}
+    for name, kind in (("lift_arm_angle", "angles"), ("lift_cylinder", "cylinders")):
+        table = tables[name]
+        slopes = [abs((b - a) / (t - s)) for s, t, a, b in zip(table.signal, table.signal[1:], table.value,
+                                                                 table.value[1:])]
+        assert steps[name] == (kind, pytest.approx(0.4 * max(slopes), rel=1e-12))
+    assert steps["lift_cap_pressure"] == ("pressures", pytest.approx(1000.0, rel=1e-12))
+    sources = mech.error_sources.with_resolutions(steps)
+    assert sources.sensor("lift_cap_pressure", "pressures").resolution == pytest.approx(1000.0)
+    assert sources.sensor("lift_arm_angle", "angles").resolution == steps["lift_arm_angle"][1]
+    assert sources.sensor("lift_arm_angle", "angles").bias == mech.error_sources.sensor("lift_arm_angle", "angles").bias
+    # the stroke's default is 1 mm (ISO 11783-7's 0.4 % of a 0.25 m stroke); the table's steepest 0.4 % is more
+    assert steps["lift_cylinder"][1] > 1e-3
+    assert sources.sensor("lift_cylinder", "cylinders").resolution == steps["lift_cylinder"][1]
+    declared = ErrorSources(sensors={"lift_cap_pressure": SensorError(resolution=5000.0, origin="file")}, declared=True)
+    kept = declared.with_resolutions(steps)   # a coarser declared step stays
+    assert kept.sensor("lift_cap_pressure", "pressures") == declared.sensor("lift_cap_pressure", "pressures")

@@ -86,6 +86,13 @@ class CanDecoder:
         self._routing = Routing(db, mapping, mechanism, config)
         self._senders: dict[int, list[int]] = {}   # route index -> the source addresses seen (any-source routes)
 
+    @property
+    def resolutions(self) -> dict[str, tuple[str, float]]:
+        """Each mapped input's kind and quantization step in SI, from its DBC signal's scale
+        (``Routing.resolutions``): what the error budget takes as the sensor's resolution
+        (``ErrorSources.with_resolutions``)."""
+        return self._routing.resolutions
+
     # ---- one frame ----------------------------------------------------------------------------
     def decode(self, frame: Frame, receive_ns: int) -> Decoded:
         """The frame's outcome (counted); never raises."""

@@ -14,7 +14,7 @@ heartbeat and at shutdown. Units SI; stamps: the frames' own (µs), receive time
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -71,13 +71,19 @@ class CanFrames:
         return self._node
 
     def start(self, node: InputHost) -> None:
-        """The decoder for the node's mechanism; the bus opened (read every POLL_PERIOD_S) or the
-        frames' topic subscribed; the silence check started."""
+        """The decoder for the node's mechanism, whose error budget takes each mapped input's DBC
+        scale as its resolution (unless the mechanism file declares a coarser one); the bus opened
+        (read every POLL_PERIOD_S) or the frames' topic subscribed; the silence check started."""
         source = self.source
         self._node = node
         self.source_name = source.bus or node.resolve_topic_name(source.topic)
-        self.decoder = CanDecoder(load_databases(source.dbc), source.mapping, node.monitor.description,
-                                  node.monitor.config, self.source_name)
+        monitor = node.monitor
+        self.decoder = CanDecoder(load_databases(source.dbc), source.mapping, monitor.description, monitor.config,
+                                  self.source_name)
+        described = monitor.description
+        monitor.description = replace(described, error_sources=described.error_sources.with_resolutions(
+            self.decoder.resolutions))
+        monitor.reconfigure(monitor.config)
         self.silence_s = source.mapping.silence_timeout_s
         self._last_frame = time.monotonic()
         self._silent = False

@@ -65,6 +65,11 @@ class PositionTable:
         between = v[k] + (x - s[k]) * (v[k + 1] - v[k]) / (s[k + 1] - s[k])
         return np.where(x >= s[-1], v[-1], between), inside
 
+    def steepest(self) -> float:
+        """The largest |Δvalue / Δsignal| of its segments (the value's unit per the signal's): where one
+        step of the signal moves the value most."""
+        return float(np.max(np.abs(np.diff(self.value) / np.diff(self.signal))))
+
     def span(self) -> str:
         """The table's signal range as text."""
         return f"{fmt(self.signal[0])}..{fmt(self.signal[-1])}"

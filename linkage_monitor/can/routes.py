@@ -19,7 +19,7 @@ from .frames import FrameBlock
 from .j1939 import pgn, source_address
 from .mapping import UNITS, CanMapping, InputMap
 from .signals import SignalLayout, signal_layout
-from .units import ANGLE, KIND_UNITS, PRESSURE, SI_UNIT, check_signal, input_kinds
+from .units import ANGLE, CYLINDER, KIND_UNITS, PRESSURE, SI_UNIT, check_signal, input_kinds
 
 EXACT = 1 << 53   # integers up to this are exact as float64
 
@@ -33,6 +33,14 @@ class Route:
     signal: Any          # cantools Signal
     factor: float
     topic: str           # the input's topic (JointState topic, or the pressure sensor's)
+
+    @property
+    def resolution(self) -> float:
+        """The input's quantization step in SI (m, rad, Pa): one count of the DBC signal (its scale)
+        through the mapping (its scale, or its table's steepest segment) and the unit's factor."""
+        item = self.input
+        per_count = abs(self.signal.scale) * (item.table.steepest() if item.table is not None else abs(item.scale))
+        return per_count * self.factor
 
 
 class Vector(NamedTuple):
@@ -142,6 +150,13 @@ class Routing:
                 self.by_pgn.setdefault(pgn(message.frame_id), {})[source_address] = route
             else:
                 self.by_id[(message.frame_id, message.is_extended_frame)] = route
+
+    @property
+    def resolutions(self) -> dict[str, tuple[str, float]]:
+        """Each mapped input's name -> its kind as ``Inputs`` names it (``cylinders``, ``angles``,
+        ``pressures``) and its quantization step in SI (``Route.resolution``)."""
+        kinds = {ANGLE: "angles", CYLINDER: "cylinders", PRESSURE: "pressures"}
+        return {r.input.name: (kinds[r.kind], r.resolution) for route in self.routes for r in route.routes}
 
     def route_of(self, ident: int, extended: bool) -> MessageRoute | None:
         """The mapped message of an identifier (J1939: by parameter group number and source address: the

@@ -12,7 +12,7 @@ exactly what it lists (the figures it leaves out are 0).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 from typing import Any, Mapping, Protocol
 
@@ -109,6 +109,18 @@ class ErrorSources:
         if not self.defaults:
             return SensorError(origin="none declared")
         return {"cylinders": DEFAULT_STROKE, "angles": DEFAULT_ANGLE, "pressures": DEFAULT_PRESSURE}[kind]
+
+    def with_resolutions(self, steps: Mapping[str, tuple[str, float]]) -> "ErrorSources":
+        """These sources with each named sensor's resolution at least the step given: name -> (kind, step
+        in the sensor's SI unit), e.g. a CAN signal's DBC scale (``can.decoder.CanDecoder.resolutions``).
+        A sensor whose declared (or default) resolution is coarser keeps it."""
+        sensors = dict(self.sensors)
+        for name, (kind, step) in steps.items():
+            current = self.sensor(name, kind)
+            if step > current.resolution:
+                origin = f"{current.origin}; resolution {step:.4g} from its CAN signal's scale".lstrip("; ")
+                sensors[name] = replace(current, resolution=step, origin=origin)
+        return replace(self, sensors=sensors)
 
     def seal_friction(self, cylinder: str) -> SealFriction:
         """The seal friction of ``cylinder``."""
