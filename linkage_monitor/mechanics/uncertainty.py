@@ -17,7 +17,11 @@ the same compiled solve as the pose (``Solver.solve_moved``; a moved pose it doe
   its own;
 - cylinder lengths and angles move the pose along the linkage's degrees of freedom: a central
   difference of step ``pose_step`` (truncation error O(h²), held by test/test_uncertainty.py to a
-  Richardson estimate).
+  Richardson estimate); at a pose whose load is a weak inference (``Result.load_amplification``
+  above ``reduced.LOAD_AMPLIFICATION_WARN``: near the load's line through a pivot, where it goes as
+  1/distance) the same two poses give the second difference, and an output whose second-order
+  change over ±2 u is a large share of its interval (``NONLINEAR_SHARE``) has no first-order
+  interval: its u is NaN (unbounded).
 What moves for a set of input names is worked out once (``_Plan``).
 u_y² = Σ_s (∂y/∂s · u_s)² (the sources independent); the share of s is (∂y/∂s · u_s)² / u_y².
 The 95 % interval is y ± k·u_y, k from the shape of the budget (``coverage_factor``: 1.96 for normal
@@ -34,7 +38,7 @@ from typing import Mapping, NamedTuple
 
 import numpy as np
 
-from .coverage_factor import coverage_factors
+from .coverage_factor import NORMAL_FACTOR, coverage_factors
 from .error_sources import ErrorSources, Motion
 from .errors import LinkageError
 from .inputs import Inputs
@@ -42,6 +46,7 @@ from .live_path import InputMoves
 from .machine import STEERABILITY_KEYS, MachineModel, MachineResult
 from .model import Mechanism
 from .overrides import apply_overrides
+from .reduced import LOAD_AMPLIFICATION_WARN
 from .results import Result
 from .solver import Solver
 
@@ -49,6 +54,12 @@ LOAD_STEP_PRESSURE = 1.0e5   # Pa: the pressure step of a load derivative (any s
 LOAD_STEP_MASS = 100.0       # kg: the implement-mass step of a load derivative (likewise)
 POSE_STEP_SHARE = 0.25       # the central difference's step, as a share of the input's standard uncertainty
 POSE_STEP_MIN, POSE_STEP_MAX = 1e-6, 1e-3   # m or rad: its bounds (Newton's 1e-13 below, the curvature above)
+# An output whose second-order change over ±2 u of the lengths and angles is above this share of its
+# first-order 95 % half-width (1.96 u) has no first-order interval: its u is unbounded (NaN). Near a
+# load's line through a pivot (docs/dead-centre.md) the inferred load goes as 1/distance: the ratio of
+# the second-order change to the first is the interval's reach over the distance: at a half, the
+# interval reaches half the way to where the load is not determined.
+NONLINEAR_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -287,7 +298,7 @@ class _Plan:
     ``moves`` a row each (as ``inputs_moved``; None when a name is not the solver's: each moved pose
     is then solved on its own), the derivatives they give, a row each of (P + L, n_out): P lengths
     and angles (central differences of rows ``up`` and ``down`` over ``spans`` (P, 1), twice their
-    steps) then L pressure sensors (rows ``loads``, step LOAD_STEP_PRESSURE), ``derivative`` by input name; the
+    steps; ``reach`` (P, 1) each input's combined standard uncertainty) then L pressure sensors (rows ``loads``, step LOAD_STEP_PRESSURE), ``derivative`` by input name; the
     sources of the measured inputs (``sources``, each from its input's derivative ``which``) and the
     sensor each cylinder's seal friction enters by (``friction_sensors``: None for one whose force is
     not measured) with its N per Pa (``per_pascal``)."""
@@ -297,6 +308,7 @@ class _Plan:
     up: slice
     down: slice
     spans: np.ndarray
+    reach: np.ndarray
     loads: slice
     derivative: Mapping[str, int]
     sources: tuple[Source, ...]
@@ -351,6 +363,12 @@ class UncertaintyModel:
             sources.append(Source("implement mass", "implement", "mass", self.sources.implement_mass, "kg"))
             contributions = np.column_stack([contributions,
                                              self._mass_derivative(inputs, y0) * self.sources.implement_mass])
+        if result.load_amplification > LOAD_AMPLIFICATION_WARN:   # a weak inference: does the first order hold?
+            with np.errstate(invalid="ignore"):   # the second-order change over ±2 u of each length and angle
+                curvature = (moved[plan.up] + moved[plan.down] - 2.0 * y0) / (plan.spans / 2.0) ** 2
+                second = np.sum(2.0 * np.abs(curvature) * plan.reach**2, axis=0)
+                linear = NONLINEAR_SHARE * NORMAL_FACTOR * np.sqrt(np.sum(contributions**2, axis=1))
+            contributions[second > linear] = math.nan   # not over the interval: unbounded
         return Budget(self.table.outputs, tuple(sources), y0, contributions, used)
 
     def _plan(self, inputs: Inputs) -> _Plan:
@@ -390,7 +408,9 @@ class UncertaintyModel:
                     sources.append(Source(f"{name} {part}", name, part, u, units[kind]))
                     which.append(derivative[name])
         return _Plan(tuple(moves), self._inputs_moved(moves), slice(0, n_pose, 2), slice(1, n_pose, 2),
-                     np.array([2.0 * move.step for move in moves[:n_pose:2]]).reshape(-1, 1), slice(n_pose, None),
+                     np.array([2.0 * move.step for move in moves[:n_pose:2]]).reshape(-1, 1),
+                     np.array([self.sources.sensor(move.name, move.kind).total
+                               for move in moves[:n_pose:2]]).reshape(-1, 1), slice(n_pose, None),
                      derivative,
                      tuple(sources), tuple(which), friction_sensors,
                      {sensor: force_per_pressure(self.mech, sensor)

@@ -167,7 +167,7 @@ def uncertain_findings(checks: Check, budget: Budget, mech: Mechanism, total_wei
 
 def weak_inference_finding(result: Result, budget: Budget | None) -> Finding:
     """The WARN of a pose whose load is inferred from a measured cylinder force with an amplification
-    above ``checks.LOAD_AMPLIFICATION_WARN`` (``Result.load_amplification``): published, with the
+    above ``reduced.LOAD_AMPLIFICATION_WARN`` (``Result.load_amplification``): published, with the
     implement load's 95 % interval when the budget is computed."""
     interval = ""
     if budget is not None:

@@ -14,6 +14,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from linkage_monitor.mechanics.reduced import LOAD_AMPLIFICATION_WARN
+
 # Redundant measurements (e.g. stroke and lift-arm angle) never agree exactly: the solver closes
 # every hinge and fits the sensors in least squares. Up to CONSISTENCY_WARN_M of their misfit
 # (the kinematic residual) is sensor noise; above it a WARN (above core.ASSEMBLY_LIMIT_M the pose
@@ -27,14 +29,6 @@ CONSISTENCY_WARN_M = 1.5e-3
 # the least-squares sense; a residual above this share of the largest force means the
 # pressures disagree beyond sensor noise.
 RESIDUAL_WARN_SHARE = 0.01
-# A load inferred from a measured cylinder force (``Result.load_amplification``, N of load per N of
-# force) whose amplification exceeds this is a weak inference: a force error (the transducer's, the
-# seals' friction) becomes a load error this many times larger. Its line passes near the pivot of the
-# step that balances it; the linkage holds it (docs/dead-centre.md). 10 lies above the amplification
-# of every pose the bundled bags solve away from that pivot: at most 7.4 on ttz1080_base_change_lift
-# outside the poses whose load transmission is below 1 degree (8.3 to 858 within them), 0.16 on the
-# belarus_1221 bags, 0.19 on damping_hitch_lift.
-LOAD_AMPLIFICATION_WARN = 10.0
 
 
 class Check(IntFlag):

@@ -61,9 +61,11 @@ LIMITS = (Limit("steerability_margin", 0.0, frozenset({Code.STEERABILITY_LOW, Co
 @dataclass
 class GroupTally:
     """One output group's sums: ``steps`` (output × step pairs compared), ``covered``, Σ 95 % half-width
-    and Σ error² (the group's unit)."""
+    and Σ error² (the group's unit); ``unbounded``: the pairs whose value and truth are finite but whose
+    u the monitor gave as unbounded (no interval claimed: not compared)."""
 
     steps: int = 0
+    unbounded: int = 0
     covered: int = 0
     half_width: float = 0.0
     squared_error: float = 0.0
@@ -106,6 +108,10 @@ class CoverageTally:
             error = budget.values - truth
             valid = np.isfinite(error) & np.isfinite(u)
             covered = np.abs(error) <= half_width + SCALE_TOLERANCE * np.maximum(1.0, np.abs(truth))
+        for k in np.flatnonzero(np.isfinite(error) & ~np.isfinite(u)):
+            group = KIND_GROUPS.get(kinds[k])
+            if group is not None:
+                self.groups.setdefault(group, GroupTally()).unbounded += 1
         for k in np.flatnonzero(valid):
             group = KIND_GROUPS.get(kinds[k])
             if group is None:
