@@ -44,7 +44,8 @@ def report(preset: str, tally: CoverageTally, seconds: float) -> bool:
         sharp_ok = g.sharpness <= SHARPNESS_GOAL
         met = met and cover_ok and sharp_ok
         print(f"    {group:<20} coverage {g.coverage:7.2%} ({'ok' if cover_ok else 'MISS'})   sharpness "
-              f"{g.sharpness:.3f} ({'ok' if sharp_ok else 'MISS'})   over {g.steps} values", flush=True)
+              f"{g.sharpness:.3f} ({'ok' if sharp_ok else 'MISS'})   over {g.steps} values"
+              + (f" ({g.unbounded} more unbounded: no interval claimed)" if g.unbounded else ""), flush=True)
     for output, beyond in tally.beyond.items():
         wrong = tally.wrong_with_ok.get(output, 0)
         met = met and wrong == 0
