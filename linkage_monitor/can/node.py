@@ -92,7 +92,7 @@ class CanFrames:
             self.bus = open_bus(source.bus)
             self.drops = DropCount(self.bus)
             if not self.drops.known:
-                node.get_logger().warning(f"{source.bus}: the frames the bus drops cannot be counted here")
+                node.get_logger().warning(f"the frames {source.bus} drops cannot be counted here")
             node.create_timer(POLL_PERIOD_S, self._poll_bus)
         else:
             node.subscribe(FrameMsg, self.source_name, self._on_frame_message)
@@ -184,7 +184,9 @@ class CanFrames:
 
     def _publish_counts(self) -> None:
         counts = self.decoder.counts
-        self.node.publish_status("can", counts.level, counts.summary(), self.node.now())
+        uncounted = self.bus is not None and not self.drops.known   # losses there go unnamed: say so
+        self.node.publish_status("can", counts.level, counts.summary() + (
+            f"; the frames {self.source_name} drops cannot be counted here" if uncounted else ""), self.node.now())
 
     def close(self) -> None:
         """What already arrived on the bus worked off, the bus shut down, the frame counts published and logged."""
