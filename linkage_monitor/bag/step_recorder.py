@@ -24,8 +24,8 @@ from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig, Topics
 from linkage_monitor.wire.diagnostics import DIAGNOSTIC_ARRAY
 from linkage_monitor.wire.markers import MARKER_ARRAY
-from linkage_monitor.wire.outputs import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputRows, Outputs
-from linkage_monitor.wire.step_messages import StepMessages
+from linkage_monitor.wire.outputs import HINGE_REACTIONS, HITCH_STATE, STEERABILITY, OutputRows
+from linkage_monitor.wire.step_messages import SentBesides, StepMessages
 
 from .metadata import yaml_text
 from .row_block import MessageRows
@@ -54,7 +54,6 @@ class StepSend(NamedTuple):
     of: Callable[[StepMessages], bytes | None]
 
 
-OUTPUT_KINDS = frozenset(Outputs._fields)   # the sends that are a solved step's outputs (``Outputs``' fields)
 STEP_SENDS = (   # what a step sends, in the order it is recorded after its input
     StepSend("hinge_reactions", HINGE_REACTIONS, lambda m: None if m.outputs is None else m.outputs.hinge_reactions),
     StepSend("hitch_state", HITCH_STATE, lambda m: None if m.outputs is None else m.outputs.hitch_state),
@@ -104,28 +103,26 @@ class StepRecorder:
                 self.writer.write(getattr(self.topics, send.topic), data, messages.stamp_ns, type_name=send.type_name,
                                   qos=self.output_qos, log_time_ns=receive_ns)
 
-    def steps(self, inputs: Sequence[RecordedInput], messages: Sequence[StepMessages],
+    def steps(self, inputs: Sequence[RecordedInput], stamps_ns: np.ndarray, sent: SentBesides,
               output_rows: Sequence[OutputRows]) -> None:
         """Each of ``inputs`` and what its step sent, as ``input`` then ``step`` of each in turn record them
         (the step's messages logged at its input's receive time), in one ``BagWriter.write_rows``: the inputs
-        gathered by topic and type, each kind of step message by kind. The steps' markers and diagnostics
-        are in ``messages`` (one per input), their outputs in ``output_rows`` (``OutputEncoder.output_rows``
-        of the same steps; ``messages``' outputs are not read)."""
+        gathered by topic and type, each kind of step message by kind. ``stamps_ns``: the steps' stamps (ns);
+        their markers and diagnostics are in ``sent`` (``StepMessenger.sent_of`` of the steps), their outputs
+        in ``output_rows`` (``OutputEncoder.output_rows`` of the same steps)."""
         n = len(inputs)
         recorded = np.zeros((n, 1 + len(STEP_SENDS)), bool)   # per input: its own message, then each its step may send
         recorded[:, 0] = True
         column = {send.topic: 1 + k for k, send in enumerate(STEP_SENDS)}
-        sent: dict[int, list[bytes | None]] = {}
-        for k, send in enumerate(STEP_SENDS, start=1):
-            if send.topic not in OUTPUT_KINDS:
-                sent[k] = [send.of(m) for m in messages]
-                recorded[:, k] = np.fromiter((data is not None for data in sent[k]), bool, n)
+        besides = {"markers": sent.markers, "diagnostics": sent.diagnostics}   # by STEP_SENDS topic
+        for topic, by_step in besides.items():
+            recorded[list(by_step), column[topic]] = True
         for rows in output_rows:
             recorded[rows.steps, column[rows.kind]] = True
         place = np.cumsum(recorded).reshape(recorded.shape) - 1   # each recorded message's place in the block
         receive = np.fromiter((r.receive_ns for r in inputs), np.int64, n)
         input_stamp = np.fromiter((r.stamp_ns for r in inputs), np.int64, n)
-        step_stamp = np.fromiter((m.stamp_ns for m in messages), np.int64, n)
+        step_stamp = stamps_ns
         by_topic: dict[tuple[str, str], list[int]] = {}
         for i, r in enumerate(inputs):
             by_topic.setdefault((r.topic, r.type_name), []).append(i)
@@ -138,13 +135,13 @@ class StepRecorder:
             send, at = STEP_SENDS[column[rows.kind] - 1], rows.steps
             parts.append(MessageRows(getattr(self.topics, send.topic), send.type_name, rows.rows,
                                      place[at, column[rows.kind]], step_stamp[at], receive[at], qos=self.output_qos))
-        for k, column_data in sent.items():
-            at = np.flatnonzero(recorded[:, k])
-            if len(at):
-                send = STEP_SENDS[k - 1]
+        for topic, by_step in besides.items():
+            if by_step:
+                k = column[topic]
+                send, at = STEP_SENDS[k - 1], np.array(sorted(by_step), np.int64)
                 parts.append(MessageRows.of_messages(getattr(self.topics, send.topic), send.type_name,
-                                                     [data for data in column_data if data is not None],
-                                                     place[at, k], step_stamp[at], receive[at], self.output_qos))
+                                                     [by_step[i] for i in at.tolist()], place[at, k], step_stamp[at],
+                                                     receive[at], self.output_qos))
         self.writer.write_rows(parts)
 
     def status(self, diagnostic: bytes, stamp_ns: int, receive_ns: int) -> None:

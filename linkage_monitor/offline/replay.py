@@ -411,8 +411,9 @@ class _BagOutput:
             inputs, steps = raw[start:start + ENCODE_BLOCK], piece.steps[start:start + ENCODE_BLOCK]
             outputs = self.encoder.output_rows(monitor, steps)
             if not self.rate:
-                sent = self.messenger.messages_of(steps, [None] * len(steps), [r.receive_ns for r in inputs])
-                self.recorder.steps(inputs, sent, outputs)
+                besides = self.messenger.sent_of(steps, [r.receive_ns for r in inputs])
+                stamps = np.fromiter((step.stamp_ns for step in steps), np.int64, len(steps))
+                self.recorder.steps(inputs, stamps, besides, outputs)
                 continue
             sent = self.messenger.messages_of(steps, per_step(outputs, len(steps)), [r.receive_ns for r in inputs])
             for recorded, messages in zip(inputs, sent):

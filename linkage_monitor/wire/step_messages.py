@@ -25,6 +25,14 @@ class StepMessages(NamedTuple):
     diagnostic: bytes | None    # diagnostic_msgs/DiagnosticArray: every WARN / ERROR, an OK that ends one
 
 
+class SentBesides(NamedTuple):
+    """What several steps send besides their outputs (``StepMessenger.sent_of``), by the step's place:
+    the markers (CDR bytes) of the steps drawn, the DiagnosticArray of the steps reported."""
+
+    markers: dict[int, bytes]
+    diagnostics: dict[int, bytes]
+
+
 class StepMessenger:
     """The messages of each step of one monitored mechanism, in the order the steps come.
 
@@ -48,10 +56,19 @@ class StepMessenger:
     def messages_of(self, steps: Sequence[Step], outputs: Sequence[Outputs | None],
                     now_ns: Sequence[int]) -> list[StepMessages]:
         """``messages`` of each of ``steps`` in turn (the markers of those drawn made at once)."""
+        sent = self.sent_of(steps, now_ns)
+        return [StepMessages(step.stamp_ns, out, sent.markers.get(k), sent.diagnostics.get(k))
+                for k, (step, out) in enumerate(zip(steps, outputs))]
+
+    def sent_of(self, steps: Sequence[Step], now_ns: Sequence[int]) -> SentBesides:
+        """What ``messages`` of each of ``steps`` in turn sends besides its outputs, by step (the markers
+        of those drawn made at once)."""
         drawn = [k for k, step in enumerate(steps) if step.pose is not None and self._marker_gate.due(step.stamp_ns)]
         markers = dict(zip(drawn, self.markers.markers_of([steps[k].stamp_ns for k in drawn],
                                                           [steps[k].pose.result for k in drawn])))  # type: ignore[union-attr]
-        return [self._sent(step, out, markers.get(k), now) for k, (step, out, now) in enumerate(zip(steps, outputs, now_ns))]
+        due = self._diagnostic_gate.due
+        reported = [k for k, step in enumerate(steps) if due(step)]
+        return SentBesides(markers, {k: self.diagnostic(steps[k], now_ns[k]) for k in reported})
 
     def _sent(self, step: Step, outputs: Outputs | None, markers: bytes | None, now_ns: int) -> StepMessages:
         """``step``'s messages with its ``outputs`` and ``markers``, and its diagnostic when one is due."""
