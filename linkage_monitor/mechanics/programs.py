@@ -22,6 +22,7 @@ from numba.core import types
 from numba.experimental import structref
 
 
+# KinematicsProgram below starts with these fields again, flat (numba's parallel loop takes no nested record).
 class Geometry(NamedTuple):
     """The loop closure's geometry (``Kinematics.geometry``): attachment bodies (K,) (−1: ground)
     and offsets (K, 2) m, hinge attachments (2, H), measured cylinders' (base, rod end)
@@ -37,6 +38,8 @@ class Geometry(NamedTuple):
     lc: float
 
 
+# Geometry's fields again, flat, not the record: numba's parallel loop takes a record of arrays and
+# scalars, not one that holds a record. Geometry above: the same first fields.
 class KinematicsProgram(NamedTuple):
     """The loop closure (``Kinematics.program``): attachment bodies (K,) (−1: ground) and offsets
     (K, 2) m; hinge attachments (2, H); measured cylinders' (base, rod end) attachments (2, nc);

@@ -50,6 +50,8 @@ class WeighingPhase(Enum):
 USED = (WeighingPhase.LIFTING, WeighingPhase.LOWERING)
 
 
+# Settings as fields with defaults, alike in form only to sim.work_cycle.WorkCycle and
+# test/support/fuzz_check.FuzzTally: other data.
 @dataclass(frozen=True)
 class WeighingSettings:
     """How the estimator judges steps. motion_speed: the rod speed (m/s) above which the cylinder

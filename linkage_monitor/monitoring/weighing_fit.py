@@ -33,6 +33,8 @@ SUMS = ("n", "u0", "ux", "uz", "y", "yy", "force")   # the columns of a bin's su
 N, U0, UX, UZ, Y, YY, FORCE = range(len(SUMS))
 
 
+# The fit's records (declared errors, priors, the fit): fields of their own data, alike in form only
+# to sim.work_cycle's records (the simulated truth) and sim.road's.
 @dataclass(frozen=True)
 class SensorErrors:
     """The pressure measurement's declared errors (1 σ), as force on the lift cylinder: noise per

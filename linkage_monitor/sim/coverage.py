@@ -58,6 +58,7 @@ LIMITS = (Limit("steerability_margin", 0.0, frozenset({Code.STEERABILITY_LOW, Co
           Limit("rear_axle_load", 0.0, frozenset({Code.AXLE_LIFT_OFF, Code.AXLE_LOAD_UNCERTAIN}), "rear axle"))
 
 
+# Sums as fields, alike in form only to sim.work_cycle.WorkCycle: other data.
 @dataclass
 class GroupTally:
     """One output group's sums: ``steps`` (output × step pairs compared), ``covered``, Σ 95 % half-width

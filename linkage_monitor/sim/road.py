@@ -41,6 +41,7 @@ class Road:
     damping: float = 0.25
 
 
+# Alike in form only to monitoring.weighing_fit's and sim.work_cycle's records: fields of other data.
 @dataclass(frozen=True)
 class ImuNoise:
     """Standard deviations of the IMU's noise: accelerometer (m/s²), gyroscope (rad/s)."""

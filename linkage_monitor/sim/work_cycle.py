@@ -39,6 +39,10 @@ DEFAULT_WHEELBASE = 2.5   # m, when the mechanism has no tractor block
 CONTACT_TRAVEL = 0.005    # m of cylinder travel over which the implement leaves the ground
 
 
+# The work cycle's records (its durations, the true implement, a load change, pressure errors, the
+# truth per sample): fields of their own data, alike in form only to mechanics.model's joints and
+# mounts, monitoring.weighing's settings and weighing_fit's errors, sim.road's and sim.coverage's
+# records and test/support/fuzz_check's tally.
 @dataclass(frozen=True)
 class WorkCycle:
     """Durations (s) of the cycle's phases; ground_support: the share of the implement's weight the

@@ -15,7 +15,8 @@ from linkage_monitor.monitoring.findings import Code, Level
 from linkage_monitor.sim.faults import FuzzMessage
 
 
-# Counters as fields, alike in form only to can.outcomes.FrameCounts: other things counted.
+# Counters as fields, alike in form only to can.outcomes.FrameCounts, monitoring.weighing's settings and
+# sim.work_cycle's records: other things counted.
 @dataclass
 class FuzzTally:
     """The fuzz table's columns (and the valid inputs refused, which must be 0 too)."""
