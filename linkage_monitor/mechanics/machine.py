@@ -309,15 +309,12 @@ class MachineModel:
         parallelogram: no lift capacity, not a negative load)."""
         kin = self.solver.kin
         q = np.ascontiguousarray(q, dtype=float)
-        program = self.program
         spring_force = self._layout.spring_forces(kin.positions(q)[0]) if self._layout.n_springs else \
             self._no_spring_force
-        return kernels.lift_capacity(q, kin.geometry.att_body, kin.geometry.att_ref, program.hinge_att,
-                                     program.cylinder_att, program.lift, program.lift_force, program.gravity,
-                                     program.weight_att, program.weight_mass, self._spring_att, spring_force,
-                                     program.point_att, kin.column_scale,
-                                     self.solver.dead_centre_cond, np.ascontiguousarray(ok, dtype=np.bool_),
-                                     np.ascontiguousarray(implement_load, dtype=float), self._cg_column)
+        return kernels.lift_capacity(q, kin.program, self.program, spring_att=self._spring_att,
+                                     spring_force=spring_force, max_condition=self.solver.dead_centre_cond,
+                                     ok=np.ascontiguousarray(ok, dtype=np.bool_),
+                                     implement_load=np.ascontiguousarray(implement_load, dtype=float))
 
     def _batch_rows(self, batch: BatchResult, index: "slice | np.ndarray") -> tuple[np.ndarray | None,
                                                                                   np.ndarray | None]:

@@ -5,7 +5,7 @@ Newton from the tangent prediction)."""
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -119,11 +119,26 @@ def _nearest_turn(q: np.ndarray, q_start: np.ndarray) -> None:
         q[3 * b + 2] = q_start[3 * b + 2] + _wrap(q[3 * b + 2] - q_start[3 * b + 2])
 
 
+class KinematicJob(NamedTuple):
+    """A batch of ``solve_poses`` (``_kinematic_pose``): what it writes — q (N, n), Φ (N, m), the
+    condition number (N,), on_branch (N,) —, the start pose q_start (1, n) with its inputs s_start
+    (1, n_inputs), the inputs s (N, n_inputs) (m, rad), Newton's iteration limit, and whether the
+    condition number is computed."""
+
+    q: np.ndarray
+    phi: np.ndarray
+    condition: np.ndarray
+    on_branch: np.ndarray
+    q_start: np.ndarray
+    s_start: np.ndarray
+    s: np.ndarray
+    max_iter: int
+    with_condition: bool
+
+
 @njit(cache=True)
-def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, cond: np.ndarray, on_branch: np.ndarray,
-                    q_start: np.ndarray, s_start: np.ndarray, s: np.ndarray, max_iter: int, with_condition: bool,
-                    kin: KinematicsProgram) -> None:
-    """Pose i of ``solve_poses``, written into the output arrays (the condition number NaN unless
+def _kinematic_pose(i: int, job: KinematicJob, kin: KinematicsProgram) -> None:
+    """Pose i of ``solve_poses``, written into the job's outputs (the condition number NaN unless
     ``with_condition``).
 
     A chain's pose — in closed form, or fitted along the chain where sensors are redundant — places
@@ -134,6 +149,9 @@ def _kinematic_pose(i: int, q_out: np.ndarray, phi_out: np.ndarray, cond: np.nda
     off the start pose (its Jacobian evaluated here) or from the chain's pose, and the loop signs
     of the Jacobian decide the branch. Inputs exactly the start pose's: the start pose (solved for
     them, on the branch)."""
+    q_out, phi_out, cond, on_branch, q_start, s_start, s = (job.q, job.phi, job.condition, job.on_branch,
+                                                            job.q_start, job.s_start, job.s)
+    max_iter, with_condition = job.max_iter, job.with_condition
     m, n = phi_out.shape[1], q_out.shape[1]
     n_in = s.shape[1]
     nc = kin.cyl_att.shape[1]
@@ -208,23 +226,23 @@ def solve_poses(q_start: np.ndarray, s_start: np.ndarray, s: np.ndarray, max_ite
     """
     n_pose, n = s.shape[0], q_start.shape[1]
     m = 2 * kin.hinge_att.shape[1] + kin.cyl_att.shape[1] + kin.angle_body.shape[1]
-    out = (np.empty((n_pose, n)), np.empty((n_pose, m)), np.empty(n_pose), np.empty(n_pose, dtype=np.bool_))
-    driver: Any = _kinematics_parallel if _parallel(n_pose) else _kinematics_serial
-    driver(n_pose, *out, q_start, s_start, s, max_iter, with_condition, *kin)
-    return out
+    job = KinematicJob(q=np.empty((n_pose, n)), phi=np.empty((n_pose, m)), condition=np.empty(n_pose),
+                       on_branch=np.empty(n_pose, dtype=np.bool_), q_start=q_start, s_start=s_start, s=s,
+                       max_iter=int(max_iter), with_condition=bool(with_condition))
+    (_kinematics_parallel if _parallel(n_pose) else _kinematics_serial)(n_pose, job, kin)
+    return job.q, job.phi, job.condition, job.on_branch
 
 
-_KINEMATIC_ARGS = 9   # ``_kinematic_pose``'s arguments before its program (outputs, start, inputs, max_iter, ...)
-
-
+# The serial and parallel loops of a batch kernel, a pair per kernel (equilibrium, reduced, capacity and
+# closure have theirs): one pair for every kernel, the kernel chosen by its job's type through a numba
+# overload, cost every pose a call (kinematics 5-8 % slower, positions 10-18 %; docs/performance.md).
 @njit(cache=True)
-def _kinematics_serial(n_pose, *args):
-    kin = KinematicsProgram(*args[_KINEMATIC_ARGS:])
+def _kinematics_serial(n_pose: int, job: KinematicJob, kin: KinematicsProgram) -> None:
     for i in range(n_pose):
-        _kinematic_pose(i, *args[:_KINEMATIC_ARGS], kin)
+        _kinematic_pose(i, job, kin)
 
 
 @njit(cache=True, parallel=True)
-def _kinematics_parallel(n_pose, *args):   # a record cannot enter a parallel loop: rebuilt in it from its fields
+def _kinematics_parallel(n_pose: int, job: KinematicJob, kin: KinematicsProgram) -> None:
     for i in prange(n_pose):
-        _kinematic_pose(i, *args[:_KINEMATIC_ARGS], KinematicsProgram(*args[_KINEMATIC_ARGS:]))
+        _kinematic_pose(i, job, kin)

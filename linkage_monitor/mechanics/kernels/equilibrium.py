@@ -5,6 +5,7 @@ kinetostatics the inertia loads (Naumenko et al. 2021)."""
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -50,6 +51,28 @@ def _term_force(t: int, axes: np.ndarray, t_const: np.ndarray, t_member: np.ndar
     return t_const[t, 0], t_const[t, 1]
 
 
+# The loads' fields stand again in reduced.ReducedJob: a record holding a record cannot enter numba's parallel
+# loop, and the reduced statics write the transmission where these write the condition number.
+class StaticsJob(NamedTuple):
+    """A batch of ``solve_statics`` (``_statics_pose``): what it writes — u (N, n_unknowns), the
+    residual (N,) N, the condition number (N,), member axes (N, M, 2) and lengths (N, M) m —, and
+    the loads it balances: positions p (N, K, 2) m, member forces (N, M) N, with ``has_accel`` the
+    cg accelerations (N, n_mass, 2) m/s² and angular accelerations (N, n_mass) rad/s².
+    ``reduced.ReducedJob`` writes the transmission in place of the condition number, from the same
+    loads."""
+
+    u: np.ndarray
+    residual: np.ndarray
+    condition: np.ndarray
+    axes: np.ndarray
+    lengths: np.ndarray
+    p: np.ndarray
+    member_force: np.ndarray
+    accel: np.ndarray
+    alpha: np.ndarray
+    has_accel: bool
+
+
 def solve_statics(p: np.ndarray, member_force: np.ndarray, accel: np.ndarray, alpha: np.ndarray,
                   has_accel: bool, n_unknowns: int, layout: StaticsProgram) -> tuple[np.ndarray, ...]:
     """Equilibrium of every moving body for N poses: unknowns u (N, n_unknowns) with A·u + b = 0.
@@ -70,27 +93,24 @@ def solve_statics(p: np.ndarray, member_force: np.ndarray, accel: np.ndarray, al
     """
     n_pose = p.shape[0]
     n_members = member_force.shape[1]
-    out = (np.empty((n_pose, n_unknowns)), np.empty(n_pose), np.empty(n_pose), np.empty((n_pose, n_members, 2)),
-           np.empty((n_pose, n_members)))
-    driver = _statics_parallel if _parallel(n_pose) else _statics_serial
-    driver(n_pose, *out, p, member_force, accel, alpha, has_accel, *layout)
-    return out
-
-
-_STATICS_ARGS = 10   # ``_statics_pose``'s arguments before its program (outputs, positions, loads)
+    job = StaticsJob(u=np.empty((n_pose, n_unknowns)), residual=np.empty(n_pose), condition=np.empty(n_pose),
+                     axes=np.empty((n_pose, n_members, 2)), lengths=np.empty((n_pose, n_members)), p=p,
+                     member_force=member_force, accel=accel, alpha=alpha, has_accel=bool(has_accel))
+    (_statics_parallel if _parallel(n_pose) else _statics_serial)(n_pose, job, layout)
+    return job.u, job.residual, job.condition, job.axes, job.lengths
 
 
 @njit(cache=True)
-def _statics_pose(i, u_out, residual, cond, axes, lengths, p, member_force, accel, alpha, has_accel,
-                  layout: StaticsProgram):
-    """Pose i of ``solve_statics``, written into the output arrays."""
+def _statics_pose(i, job: StaticsJob, layout: StaticsProgram):
+    """Pose i of ``solve_statics``, written into the job's outputs."""
+    u_out, p, axes = job.u, job.p, job.axes
     n_unknowns = u_out.shape[1]
     lc, n_eq = layout.lc, layout.n_eq
-    _member_axes(i, axes, lengths, p, layout.member_att)
+    _member_axes(i, axes, job.lengths, p, layout.member_att)
     a_mat = equilibrium_matrix(p[i], axes[i], lc, n_eq, n_unknowns, layout.t_col, layout.t_att, layout.t_body,
                                layout.t_const, layout.t_member, layout.t_sign)
     b = np.zeros(n_eq)
-    _known_loads(b, i, p, axes, member_force, accel, alpha, has_accel, layout)
+    _known_loads(b, i, job, layout)
     if n_unknowns == n_eq:
         lu, piv, c = factor_and_condition(a_mat)
         u = -lu_solve(lu, piv, b) if math.isfinite(c) else np.full(n_unknowns, np.nan)
@@ -104,8 +124,8 @@ def _statics_pose(i, u_out, residual, cond, axes, lengths, p, member_force, acce
         v = res[r] * lc if r % 3 == 2 else res[r]
         acc += v * v
     u_out[i] = u
-    residual[i] = math.sqrt(acc)
-    cond[i] = c
+    job.residual[i] = math.sqrt(acc)
+    job.condition[i] = c
 
 
 @njit(cache=True)
@@ -120,11 +140,12 @@ def _member_axes(i: int, axes: np.ndarray, lengths: np.ndarray, p: np.ndarray, m
 
 
 @njit(cache=True)
-def _known_loads(b: np.ndarray, i: int, p: np.ndarray, axes: np.ndarray, member_force: np.ndarray,
-                 accel: np.ndarray, alpha: np.ndarray, has_accel: bool, layout: StaticsProgram) -> None:
-    """The known loads of pose i as generalized forces into b (n_eq,) ([Fx, Fz, M/lc] per body,
-    ``solve_statics``' layout): constant loads, the ends of members of known force, and with
-    ``has_accel`` the inertia loads −m·a at each cg and −I·α (Naumenko et al. 2021)."""
+def _known_loads(b: np.ndarray, i: int, job, layout: StaticsProgram) -> None:
+    """The known loads of pose i of ``job`` (a ``StaticsJob`` or ``reduced.ReducedJob``: its
+    positions, member axes and forces, accelerations) as generalized forces into b (n_eq,) ([Fx,
+    Fz, M/lc] per body, ``solve_statics``' layout): constant loads, the ends of members of known
+    force, and with ``has_accel`` the inertia loads −m·a at each cg and −I·α (Naumenko et al. 2021)."""
+    p, axes, member_force, accel, alpha = job.p, job.axes, job.member_force, job.accel, job.alpha
     lc, const_force, known_att, known_body = layout.lc, layout.const_force, layout.known_att, layout.known_body
     end_member, end_sign, mass_att, mass_body = layout.end_member, layout.end_sign, layout.mass_att, layout.mass_body
     mass, inertia = layout.mass, layout.inertia
@@ -137,7 +158,7 @@ def _known_loads(b: np.ndarray, i: int, p: np.ndarray, axes: np.ndarray, member_
         f = end_sign[e] * member_force[i, end_member[e]]
         _add_generalized(b, 3 * known_body[n_const + e], p[i, att, 0], p[i, att, 1],
                          f * axes[i, end_member[e], 0], f * axes[i, end_member[e], 1], lc)
-    if has_accel:
+    if job.has_accel:
         for k in range(mass_att.shape[0]):
             att = mass_att[k]
             _add_generalized(b, 3 * mass_body[k], p[i, att, 0], p[i, att, 1], -mass[k] * accel[i, k, 0],
@@ -145,14 +166,14 @@ def _known_loads(b: np.ndarray, i: int, p: np.ndarray, axes: np.ndarray, member_
             b[3 * mass_body[k] + 2] -= inertia[k] * alpha[i, k] / lc
 
 
+# a pair per kernel, as assembly's (why: there)
 @njit(cache=True)
-def _statics_serial(n_pose, *args):
-    layout = StaticsProgram(*args[_STATICS_ARGS:])
+def _statics_serial(n_pose: int, job: StaticsJob, layout: StaticsProgram) -> None:
     for i in range(n_pose):
-        _statics_pose(i, *args[:_STATICS_ARGS], layout)
+        _statics_pose(i, job, layout)
 
 
 @njit(cache=True, parallel=True)
-def _statics_parallel(n_pose, *args):   # a record cannot enter a parallel loop: rebuilt in it from its fields
+def _statics_parallel(n_pose: int, job: StaticsJob, layout: StaticsProgram) -> None:
     for i in prange(n_pose):
-        _statics_pose(i, *args[:_STATICS_ARGS], StaticsProgram(*args[_STATICS_ARGS:]))
+        _statics_pose(i, job, layout)

@@ -5,17 +5,18 @@ capacity and steerability, into ``LiveRows``."""
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from ..programs import (POSE_VALUES, KinematicsProgram, LiveBuffer, LivePrograms, LiveRows, MachineProgram,
                         OutputsProgram, ReducedProgram, StaticsProgram, ValueRow)
-from .assembly import _kinematic_pose, _same_inputs, assembled
-from .capacity import _capacity_pose, _reserve
+from .assembly import KinematicJob, _kinematic_pose, _same_inputs, assembled
+from .capacity import CapacityJob, _capacity_pose, _reserve
 from .closure import positions
-from .equilibrium import _statics_pose
-from .reduced import _reduced_pose, _reduced_work, smallest_sine
+from .equilibrium import StaticsJob, _statics_pose
+from .reduced import ReducedJob, _reduced_pose, _reduced_work, smallest_sine
 from .rows import largest_force, measured_force, pack_row
 from .steerability import N_STEERABILITY, steerability_pose
 
@@ -60,6 +61,15 @@ def live_buffer(rows_fields, s, pressures):
     return LiveBuffer(LiveRows(*rows_fields), s, pressures)
 
 
+class LiveStart(NamedTuple):
+    """Where a live pose starts from: a solved pose q (1, n) and its inputs s (1, n_inputs), with its
+    capacity row (empty when not known)."""
+
+    q: np.ndarray
+    s: np.ndarray
+    capacity: np.ndarray
+
+
 @njit(cache=True, nogil=True)   # a replay reads its next inputs while a part is solved
 def live_series(programs, buffer, q_start, s_start, limit, max_condition, first, stop):
     """Poses first..stop−1 of ``buffer`` (``live_buffer``) as the live node solves them, in one
@@ -82,34 +92,35 @@ def live_series(programs, buffer, q_start, s_start, limit, max_condition, first,
     assembled to ``limit``, at a dead centre, a contact lifting off — and then its rows are not
     meaningful: the general path (``Solver._solve``) words the verdict.
     """
-    kin, statics, outputs, reduced, machine = (programs.kin, programs.statics, programs.outputs, programs.reduced,
-                                               programs.machine)
-    rows, s, pressures = buffer.rows, buffer.s, buffer.pressures
+    rows, s = buffer.rows, buffer.s
     last = -1
     for i in range(first, stop):
-        if last < 0:
-            _live_pose_at(i, rows, s, pressures, q_start, s_start, rows.capacity[i, :0], limit, max_condition, kin,
-                          statics, outputs, reduced, machine)
+        if last < 0:   # (two calls: the start's arrays of two layouts, each call compiled for its own)
+            _live_pose_at(i, buffer, LiveStart(q=q_start, s=s_start, capacity=rows.capacity[i, :0]), limit,
+                          max_condition, programs)
         else:
-            _live_pose_at(i, rows, s, pressures, rows.q[last:last + 1], s[last:last + 1], rows.capacity[last], limit,
-                          max_condition, kin, statics, outputs, reduced, machine)
+            _live_pose_at(i, buffer, LiveStart(q=rows.q[last:last + 1], s=s[last:last + 1],
+                                               capacity=rows.capacity[last]), limit, max_condition, programs)
         if rows.plain[i]:
             last = i
 
 
 @njit(cache=True)
-def _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition, statics, outputs, reduced) -> bool:
-    """Equilibrium of pose i of ``live_series`` into u_out (1, n_unknowns), member axes and lengths,
-    its residual, condition, transmission and the free load's amplification into ``rows``: False at a
-    dead centre (the general path then words the verdict, and spares an inferred load: ``general_path``) — the smallest
-    transmission below ``outputs.dead_centre_sine`` (reduced path) or the condition number above
-    ``max_condition`` (general path)."""
-    residual, no_accel, no_alpha = np.empty(1), np.zeros((1, 1, 2)), np.zeros((1, 1))
+def _live_statics(i, rows, job: StaticsJob, max_condition, programs) -> bool:
+    """Equilibrium of pose i of ``live_series`` (``job``: one pose's, its u, member axes and lengths
+    written), its residual, condition, transmission and the free load's amplification into ``rows``:
+    False at a dead centre (the general path then words the verdict, and spares an inferred load:
+    ``general_path``) — the smallest transmission below ``outputs.dead_centre_sine`` (reduced path)
+    or the condition number above ``max_condition`` (general path)."""
+    outputs, statics, reduced = programs.outputs, programs.statics, programs.reduced
     if outputs.reduced:
         sine, weakest = np.empty((1, outputs.measure_count)), np.empty(1, dtype=np.int64)
         amplification = np.empty(1)
-        _reduced_pose(0, u_out, residual, sine, weakest, amplification, axes, lengths, p, member_force, no_accel,
-                      no_alpha, False, statics, reduced, _reduced_work(statics, reduced, u_out.shape[1]))
+        reduced_job = ReducedJob(u=job.u, residual=job.residual, sine=sine, weakest=weakest,
+                                 amplification=amplification, axes=job.axes, lengths=job.lengths, p=job.p,
+                                 member_force=job.member_force, accel=job.accel, alpha=job.alpha,
+                                 has_accel=job.has_accel)
+        _reduced_pose(0, reduced_job, statics, reduced, _reduced_work(statics, reduced, job.u.shape[1]))
         smallest = smallest_sine(sine[0], weakest[0])
         if not smallest >= outputs.dead_centre_sine:
             return False
@@ -117,26 +128,26 @@ def _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition,
         rows.pose[i].load_amplification = amplification[0]
         rows.pose[i].condition = rows.kinematic_condition[i]
     else:
-        cond = np.empty(1)
-        _statics_pose(0, u_out, residual, cond, axes, lengths, p, member_force, no_accel, no_alpha, False, statics)
-        if not cond[0] <= max_condition:
+        _statics_pose(0, job, statics)
+        if not job.condition[0] <= max_condition:
             return False
         rows.pose[i].transmission_angle, rows.pose[i].weakest = math.nan, -1
         rows.pose[i].load_amplification = math.nan
-        rows.pose[i].condition = max(cond[0], rows.kinematic_condition[i])
-    rows.pose[i].residual = residual[0]
+        rows.pose[i].condition = max(job.condition[0], rows.kinematic_condition[i])
+    rows.pose[i].residual = job.residual[0]
     return True
 
 
 @njit(cache=True)
-def _live_pose_at(i, rows, s, pressures, q_start, s_start, capacity_start, limit, max_condition, kin, statics,
-                  outputs, reduced, machine):
-    """Pose i of ``live_series``, written into its rows of ``rows`` (``LiveRows``). The rows of a
-    pose that is not plain are left as they are (the general path writes them), except the
+def _live_pose_at(i, buffer, start: LiveStart, limit, max_condition, programs):
+    """Pose i of ``live_series``, written into its rows of the buffer's rows (``LiveRows``). The rows
+    of a pose that is not plain are left as they are (the general path writes them), except the
     implement cg and the capacities, NaN until written (no implement; a capacity not computed),
-    and the transmission measure, NaN and −1 until the reduced statics give it. ``capacity_start``:
-    the start pose's capacity row (empty when not known): a pose with the start pose's inputs has
-    its capacities at the points (they depend on the pose alone) and only its reserve is computed."""
+    and the transmission measure, NaN and −1 until the reduced statics give it. A pose with the
+    start pose's inputs, the start's capacity row known, has its capacities at the points (they
+    depend on the pose alone) and only its reserve is computed."""
+    rows, s, pressures = buffer.rows, buffer.s, buffer.pressures
+    kin, statics, outputs, machine = programs.kin, programs.statics, programs.outputs, programs.machine
     rows.implement_cg[i, 0], rows.implement_cg[i, 1] = math.nan, math.nan
     rows.capacity[i, :] = math.nan
     rows.pose[i].transmission_angle, rows.pose[i].weakest = math.nan, -1
@@ -146,8 +157,10 @@ def _live_pose_at(i, rows, s, pressures, q_start, s_start, capacity_start, limit
     n_springs, n_cylinders = outputs.spring_stiffness.shape[0], outputs.per_cap_area.shape[0]
     n_members = n_springs + n_cylinders
     on_branch = np.empty(1, dtype=np.bool_)
-    _kinematic_pose(0, rows.q[i:i + 1], rows.phi[i:i + 1], rows.kinematic_condition[i:i + 1], on_branch, q_start,
-                    s_start, s[i:i + 1], 25, not outputs.reduced, kin)
+    kinematic_job = KinematicJob(q=rows.q[i:i + 1], phi=rows.phi[i:i + 1], condition=rows.kinematic_condition[i:i + 1],
+                                 on_branch=on_branch, q_start=start.q, s_start=start.s, s=s[i:i + 1], max_iter=25,
+                                 with_condition=not outputs.reduced)
+    _kinematic_pose(0, kinematic_job, kin)
     if not (on_branch[0] and assembled(rows.phi[i], 2 * kin.hinge_att.shape[1], kin.lc, limit)
             and (outputs.reduced or rows.kinematic_condition[i] <= max_condition)):
         return
@@ -164,11 +177,12 @@ def _live_pose_at(i, rows, s, pressures, q_start, s_start, capacity_start, limit
         measured[k] = measured_force(pressures[i, 0, k], pressures[i, 1, k], outputs.force_areas[0, k],
                                      outputs.force_areas[1, k]) if outputs.force_measured[k] else 0.0
         member_force[0, n_springs + k] = measured[k]
-    u_out = np.empty((1, outputs.n_unknowns))
-    axes, lengths = np.empty((1, n_members, 2)), np.empty((1, n_members))
-    if not _live_statics(i, rows, p, member_force, u_out, axes, lengths, max_condition, statics, outputs, reduced):
+    job = StaticsJob(u=np.empty((1, outputs.n_unknowns)), residual=np.empty(1), condition=np.empty(1),
+                     axes=np.empty((1, n_members, 2)), lengths=np.empty((1, n_members)), p=p, member_force=member_force,
+                     accel=np.zeros((1, 1, 2)), alpha=np.zeros((1, 1)), has_accel=False)
+    if not _live_statics(i, rows, job, max_condition, programs):
         return
-    u = u_out[0]
+    u, axes, lengths = job.u[0], job.axes, job.lengths
     contact_cols = outputs.contact_cols
     for k in range(contact_cols.shape[0]):
         if u[contact_cols[k]] < 0.0:   # lifts off
@@ -212,16 +226,16 @@ def _live_pose_at(i, rows, s, pressures, q_start, s_start, capacity_start, limit
     if machine.parameters.shape[0]:
         steerability_pose(frame_points, frame_forces, load, rows.implement_cg[i, 0], machine.parameters,
                           rows.steerability[i])
-    if machine.point_att.shape[0] and capacity_start.shape[0] and _same_inputs(s[i], s_start[0]):
-        rows.capacity[i, :] = capacity_start
+    if machine.point_att.shape[0] and start.capacity.shape[0] and _same_inputs(s[i], start.s[0]):
+        rows.capacity[i, :] = start.capacity
         _reserve(rows.capacity[i], machine.cg_point, load)
     elif machine.point_att.shape[0]:
         square = 2 * machine.hinge_att.shape[1] + machine.cylinder_att.shape[1] == n
-        _capacity_pose(0, rows.capacity[i:i + 1], rows.q[i:i + 1], kin.att_body, kin.att_ref, machine.hinge_att,
-                       machine.cylinder_att, machine.lift, machine.lift_force, machine.gravity, machine.weight_att,
-                       machine.weight_mass, member_att[:, :n_springs].copy(), member_force[:, :n_springs].copy(),
-                       machine.point_att, kin.column_scale, max_condition, np.ones(1, dtype=np.bool_), square,
-                       np.full(1, load), machine.cg_point)
+        _capacity_pose(0, CapacityJob(out=rows.capacity[i:i + 1], q=rows.q[i:i + 1], att_body=kin.att_body,
+                                      att_ref=kin.att_ref, column_scale=kin.column_scale, ok=np.ones(1, dtype=np.bool_),
+                                      implement_load=np.full(1, load), spring_att=member_att[:, :n_springs].copy(),
+                                      spring_force=member_force[:, :n_springs].copy(), max_condition=max_condition,
+                                      square=square), machine)
     pose = rows.pose[i]
     scalars = np.array((pose.residual, pose.consistency_residual, load, pose.transmission_angle))   # ROW_SCALARS
     pack_row(rows.values[i], rows.hinge_force[i], rows.point_xz[i], rows.cylinder_values[i], scalars,

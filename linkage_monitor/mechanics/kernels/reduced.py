@@ -4,6 +4,7 @@ outermost step inward, with no linear system, and each step's transmission measu
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -74,6 +75,8 @@ def smallest_sine(sine: np.ndarray, weakest: int) -> float:
     return 0.0 if math.isnan(value) else min(value, 1.0)
 
 
+# The batch loop of a per-pose function, written out as rows.largest_forces' is: a compiled function
+# given another as an argument is compiled again at every start (numba keeps no cache of it).
 @njit(cache=True)
 def smallest_sines(sine: np.ndarray, weakest: np.ndarray) -> np.ndarray:
     """``smallest_sine`` of N poses: sine (N, measures), weakest (N,)."""
@@ -168,6 +171,28 @@ def _reverse_pass(g: np.ndarray, u: np.ndarray, p: np.ndarray, axes: np.ndarray,
     return closing
 
 
+# equilibrium.StaticsJob's loads again: a record holding a record cannot enter numba's parallel loop, and
+# these write the transmission where those write the condition number.
+class ReducedJob(NamedTuple):
+    """A batch of ``solve_reduced_statics`` (``_reduced_pose``): what it writes — u (N,
+    n_unknowns), the residual (N,) N·m, each measure's |sin| (N, S + 1), the weakest (N,), the free
+    load's amplification (N,), member axes (N, M, 2) and lengths (N, M) m —, and the loads it
+    balances, as ``equilibrium.StaticsJob`` (which writes the condition number instead)."""
+
+    u: np.ndarray
+    residual: np.ndarray
+    sine: np.ndarray
+    weakest: np.ndarray
+    amplification: np.ndarray
+    axes: np.ndarray
+    lengths: np.ndarray
+    p: np.ndarray
+    member_force: np.ndarray
+    accel: np.ndarray
+    alpha: np.ndarray
+    has_accel: bool
+
+
 def solve_reduced_statics(p: np.ndarray, member_force: np.ndarray, accel: np.ndarray, alpha: np.ndarray,
                           has_accel: bool, n_unknowns: int, layout: StaticsProgram, reduced: ReducedProgram
                           ) -> tuple[np.ndarray, ...]:
@@ -183,24 +208,25 @@ def solve_reduced_statics(p: np.ndarray, member_force: np.ndarray, accel: np.nda
     """
     n_pose = p.shape[0]
     n_members = member_force.shape[1]
-    out = (np.empty((n_pose, n_unknowns)), np.empty(n_pose), np.empty((n_pose, reduced.chain_int.shape[0] + 1)),
-           np.empty(n_pose, dtype=np.int64), np.empty(n_pose), np.empty((n_pose, n_members, 2)),
-           np.empty((n_pose, n_members)))
-    driver = _reduced_parallel if _parallel(n_pose) else _reduced_serial
-    driver(n_pose, *out, p, member_force, accel, alpha, has_accel, *layout, *reduced)
-    return out
+    job = ReducedJob(u=np.empty((n_pose, n_unknowns)), residual=np.empty(n_pose),
+                     sine=np.empty((n_pose, reduced.chain_int.shape[0] + 1)), weakest=np.empty(n_pose, dtype=np.int64),
+                     amplification=np.empty(n_pose), axes=np.empty((n_pose, n_members, 2)),
+                     lengths=np.empty((n_pose, n_members)), p=p, member_force=member_force, accel=accel, alpha=alpha,
+                     has_accel=bool(has_accel))
+    (_reduced_parallel if _parallel(n_pose) else _reduced_serial)(n_pose, job, layout, reduced)
+    return job.u, job.residual, job.sine, job.weakest, job.amplification, job.axes, job.lengths
 
 
-_REDUCED_ARGS = 12   # ``_reduced_pose``'s arguments before its programs (outputs, positions, loads)
-
-
-_REDUCED_LAYOUT_END = _REDUCED_ARGS + len(StaticsProgram._fields)
+@njit(cache=True)
+def _reduced_work(layout: StaticsProgram, reduced: ReducedProgram, n_unknowns: int) -> np.ndarray:
+    """Room for ``_reduced_pose``'s loads and unknowns: a row per load case (the known loads, and
+    λ = 1 alone with a free load), the n_eq loads then the unknowns."""
+    return np.empty((2 if reduced.free_col >= 0 else 1, layout.n_eq + n_unknowns))
 
 
 @njit(cache=True, error_model="numpy")
-def _reduced_pose(i, u_out, residual, sine, weakest, amplification, axes, lengths, p, member_force, accel, alpha,
-                  has_accel, layout: StaticsProgram, reduced: ReducedProgram, work: np.ndarray):
-    """Pose i of ``solve_reduced_statics``, written into the output arrays; ``work``: room for its
+def _reduced_pose(i, job: ReducedJob, layout: StaticsProgram, reduced: ReducedProgram, work: np.ndarray):
+    """Pose i of ``solve_reduced_statics``, written into the job's outputs; ``work``: room for its
     loads and unknowns (``_reduced_work``), overwritten.
 
     The statics are linear in the loads: with a free load λ (``free_col`` ≥ 0: a contact's normal
@@ -223,15 +249,17 @@ def _reduced_pose(i, u_out, residual, sine, weakest, amplification, axes, length
     step has it); infinite where M_unit is 0: the load is not determined. NaN otherwise (no free
     load, or one closed by an angle-driven step: a reaction, not an inference).
     """
+    u_out, residual, sine, weakest, axes, p = job.u, job.residual, job.sine, job.weakest, job.axes, job.p
+    amplification = job.amplification
     lc, t_col = layout.lc, layout.t_col
     chain_int, free_col, closing_step = reduced.chain_int, reduced.free_col, reduced.closing_step
-    _member_axes(i, axes, lengths, p, layout.member_att)
+    _member_axes(i, axes, job.lengths, p, layout.member_att)
     n_steps = chain_int.shape[0]
     n_cases = work.shape[0]   # the known loads; λ = 1 alone (with a free load)
     n_eq = layout.n_eq
     work[:, :] = 0.0
     loads, u = work[:, :n_eq], work[:, n_eq:]
-    _known_loads(loads[0], i, p, axes, member_force, accel, alpha, has_accel, layout)
+    _known_loads(loads[0], i, job, layout)
     size, radius = 0.0, 0.0   # |e| N per unit λ; |P − A| m
     if free_col >= 0:
         pivot = chain_int[closing_step, A_BODY]
@@ -270,28 +298,18 @@ def _reduced_pose(i, u_out, residual, sine, weakest, amplification, axes, length
         sine[i, n_steps] = math.nan
 
 
+# a pair per kernel, as assembly's (why: there)
 @njit(cache=True)
-def _reduced_work(layout: StaticsProgram, reduced: ReducedProgram, n_unknowns: int) -> np.ndarray:
-    """Room for ``_reduced_pose``'s loads and unknowns: a row per load case (the known loads, and
-    λ = 1 alone with a free load), the n_eq loads then the unknowns."""
-    return np.empty((2 if reduced.free_col >= 0 else 1, layout.n_eq + n_unknowns))
-
-
-@njit(cache=True)
-def _reduced_serial(n_pose, *args):
-    layout = StaticsProgram(*args[_REDUCED_ARGS:_REDUCED_LAYOUT_END])
-    reduced = ReducedProgram(*args[_REDUCED_LAYOUT_END:])
-    work = _reduced_work(layout, reduced, args[0].shape[1])
+def _reduced_serial(n_pose: int, job: ReducedJob, layout: StaticsProgram, reduced: ReducedProgram) -> None:
+    work = _reduced_work(layout, reduced, job.u.shape[1])
     for i in range(n_pose):
-        _reduced_pose(i, *args[:_REDUCED_ARGS], layout, reduced, work)
+        _reduced_pose(i, job, layout, reduced, work)
 
 
 @njit(cache=True, parallel=True)
-def _reduced_parallel(n_pose, *args):   # records cannot enter a parallel loop: rebuilt in it from their fields
+def _reduced_parallel(n_pose: int, job: ReducedJob, layout: StaticsProgram, reduced: ReducedProgram) -> None:
     n_parts = min(n_pose, PARALLEL_PARTS)   # each part its own work room
     for part in prange(n_parts):
-        layout = StaticsProgram(*args[_REDUCED_ARGS:_REDUCED_LAYOUT_END])
-        reduced = ReducedProgram(*args[_REDUCED_LAYOUT_END:])
-        work = _reduced_work(layout, reduced, args[0].shape[1])
+        work = _reduced_work(layout, reduced, job.u.shape[1])
         for i in range(part * n_pose // n_parts, (part + 1) * n_pose // n_parts):
-            _reduced_pose(i, *args[:_REDUCED_ARGS], layout, reduced, work)
+            _reduced_pose(i, job, layout, reduced, work)

@@ -45,6 +45,8 @@ def largest_force(hinge_force: np.ndarray, cylinder_force: np.ndarray) -> float:
     return largest
 
 
+# The batch loop of a per-pose function, written out as reduced.smallest_sines' is: a compiled function
+# given another as an argument is compiled again at every start (numba keeps no cache of it).
 @njit(cache=True)
 def largest_forces(hinge_force: np.ndarray, cylinder_force: np.ndarray) -> np.ndarray:
     """``largest_force`` of N poses: hinge_force (N, H, 2), cylinder_force (N, C) -> (N,) N."""
