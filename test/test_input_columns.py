@@ -70,14 +70,14 @@ def _events(hostile: list[tuple[int, str]]) -> list:
                 shift -= NS // 10
             elif kind == "gap":
                 shift += NS
-            elif kind == "nan":
+            elif kind == "nan" and positions:
                 positions[0] = math.nan
-            elif kind == "nan_rate":
+            elif kind == "nan_rate" and positions:
                 rates = [0.0] * len(positions)
                 rates[-1] = math.nan
-            elif kind == "outside":
+            elif kind == "outside" and names.index("lift_cylinder") < len(positions):
                 positions[names.index("lift_cylinder")] = 10.0
-            elif kind == "turn":
+            elif kind == "turn" and names.index("lift_arm_angle") < len(positions):
                 positions[names.index("lift_arm_angle")] += 2.0 * math.pi
             elif kind == "unknown":
                 joint_names, positions = joint_names + ["hitch_pin"], positions + [0.1]

@@ -47,7 +47,7 @@ EXCEPTION_STATUS = {InputError: Status.INPUT, AssemblyError: Status.ASSEMBLY, De
 
 _LIFT_OFF = Status.LIFT_OFF.label
 WEIGHING_PIECE = 1024   # with the weighing, the batched path's longest piece: a new estimate is put in use after it
-ACCEPT_BLOCK = 256      # input events the batched path reads before it accepts them (runs of them at once)
+ACCEPT_BLOCK = 1024     # input events the batched path reads before it accepts them (runs of them at once)
 ACCEPT_WINDOW_MIN = 16  # the shortest window a run is tried on; after a miss, this many events taken alone
 
 

@@ -55,7 +55,7 @@ if TYPE_CHECKING:
     from linkage_monitor.viz.rerun_view import RerunView
 
 ENCODE_BLOCK = 4096   # inputs replayed at once: read, solved, accounted, encoded and written, then let go
-READ_BLOCK = 256      # input messages read from their bytes at once
+READ_BLOCK = 1024     # input messages read from their bytes at once
 
 
 @dataclass
