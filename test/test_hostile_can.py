@@ -385,6 +385,7 @@ def test_the_bridge_reports_the_frames_its_bus_dropped(ros: None, monkeypatch: p
 
     from linkage_monitor.can.node import CanBridgeNode, CanSource
     from linkage_monitor.can.sources import receive_buffer
+    from support.can_bridge import close_rig
 
     chance = random.SystemRandom()
     group = f"239.74.{chance.randint(0, 255)}.{chance.randint(1, 254)}"
@@ -415,11 +416,7 @@ def test_the_bridge_reports_the_frames_its_bus_dropped(ros: None, monkeypatch: p
         while time.monotonic() < end and not _every_frame_accounted(statuses, sent):
             executor.spin_once(timeout_sec=0.05)
     finally:
-        sender.shutdown()
-        executor.shutdown()
-        bridge.close()
-        bridge.destroy_node()
-        listener.destroy_node()
+        close_rig(sender, executor, bridge, listener)
     lost = [s for s in statuses if "inputs_lost" in {kv.value for kv in s.values}]
     assert lost and all(f"CAN frame(s) lost on {bus}" in s.message and s.level == b"\x01" for s in lost), \
         [(s.name, s.message) for s in statuses]

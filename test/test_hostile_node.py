@@ -242,6 +242,7 @@ def test_the_can_bridge_goes_stale_while_only_unmapped_frames_arrive(ros, tmp_pa
 
     from linkage_monitor.can.mapping import load_mapping
     from linkage_monitor.can.node import CanBridgeNode, CanSource
+    from support.can_bridge import close_rig
 
     mapping = load_mapping(ROOT / "config" / "can" / "belarus_1221.yaml")
     channel = f"hostile_{time.monotonic_ns()}"
@@ -269,8 +270,4 @@ def test_the_can_bridge_goes_stale_while_only_unmapped_frames_arrive(ros, tmp_pa
         # python-can's virtual bus has no socket whose drops could be counted: the frame count says so
         assert counts[-1].endswith(f"; the frames virtual:{channel} drops cannot be counted here"), counts[-1]
     finally:
-        sender.shutdown()
-        executor.shutdown()
-        bridge.close()
-        bridge.destroy_node()
-        listener.destroy_node()
+        close_rig(sender, executor, bridge, listener)

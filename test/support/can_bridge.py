@@ -57,3 +57,13 @@ def wait_for_log_line(path: Path, text: str, proc: subprocess.Popen, timeout: fl
         assert proc.poll() is None, f"bridge exited ({proc.returncode}):\n{path.read_text()}"
         time.sleep(0.1)
     raise AssertionError(f"bridge did not log {text!r} within {timeout} s:\n{path.read_text()}")
+
+
+def close_rig(sender, executor, bridge, listener) -> None:
+    """Shut down a test's CAN sender (a python-can bus) and its executor, then close and destroy the
+    bridge node and the test's listener node, in that order."""
+    sender.shutdown()
+    executor.shutdown()
+    bridge.close()
+    bridge.destroy_node()
+    listener.destroy_node()
