@@ -20,6 +20,9 @@ from linkage_monitor.can.outcomes import Outcome
 from linkage_monitor.can.position_table import fit_table
 from linkage_monitor.mechanics import InputError, load_description
 from linkage_monitor.mechanics.error_sources import ErrorSources, SensorError
+from linkage_monitor.mechanics.overrides import with_sensor_resolutions
+from linkage_monitor.mechanics.schema import mechanism_from_dict
+from linkage_monitor.bag.step_recorder import mechanism_yaml
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.events import JointStateEvent, PressureEvent
 from linkage_monitor.monitoring.findings import Code
@@ -264,3 +267,19 @@ def test_a_mapping_passes_its_dbc_scale_on_as_the_resolution() -> None:
     declared = ErrorSources(sensors={"lift_cap_pressure": SensorError(resolution=5000.0, origin="file")}, declared=True)
     kept = declared.with_resolutions(steps)   # a coarser declared step stays
     assert kept.sensor("lift_cap_pressure", "pressures") == declared.sensor("lift_cap_pressure", "pressures")
+
+
+def test_the_mechanism_with_the_resolutions_is_written_as_it_reads() -> None:
+    """``with_sensor_resolutions`` writes each changed sensor into the description (bias, noise and
+    resolution: a sensor listed takes exactly what it lists), so the description read back has the same
+    sources; a step no coarser than what the sensor has changes nothing."""
+    mech = load_description("belarus_1221")
+    steps = {"lift_cap_pressure": ("pressures", 1000.0), "lift_cylinder": ("cylinders", 1e-4)}
+    changed = with_sensor_resolutions(mech, steps)
+    assert changed.error_sources.sensor("lift_cap_pressure", "pressures") == SensorError(
+        bias=mech.error_sources.sensor("lift_cap_pressure", "pressures").bias, resolution=1000.0, origin="file")
+    assert changed.error_sources.sensor("lift_cylinder", "cylinders") == mech.error_sources.sensor(
+        "lift_cylinder", "cylinders")   # 0.1 mm is finer than the default 1 mm
+    again = mechanism_from_dict(yaml.safe_load(mechanism_yaml(changed)), file=changed.file)
+    assert again.error_sources == changed.error_sources
+    assert with_sensor_resolutions(mech, {"lift_cylinder": ("cylinders", 1e-4)}) is mech

@@ -15,6 +15,8 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from linkage_monitor.can.frames import to_message
 from linkage_monitor.can.sources import read_log
+from linkage_monitor.mechanics import load_description
+from linkage_monitor.offline.replay import mechanism_in_bag
 
 ROOT = Path(__file__).resolve().parent.parent
 LOG = ROOT / "bags" / "can" / "belarus_1221_lift.log"
@@ -95,6 +97,12 @@ def test_can_to_bag_holds_raw_frames_and_inputs(tmp_path: Path) -> None:
     # gauge 10.132 MPa... the pressure frame's first value by hand: 0x279A = 10138 kPa gauge -> + 101325 Pa absolute
     assert frames[1].data[:2] == bytes([0x9A, 0x27])
     assert topics["/pressure/lift_cap_pressure"][0].fluid_pressure == pytest.approx(10_138e3 + 101_325.0, abs=1e-6)
+    # the bag's mechanism takes the pressure signal's DBC scale, 1 kPa/bit, as its sensor's resolution: a
+    # replay budgets what the bridge budgets (the angle's and stroke's through their tables: test_can_decode.py)
+    recorded = mechanism_in_bag(tmp_path / "bag").error_sources.sensor("lift_cap_pressure", "pressures")
+    assert recorded.resolution == pytest.approx(1000.0)
+    assert recorded.bias == pytest.approx(load_description("belarus_1221").error_sources.sensor(
+        "lift_cap_pressure", "pressures").bias)   # the rest as the file (here its defaults) has it
 
 
 @pytest.mark.slow

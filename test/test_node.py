@@ -255,13 +255,14 @@ def test_implement_mass_changed_at_runtime_applies_from_the_next_message(ros, tm
 
 def test_dead_centre_threshold_changed_at_runtime_applies_from_the_next_message(node):
     """dead_centre_transmission_deg set at run time: 50 (outside its range, 0 to 45 degrees) is
-    refused with rclpy's reason; 45, above this pose's smallest transmission angle (the offline
-    solver's, about 40 degrees at a 0.62 m stroke), makes the same pose a dead centre from the next
-    message on (an ERROR diagnostic, no outputs), as the offline solver with that threshold says;
-    back at 1 degree (the default) the pose is solved again."""
+    refused with rclpy's reason; 45, above this pose's lift cylinder step's transmission angle (the
+    offline solver's, 42 degrees at a 0.53 m stroke; its implement load's, 26 degrees, is an inference
+    from the pressure, judged by its amplification: docs/dead-centre.md), makes the same pose a dead
+    centre from the next message on (an ERROR diagnostic, no outputs), as the offline solver with that
+    threshold says; back at 1 degree (the default) the pose is solved again."""
     client, proc, tmp_path = node
     mech = load_preset("belarus_1221")
-    s, angle = _pose(0.62)
+    s, angle = _pose(0.53)
     inputs = Inputs(cylinders={"lift_cylinder": s}, angles={"lift_arm_angle": angle},
                     pressures={"lift_cap_pressure": 9.0e6})
     expected = Solver(mech).solve(inputs).transmission_angle   # rad

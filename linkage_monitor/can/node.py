@@ -14,13 +14,16 @@ heartbeat and at shutdown. Units SI; stamps: the frames' own (µs), receive time
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import can
 from can_msgs.msg import Frame as FrameMsg
 
+from linkage_monitor.mechanics import Mechanism
+from linkage_monitor.mechanics.overrides import with_sensor_resolutions
+from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Step
 from linkage_monitor.monitoring.events import UnreadableEvent
 from linkage_monitor.monitoring.findings import Code, Finding, Level, fmt
@@ -31,6 +34,7 @@ from .decoder import CanDecoder, load_databases
 from .frame_msg import FRAME_TYPE, from_cdr, to_cdr
 from .frames import Frame, from_message
 from .mapping import CanMapping
+from .routes import Routing
 from .sources import DropCount, open_bus
 from .to_bag import RAW_TOPIC, input_record
 
@@ -70,20 +74,21 @@ class CanFrames:
         assert self._node is not None, "the CAN source is not started"
         return self._node
 
+    def described(self, description: Mechanism, config: MonitorConfig) -> Mechanism:
+        """``description`` whose error budget takes each mapped input's DBC scale as its resolution
+        (unless the mechanism file declares a coarser one; ``mechanics.overrides.with_sensor_resolutions``):
+        monitored and recorded so."""
+        routing = Routing(load_databases(self.source.dbc), self.source.mapping, description, config)
+        return with_sensor_resolutions(description, routing.resolutions)
+
     def start(self, node: InputHost) -> None:
-        """The decoder for the node's mechanism, whose error budget takes each mapped input's DBC
-        scale as its resolution (unless the mechanism file declares a coarser one); the bus opened
-        (read every POLL_PERIOD_S) or the frames' topic subscribed; the silence check started."""
+        """The decoder for the node's mechanism; the bus opened (read every POLL_PERIOD_S) or the
+        frames' topic subscribed; the silence check started."""
         source = self.source
         self._node = node
         self.source_name = source.bus or node.resolve_topic_name(source.topic)
-        monitor = node.monitor
-        self.decoder = CanDecoder(load_databases(source.dbc), source.mapping, monitor.description, monitor.config,
-                                  self.source_name)
-        described = monitor.description
-        monitor.description = replace(described, error_sources=described.error_sources.with_resolutions(
-            self.decoder.resolutions))
-        monitor.reconfigure(monitor.config)
+        self.decoder = CanDecoder(load_databases(source.dbc), source.mapping, node.monitor.description,
+                                  node.monitor.config, self.source_name)
         self.silence_s = source.mapping.silence_timeout_s
         self._last_frame = time.monotonic()
         self._silent = False

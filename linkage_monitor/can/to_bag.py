@@ -26,6 +26,7 @@ from linkage_monitor.bag.step_recorder import StepRecorder
 from linkage_monitor.bag.row_block import MessageRows
 from linkage_monitor.bag.writer import BagWriter
 from linkage_monitor.mechanics import Mechanism
+from linkage_monitor.mechanics.overrides import with_sensor_resolutions
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.events import InputEvent, JointStateEvent, PressureEvent
 from linkage_monitor.monitoring.findings import Code, Finding
@@ -84,8 +85,10 @@ def can_to_bag(frames: Iterable[Frame], decoder: CanDecoder, description: Mechan
 
 def blocks_to_bag(blocks: Iterable[FrameBlock], decoder: CanDecoder, description: Mechanism, config: MonitorConfig,
                   out: Path, raw_topic: str = RAW_TOPIC) -> Converted:
-    """``can_to_bag`` of frames given in blocks (a log reader's, ``sources.read_log_blocks``)."""
+    """``can_to_bag`` of frames given in blocks (a log reader's, ``sources.read_log_blocks``). The bag
+    records ``description`` with the decoder's resolutions, as the live bridge does (``CanFrames.described``)."""
     refusals: list[Finding] = []
+    description = with_sensor_resolutions(description, decoder.resolutions)
     with BagWriter(out) as writer:
         recorder = StepRecorder(writer, config.topics)
         started = False

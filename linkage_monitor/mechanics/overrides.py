@@ -19,6 +19,26 @@ def apply_overrides(mech: Mechanism, overrides: Mapping[str, Any]) -> Mechanism:
     return mechanism_from_dict(raw, file=mech.file)
 
 
+def with_sensor_resolutions(mech: Mechanism, steps: Mapping[str, tuple[str, float]]) -> Mechanism:
+    """Copy of ``mech`` whose sensors' resolution is at least the step given, name -> (kind as ``Inputs``
+    names it, step in the sensor's SI unit), e.g. a CAN signal's DBC scale (``ErrorSources.with_resolutions``),
+    written into its description (``error_sources.sensors``: bias, noise and resolution of each sensor it
+    changes) so that a recording of it replays with the same sources; ``mech`` itself when none changes."""
+    sources = mech.error_sources.with_resolutions(steps)
+    changed = {name: sources.sensors[name] for name in steps
+               if sources.sensors.get(name) != mech.error_sources.sensors.get(name)}
+    if not changed:
+        return mech
+    raw = copy.deepcopy(dict(mech.raw))
+    block = raw.setdefault("error_sources", {}) or {}
+    raw["error_sources"] = block
+    listed = block.setdefault("sensors", {}) or {}
+    block["sensors"] = listed
+    for name, error in changed.items():
+        listed[name] = {"bias": error.bias, "noise": error.noise, "resolution": error.resolution}
+    return mechanism_from_dict(raw, file=mech.file)
+
+
 def _set_dotted(raw: dict, key: str, value: Any, file: str) -> None:
     parts = key.split(".")
     node: Any = raw

@@ -11,6 +11,8 @@ from typing import Any, Callable, Protocol
 
 from sensor_msgs.msg import FluidPressure, JointState
 
+from linkage_monitor.mechanics import Mechanism
+from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Monitor
 from linkage_monitor.monitoring.findings import Level
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, input_event
@@ -55,6 +57,10 @@ class InputHost(Protocol):
 class InputSource(Protocol):
     """The node's way in for its inputs."""
 
+    def described(self, description: Mechanism, config: MonitorConfig) -> Mechanism:
+        """The mechanism as the node monitors and records it: ``description`` with what the source knows
+        of its inputs (a CAN mapping's resolutions); before the monitor is built."""
+
     def start(self, node: InputHost) -> None:
         """Subscribe to (or open) the inputs and create the source's timers on ``node``, whose monitor is
         built; errors of the source's own settings raise (ValueError, LinkageError: the node's start fails)."""
@@ -75,6 +81,10 @@ class SensorTopics:
 
     def __init__(self) -> None:
         self._node: InputHost | None = None
+
+    def described(self, description: Mechanism, config: MonitorConfig) -> Mechanism:
+        """``description`` as it is: the topics tell nothing more of the sensors."""
+        return description
 
     def start(self, node: InputHost) -> None:
         """Subscribe to the JointState topic, then to each pressure topic."""

@@ -112,6 +112,7 @@ class LinkageMonitorNode(Node):
         check_choices(p)
         description = load_description(p["mechanism"])
         config = monitor_config(p, description, self.resolve_topic_name)
+        description = self.input_source.described(description, config)
         self.monitor = Monitor(description, config)
         self.input_qos = (qos_profile_sensor_data if p["sensor_qos"] == "sensor_data" else
                           QoSProfile(depth=int(p["reliable_queue_depth"]), reliability=ReliabilityPolicy.RELIABLE))

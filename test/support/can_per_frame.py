@@ -14,12 +14,15 @@ from linkage_monitor.can.frame_msg import FRAME_TYPE, to_cdr
 from linkage_monitor.can.frames import Frame
 from linkage_monitor.can.to_bag import RAW_TOPIC, input_record
 from linkage_monitor.mechanics import Mechanism
+from linkage_monitor.mechanics.overrides import with_sensor_resolutions
 
 
 def per_frame_bag(frames: Iterable[Frame], decoder: CanDecoder, mech: Mechanism, out: Path) -> None:
     """The bag ``out`` of ``frames`` decoded by ``decoder`` (under its configuration), ``mech`` its
-    mechanism, each frame received at its own stamp."""
+    mechanism with the decoder's resolutions (as the bridge records it: ``CanFrames.described``), each
+    frame received at its own stamp."""
     config = decoder.config
+    mech = with_sensor_resolutions(mech, decoder.resolutions)
     with BagWriter(out) as writer:
         recorder = StepRecorder(writer, config.topics)
         for k, frame in enumerate(frames):
