@@ -30,7 +30,7 @@ from linkage_monitor.sim.telemetry import Noise
 from linkage_monitor.sim.work_cycle import ImplementTruth, WorkCycle, simulate_work
 from support.lift_pose import lift_pose
 from support.ros_harness import node_bag, read_bag_rosbags, running_node, settle, stop
-from test_rerun_view import temporal_tables
+from support.rerun_tables import temporal_tables
 
 T0 = (time.time_ns() // 10**9) * 10**9  # ns, now (whole s): the node refuses stamps far from its clock
 JOINTS = ["lift_cylinder", "lift_arm_angle"]

@@ -18,7 +18,7 @@ from linkage_monitor.offline.replay import replay
 from linkage_monitor.viz.rerun_estimates import COVERAGE_FACTOR, MASS_COLOR, implement_cg_at
 from linkage_monitor.viz.rerun_view import APPLICATION_ID, default_blueprint
 from support.rerun_shot import pixels_of, screenshot
-from test_rerun_view import temporal_tables
+from support.rerun_tables import temporal_tables
 
 BAG = Path(__file__).resolve().parent.parent / "bags" / "belarus_1221_lift_transport"
 

@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from rerun.chunk import RrdReader
 
 from linkage_monitor.mechanics import BatchResult, Inputs, Mechanism, Solver, load_preset, mechanism_from_dict
 from linkage_monitor.viz.drawing import ARROW_LENGTH, CYLINDER_COLOR
@@ -17,6 +16,7 @@ from linkage_monitor.mechanics.reduced import DEAD_CENTRE_TRANSMISSION_DEG
 from linkage_monitor.viz.rerun_view import APPLICATION_ID, RerunView, default_blueprint, largest_hinges, linkage_bounds
 from linkage_monitor.viz.rerun_view import machine_series as view_series
 from support.rerun_shot import RERUN, pixels_of, screenshot
+from support.rerun_tables import column, temporal_tables
 
 T0_NS = 1_700_000_000_000_000_000  # an arbitrary ROS header stamp, ns
 PERIOD_NS = 20_000_000             # 50 Hz
@@ -61,23 +61,6 @@ def write_batch_rrd(path: Path, strokes: np.ndarray) -> tuple[Mechanism, BatchRe
     view.log_batch(stamps, batch, {**machine_series(mech, batch), **transmission})
     view.close()
     return mech, batch, stamps
-
-
-def temporal_tables(path: Path) -> dict[str, list]:
-    """Entity path (no leading slash) -> record batches of its chunks on the ros_time timeline."""
-    tables: dict[str, list] = {}
-    for chunk in RrdReader(path).stream().to_chunks():
-        rb = chunk.to_record_batch()
-        if "ros_time" in rb.schema.names:
-            tables.setdefault(chunk.entity_path.lstrip("/"), []).append(rb)
-    return tables
-
-
-def column(tables: dict[str, list], entity: str, name: str) -> list:
-    """All rows (each a list of instances) of one component column of ``entity``, in time order."""
-    rows = [(t, v) for rb in tables[entity]
-            for t, v in zip(rb.column("ros_time").to_pylist(), rb.column(name).to_pylist())]
-    return [v for _, v in sorted(rows, key=lambda r: r[0])]
 
 
 @pytest.fixture(scope="module")
