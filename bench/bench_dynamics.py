@@ -11,7 +11,8 @@ from the IMU to the body whose inertia it gives), with the simulator's noise (0.
 0.005 rad/s), the pressure sensors with 0.02 MPa noise, the stroke 0.2 mm and the angle
 0.5 mrad; no seal friction (the weighing's matter, bench_weighing.py). The monitor's side: the
 solver's poses of the noisy inputs, the IMU's body acceleration (``mechanics.dynamics``: the gyro
-differentiated over ``PITCH_WINDOW``), ``road_balance``. The truth, from the simulator's true body
+differentiated over ``PITCH_WINDOW``), ``monitoring.road.RoadInput.balance`` as the node and the replay
+compute it (the weight at rest smoothed over ``REST_TIME_CONSTANT``). The truth, from the simulator's true body
 motion and implement mass: the unit at rest (the solver at the true lengths with the implement's
 weight), and d'Alembert's inertia forces added by the unit's moment balance about B (the oracle of
 test/test_machine_dynamics.py, written out here again on purpose: the truth must not come from the
@@ -37,9 +38,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from linkage_monitor.mechanics import Mechanism, Solver, load_preset  # noqa: E402
-from linkage_monitor.mechanics.dynamics import (BodyAcceleration, PitchAcceleration, imu_body_acceleration,  # noqa: E402
-                                                road_balance)
+from linkage_monitor.mechanics.dynamics import (DYNAMIC_MARGIN, BodyAcceleration, PitchAcceleration,  # noqa: E402
+                                                imu_body_acceleration)
 from linkage_monitor.mechanics.kernels import STEERABILITY_COLUMNS  # noqa: E402
+from linkage_monitor.mechanics.machine import MachineModel  # noqa: E402
+from linkage_monitor.monitoring.config import MonitorConfig  # noqa: E402
+from linkage_monitor.monitoring.road import RoadInput  # noqa: E402
 from linkage_monitor.sim.friction import SealFriction  # noqa: E402
 from linkage_monitor.sim.road import Road  # noqa: E402
 from linkage_monitor.sim.telemetry import Noise  # noqa: E402
@@ -60,22 +64,26 @@ def _truth(mech: Mechanism, run: WorkRun) -> tuple[np.ndarray, np.ndarray]:
     solved = Solver(mech).solve_batch(cylinders=dict(zip(run.stream.cylinder_names, truth.cylinder_lengths.T)),
                                       angles=dict(zip(run.stream.angle_names, truth.angles.T)),
                                       pressures=dict(zip(run.stream.pressure_names, truth.pressures.T)))
-    nan = np.full(len(solved), np.nan)
-    steer = _rows(mech, solved, BodyAcceleration(nan, nan)).static   # the linkage's true forces, no correction
+    steer = MachineModel(mech, Solver(mech)).evaluate_batch(solved).steerability   # the linkage's true forces
     t, g = mech.tractor, mech.gravity
     L, x_tr, r = t.wheelbase, float(t.cg[0]), t.ratio_min
     x6, inertia = solved.implement_cg[:, 0], run.truth.mass * run.truth.acceleration
-    front = steer[:, STEERABILITY_COLUMNS.index("front_axle_load")]
-    total = steer[:, STEERABILITY_COLUMNS.index("total_weight")] - inertia
+    front = steer["front_axle_load"]
+    total = steer["total_weight"] - inertia
     rest = front - inertia * x6 / L
     dynamic = front + (t.mass * body.at(x_tr) * x_tr + t.mass * x_tr * (L - x_tr) * body.pitch
                        + t.front_ballast.mass * body.at(t.front_ballast.x) * t.front_ballast.x) / L
     return rest / total - r, dynamic / total - r
 
 
-def _rows(mech: Mechanism, batch, body: BodyAcceleration):
-    return road_balance(mech.tractor, mech.gravity, batch.frame_load_points, batch.frame_load_forces,
-                        batch.implement_load, batch.implement_cg[:, 0], body)
+def _margins(mech: Mechanism, batch, stamps_ns: np.ndarray, body: BodyAcceleration) -> tuple[np.ndarray, np.ndarray]:
+    """The monitor's static and dynamic margins (N,) of the solved poses with the body's accelerations
+    (``monitoring.road.RoadInput``, as the node and the replay compute them)."""
+    road = RoadInput(mech, MonitorConfig(mech.name), load_measured=True)
+    found = road.balance(stamps_ns, batch.frame_load_points, batch.frame_load_forces, batch.implement_load,
+                         batch.implement_cg[:, 0], [BodyAcceleration(v, p) for v, p in zip(body.vertical.tolist(),
+                                                                                              body.pitch.tolist())])
+    return found.static[:, MARGIN], found.dynamic[:, DYNAMIC_MARGIN]
 
 
 def _run(base: Mechanism, seed: int, rate: float, places: dict[str, float]) -> dict[str, float]:
@@ -90,8 +98,7 @@ def _run(base: Mechanism, seed: int, rate: float, places: dict[str, float]) -> d
                            seed=seed)
     batch = Solver(mech).solve_batch(**smooth.stream.solver_inputs())
     static_truth = _truth(mech, smooth)[0]
-    nan = np.full(len(batch), np.nan)
-    static = _rows(mech, batch, BodyAcceleration(nan, nan)).static[:, MARGIN]
+    static = MachineModel(mech, Solver(mech)).evaluate_batch(batch).steerability["margin"]
     out = {"static smooth": math.sqrt(np.nanmean((static - static_truth) ** 2))}
     for place, imu_x in places.items():
         run = simulate_work(base, implement, DURATION, rate, friction=SealFriction(share=0.0), road=road,
@@ -101,14 +108,15 @@ def _run(base: Mechanism, seed: int, rate: float, places: dict[str, float]) -> d
         static_truth, dynamic_truth = _truth(mech, run)
         imu = run.imu
         pitch = PitchAcceleration().series(imu.stamps_ns, imu.angular_velocity[:, 1])
-        found = _rows(mech, batch, imu_body_acceleration(imu.linear_acceleration[:, 2], pitch, imu_x))
-        plain = _rows(mech, batch, BodyAcceleration(nan, nan)).static[:, MARGIN]
-        ok = np.isfinite(found.dynamic[:, 3])
+        static, dynamic = _margins(mech, batch, imu.stamps_ns,
+                                   imu_body_acceleration(imu.linear_acceleration[:, 2], pitch, imu_x))
+        plain = MachineModel(mech, Solver(mech)).evaluate_batch(batch).steerability["margin"]
+        ok = np.isfinite(dynamic)
         transport = ok & (run.truth.phase == "transport")
-        dyn_err = found.dynamic[:, 3] - dynamic_truth
+        dyn_err = dynamic - dynamic_truth
         out[f"{place} dynamic"] = math.sqrt(np.mean(dyn_err[ok] ** 2))
         out[f"{place} dynamic transport"] = math.sqrt(np.mean(dyn_err[transport] ** 2))
-        out[f"{place} static"] = math.sqrt(np.mean((found.static[ok, MARGIN] - static_truth[ok]) ** 2))
+        out[f"{place} static"] = math.sqrt(np.mean((static[ok] - static_truth[ok]) ** 2))
         out["static bumps, no IMU"] = math.sqrt(np.mean((plain[ok] - static_truth[ok]) ** 2))
         out["dip"] = float(np.min(dynamic_truth - static_truth))
     return out

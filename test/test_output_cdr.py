@@ -103,6 +103,37 @@ def test_warnings_and_a_reconfigured_monitor():
     assert "WARN" in levels and "OK" in levels
 
 
+def test_with_an_imu_the_dynamic_fields_as_rclpy_builds_them():
+    """An IMU on /imu (monitoring.road): the steerability's dynamic fields filled, NaN before the
+    first IMU reading; one step at a time and all at once, the same bytes."""
+    from dataclasses import replace
+
+    from linkage_monitor.monitoring.config import Topics
+    from linkage_monitor.monitoring.events import ImuEvent
+
+    mech = load_preset("belarus_1221")
+    stream = simulate(mech, "lift", rate_hz=20.0, seed=2, start_ns=1_700_000_000_000_000_000)
+    monitor, encoder = _monitor(mech), OutputEncoder()
+    monitor.reconfigure(replace(monitor.config, topics=Topics(imu="/imu")))
+    steps, dynamic = [], 0
+    for i, stamp in enumerate(stream.stamps_ns.tolist()):
+        if i >= 3:   # a heaving, pitching body from the fourth sample on
+            for k in range(25):
+                at = stamp - 50_000_000 + 2_000_000 * k
+                steps.append(monitor.step(ImuEvent("/imu", "imu_link", 9.80665 + math.sin(at * 1e-8), 0.1 * math.cos(
+                    at * 1e-8), at, at)))
+        steps.append(monitor.on_pressure("/pressure/lift_cap_pressure", float(stream.pressure_values[i, 0]), stamp,
+                                         stamp))
+        steps.append(monitor.on_joint_state(list(stream.joint_names), stream.joint_positions[i].tolist(), [], stamp,
+                                            stamp))
+        for step in steps[-2:]:
+            _check(monitor, encoder, step)
+            dynamic += step.pose is not None and bool(np.isfinite(step.pose.dynamic).all())
+    assert dynamic > 0 and np.isnan(steps[1].pose.dynamic).all()
+    assert per_step(OutputEncoder().output_rows(monitor, steps), len(steps)) == [encoder.outputs(monitor, step)
+                                                                                 for step in steps]
+
+
 def test_many_steps_at_once_as_one_at_a_time():
     """``output_rows`` (the replay's: one template per status text, filled for all its steps at once)
     writes the bytes ``outputs`` writes, over a simulated lift with sensor noise: OK steps, WARN

@@ -16,10 +16,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import FluidPressure, JointState
+from sensor_msgs.msg import FluidPressure, Imu, JointState
 
 from linkage_monitor.wire.cdr import CdrError
-from linkage_monitor.wire.sensor_messages import read_fluid_pressure, read_joint_state
+from linkage_monitor.wire.sensor_messages import read_fluid_pressure, read_imu, read_joint_state
 
 texts = st.text(max_size=12)
 floats = st.floats(allow_nan=True, allow_infinity=True)
@@ -76,9 +76,38 @@ def _ours_fluid_pressure(data: bytes) -> tuple | None:
     return r.stamp_ns, _bits([r.fluid_pressure])
 
 
+def _imu(frame: str, stamp: tuple[int, int], values: list[float]) -> bytes:
+    msg = Imu()
+    msg.header.frame_id, (msg.header.stamp.sec, msg.header.stamp.nanosec) = frame, stamp
+    q, w, a = msg.orientation, msg.angular_velocity, msg.linear_acceleration
+    q.x, q.y, q.z, q.w, w.x, w.y, w.z, a.x, a.y, a.z = values[:10]
+    msg.orientation_covariance[:] = values[10:19]
+    msg.angular_velocity_covariance[:] = values[19:28]
+    msg.linear_acceleration_covariance[:] = values[28:37]
+    return serialize_message(msg)
+
+
+def _rclpy_imu(data: bytes) -> tuple | None:
+    try:
+        m = deserialize_message(data, Imu)
+    except Exception:  # noqa: BLE001
+        return None
+    return (m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec, m.header.frame_id,
+            _bits([m.linear_acceleration.z, m.angular_velocity.y]))
+
+
+def _ours_imu(data: bytes) -> tuple | None:
+    try:
+        r = read_imu(data, "/imu", 0)
+    except CdrError:
+        return None
+    return r.stamp_ns, r.frame_id, _bits([r.specific_force_z, r.rate_y])
+
+
 joint_states = st.builds(_joint_state, texts, stamps, st.lists(texts, max_size=5), st.lists(floats, max_size=5),
                          st.lists(floats, max_size=5), st.lists(floats, max_size=3))
 fluid_pressures = st.builds(_fluid_pressure, texts, stamps, floats, floats)
+imus = st.builds(_imu, texts, stamps, st.lists(floats, min_size=37, max_size=37))
 
 
 # The check of the FluidPressure test below, for JointState: one test per type, each with its own strategy.
@@ -97,6 +126,15 @@ def test_a_fluid_pressure_reads_as_rclpy_reads_it(data):
     expected = _rclpy_fluid_pressure(data)
     assert expected is not None
     assert _ours_fluid_pressure(data) == expected
+
+
+# The check of the FluidPressure test above, for Imu (the fields the monitor keeps; its fixed arrays read past).
+@settings(max_examples=200, deadline=None)
+@given(imus)
+def test_an_imu_reads_as_rclpy_reads_it(data):
+    expected = _rclpy_imu(data)
+    assert expected is not None
+    assert _ours_imu(data) == expected
 
 
 def _damaged(data: bytes, kind: int, at: int, value: int, extra: bytes) -> bytes:
@@ -126,6 +164,13 @@ def test_a_damaged_joint_state_fares_as_in_rclpy(data, how):
 def test_a_damaged_fluid_pressure_fares_as_in_rclpy(data, how):
     bad = _damaged(data, *how)
     assert _ours_fluid_pressure(bad) == _rclpy_fluid_pressure(bad)
+
+
+@settings(max_examples=600, deadline=None)
+@given(imus, damage)
+def test_a_damaged_imu_fares_as_in_rclpy(data, how):
+    bad = _damaged(data, *how)
+    assert _ours_imu(bad) == _rclpy_imu(bad)
 
 
 @pytest.mark.parametrize("data, words", [

@@ -9,6 +9,7 @@ Units SI (m, N).
 
 from __future__ import annotations
 
+import math
 from enum import IntFlag
 from typing import NamedTuple
 
@@ -47,6 +48,7 @@ class Check(IntFlag):
     STEERABILITY_UNCERTAIN = 512
     LIFT_RESERVE_UNCERTAIN = 1024
     LOAD_INFERENCE_WEAK = 2048    # the inferred load's amplification > LOAD_AMPLIFICATION_WARN
+    STEERABILITY_DYNAMIC_LOW = 4096   # the dynamic steerability margin < 0 while the static one is not (an IMU)
 
 
 class CheckedValues(NamedTuple):
@@ -55,7 +57,8 @@ class CheckedValues(NamedTuple):
     lift_off: the solver's LIFT_OFF verdict; consistency_residual m, residual N: the solver's
     kinematic and equilibrium residuals; largest_force N (``Result.largest_force``); front/rear_axle_load
     N, margin (steerability margin, -), reserve (lift reserve, -): the machine-level results;
-    load_amplification (N per N, ``Result.load_amplification``; NaN: no load inferred).
+    load_amplification (N per N, ``Result.load_amplification``; NaN: no load inferred); dynamic_margin
+    (-): the dynamic steerability margin with an IMU (``mechanics.dynamics``), else NaN.
     """
 
     lift_off: bool | np.ndarray
@@ -67,12 +70,14 @@ class CheckedValues(NamedTuple):
     margin: float | np.ndarray
     reserve: float | np.ndarray
     load_amplification: float | np.ndarray
+    dynamic_margin: float | np.ndarray = math.nan
 
 
 # the bits as plain ints (an IntFlag member in arithmetic costs as much as the comparison)
-_LIFT_OFF, _SENSORS, _PRESSURES, _FRONT, _REAR, _STEER, _RESERVE, _WEAK = (int(c) for c in (
+_LIFT_OFF, _SENSORS, _PRESSURES, _FRONT, _REAR, _STEER, _RESERVE, _WEAK, _DYNAMIC = (int(c) for c in (
     Check.LIFT_OFF, Check.SENSORS_DISAGREE, Check.PRESSURES_DISAGREE, Check.FRONT_AXLE_LIFT_OFF,
-    Check.REAR_AXLE_LIFT_OFF, Check.STEERABILITY_LOW, Check.LIFT_RESERVE_LOW, Check.LOAD_INFERENCE_WEAK))
+    Check.REAR_AXLE_LIFT_OFF, Check.STEERABILITY_LOW, Check.LIFT_RESERVE_LOW, Check.LOAD_INFERENCE_WEAK,
+    Check.STEERABILITY_DYNAMIC_LOW))
 
 
 def pose_checks(values: CheckedValues) -> int | np.ndarray:
@@ -85,5 +90,6 @@ def pose_checks(values: CheckedValues) -> int | np.ndarray:
             + (v.rear_axle_load < 0.0) * _REAR
             + (v.margin < 0.0) * _STEER
             + (v.reserve < 1.0) * _RESERVE
-            + (v.load_amplification > LOAD_AMPLIFICATION_WARN) * _WEAK)
+            + (v.load_amplification > LOAD_AMPLIFICATION_WARN) * _WEAK
+            + (v.dynamic_margin < 0.0) * (v.margin >= 0.0) * _DYNAMIC)
 

@@ -35,6 +35,7 @@ class Topics:
     steerability: str = "/steerability"
     diagnostics: str = "/diagnostics"
     markers: str = "/linkage_markers"
+    imu: str = ""   # the tractor body's sensor_msgs/Imu; '': none
 
 
 @dataclass(frozen=True)
@@ -59,7 +60,9 @@ class MonitorConfig:
     hung on the mechanism; '' keeps the mechanism file's. implement_mass_source: where the
     machine-level results take the implement's mass and cg from, ``file`` (the default),
     ``estimate`` or ``estimate_when_confident`` (the weighing estimator, which runs only then:
-    ``monitoring.implement_mass``).
+    ``monitoring.implement_mass``). imu_frame: the frame_id the IMU's messages must carry (its axes
+    the tractor body's, REP 103); imu_x: m, where it sits on the body, ahead of the rear wheels'
+    ground contact (``mechanics.dynamics``; with ``topics.imu``).
     """
 
     mechanism: str
@@ -76,6 +79,8 @@ class MonitorConfig:
     uncertainty: bool = False
     implement: str = ""
     implement_mass_source: str = "file"
+    imu_frame: str = "imu_link"
+    imu_x: float = 0.0
 
     def __post_init__(self) -> None:
         if self.implement_mass_source not in IMPLEMENT_MASS_SOURCES:

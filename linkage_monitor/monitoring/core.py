@@ -22,17 +22,20 @@ import numpy as np
 
 from linkage_monitor.mechanics import (AssemblyError, DeadCentreError, InputError, Inputs, LinkageError, Mechanism,
                                        Result, Solver, Status)
-from linkage_monitor.mechanics.machine import MachineModel, MachineResult
+from linkage_monitor.mechanics.dynamics import DYNAMIC_MARGIN
+from linkage_monitor.mechanics.machine import MachineBatch, MachineModel, MachineResult
+from linkage_monitor.mechanics.programs import ValueRow
 from linkage_monitor.mechanics.uncertainty import Budget, UncertaintyModel
 
 from .bounds import LimitUncertainties, MotionTracker, interval_checks
 from .checks import Check, CheckedValues, pose_checks
 from .config import MonitorConfig
-from .events import ConfigEvent, Event, InputEvent, JointStateEvent, PressureEvent, UnreadableEvent
+from .events import ConfigEvent, Event, ImuEvent, InputEvent, JointStateEvent, PressureEvent, UnreadableEvent
 from .findings import Code, Finding
 from .implement_mass import ImplementMass, effective_mechanism
 from .input_columns import InputColumns
 from .inputs import DueRun, InputTracker, Refused
+from .road import RoadInput
 from .segment_series import INPUT_KINDS, SegmentSeries, input_columns, limit_values, segment_checks
 from .steps import NO_FINDINGS, Due, Pose, Run, Segment, Step
 from .wording import failed_step, pose_findings
@@ -63,6 +66,7 @@ class Monitor:
         self.description = description
         self.config = config
         self.weighing: ImplementMass | None = None
+        self.road: RoadInput | None = None
         self._build(config, previous=None)
 
     # ---- configuration ---------------------------------------------------------------------
@@ -81,6 +85,14 @@ class Monitor:
         self.warm: Result | None = None   # the last solved pose: where the next live solve starts
         self.uncertainty = UncertaintyModel(machine) if config.uncertainty else None
         self.motion = MotionTracker.of(mech, mech.error_sources)
+        # the IMU (mechanics.dynamics): with a topic and a tractor block only; its readings carried over
+        road = (RoadInput(mech, config, bool(tracker.pressure_names)) if config.topics.imu and machine.has_steerability
+                else None)
+        if road is not None and self.road is not None:
+            road.carry_over(self.road)
+        self.road = road
+        self._steer_at = ValueRow.of(len(mech.hinges), len(mech.points), len(mech.cylinders),
+                                     len(machine.capacity_keys), len(machine.steerability_keys)).steerability
 
     def load_kernels(self) -> None:
         """Solve the mechanism's reference pose once, cold and warm-started, with its machine-level
@@ -283,7 +295,8 @@ class Monitor:
                                                               *rows):
             inputs = Inputs(cylinders=dict(zip(kinds[0], cylinders)), angles=dict(zip(kinds[1], angles)),
                             pressures=dict(zip(kinds[2], pressures)), rates={}, accelerations={})
-            dues.append(Due(stamp, topic, inputs, self.motion.motions(inputs) if self.uncertainty is not None else None))
+            dues.append(Due(stamp, topic, inputs, self.motion.motions(inputs) if self.uncertainty is not None else None,
+                            self.road.body_at(stamp) if self.road is not None else None))
         return dues
 
     def _solve_segment(self, segment: SegmentSeries, steps: list[Step | None], segments: list[Segment]) -> None:
@@ -302,8 +315,18 @@ class Monitor:
         else:   # each pose from the one before, as the live path solves them
             batch, machine = series.batch, series.machine
             values = [row if plain else None for row, plain in zip(series.values, series.plain.tolist())]
+        dynamic: np.ndarray | list[None] = [None] * len(batch)
+        if self.road is not None:
+            balance = self.road.balance(np.array([due.stamp_ns for due in dues], dtype=np.int64),
+                                        batch.frame_load_points, batch.frame_load_forces, batch.implement_load,
+                                        batch.implement_cg[:, 0], [due.body for due in dues])
+            machine = MachineBatch(dict(zip(machine.steerability, balance.static.T)), machine.lift_capacity,
+                                   machine.size)
+            values = [self._with_static(row, balance.static[k]) if row is not None else None
+                      for k, row in enumerate(values)]
+            dynamic = balance.dynamic
         results, machine_results = batch.results(), machine.results()
-        checks = segment_checks(batch, machine)
+        checks = segment_checks(batch, machine, balance.dynamic[:, DYNAMIC_MARGIN] if self.road is not None else None)
         budgets = self._budgets(dues, results, machine_results, batch.status)
         if self.uncertainty is not None:
             front, rear, margin, reserve = limit_values(machine, len(batch))
@@ -311,7 +334,7 @@ class Monitor:
                 np.array([getattr(LimitUncertainties.of(b), f) if b is not None else math.nan for b in budgets])
                 for f in LimitUncertainties._fields)))
         for k, ((i, due), status, check) in enumerate(zip(indexed, batch.status.tolist(), checks.tolist())):
-            pose = Pose(results[k], machine_results[k], values[k], budgets[k])
+            pose = Pose(results[k], machine_results[k], values[k], budgets[k], dynamic[k])
             steps[i] = (self._pose_step(due, pose, check) if status < Status.INPUT
                         else failed_step(due, Status(status), batch.messages[k]))
         if self.weighing is not None:
@@ -328,6 +351,8 @@ class Monitor:
             return Step(event.stamp_ns, event.topic, (Finding(Code.MALFORMED_INPUT, (
                 f"input on {event.topic} ({event.size} bytes) cannot be read as {event.type_name}: {event.reason}; "
                 "recorded, not solved")),))
+        if isinstance(event, ImuEvent):
+            return self._accept_imu(event)
         try:
             if isinstance(event, JointStateEvent):
                 tracker.accept_joint_state(event.names, event.positions, event.velocities, event.stamp_ns,
@@ -341,7 +366,20 @@ class Monitor:
             unknown = tracker.unknown_joints_finding(event.stamp_ns)
             return Step(event.stamp_ns, event.topic, (inputs,) if unknown is None else (inputs, unknown))
         return Due(event.stamp_ns, event.topic, inputs,
-                    self.motion.motions(inputs) if self.uncertainty is not None else None)
+                   self.motion.motions(inputs) if self.uncertainty is not None else None,
+                   self.road.body_at(event.stamp_ns) if self.road is not None else None)
+
+    def _accept_imu(self, event: ImuEvent) -> Step:
+        """Take an IMU message for the solves after it (``road``); its Step solves nothing (a finding
+        when it is refused)."""
+        if self.road is None:   # no IMU configured, or no tractor to apply it to
+            return Step(event.stamp_ns, event.topic)
+        try:
+            self.tracker.check_stamp(f"Imu on topic '{event.topic}'", event.stamp_ns, event.receive_ns)
+            self.road.accept(event)
+        except Refused as refused:
+            return Step(event.stamp_ns, event.topic, (refused.finding,))
+        return Step(event.stamp_ns, event.topic)
 
     def _internal_error(self, event: InputEvent, exc: Exception) -> Step:
         self.warm = None
@@ -351,16 +389,33 @@ class Monitor:
 
     def _finish(self, due: Due, result: Result, machine: MachineResult, values: np.ndarray | None) -> Step:
         """The Step of one solved pose with its machine-level results and value row, if any
-        (``checks.pose_checks``; with the uncertainty, ``bounds.interval_checks`` too)."""
+        (``checks.pose_checks``; with the uncertainty, ``bounds.interval_checks`` too; with an IMU
+        reading, the axle loads on the road: ``road``)."""
+        dynamic = None
+        if self.road is not None:
+            balance = self.road.balance(np.array([due.stamp_ns]), result.frame_load_points[None],
+                                        result.frame_load_forces[None],
+                                        np.array([result.implement_load]), result.implement_cg[:1], [due.body])
+            machine = MachineResult(balance.static[0], machine.capacity_row, machine.steerability_keys,
+                                    machine.capacity_keys)
+            values = self._with_static(values, balance.static[0]) if values is not None else None
+            dynamic = balance.dynamic[0]
         limits = (machine.value("front_axle_load"), machine.value("rear_axle_load"), machine.value("margin"),
                   machine.value("reserve"))
         checks = int(pose_checks(CheckedValues(result.status == _LIFT_OFF, result.consistency_residual,
                                                result.residual, result.largest_force, *limits,
-                                               result.load_amplification)))
+                                               result.load_amplification,
+                                               dynamic[DYNAMIC_MARGIN] if dynamic is not None else math.nan)))
         budget = self._budgets([due], [result], [machine], [Status.OK])[0]
         if budget is not None:
             checks += int(interval_checks(*limits, LimitUncertainties.of(budget)))
-        return self._pose_step(due, Pose(result, machine, values, budget), checks)
+        return self._pose_step(due, Pose(result, machine, values, budget, dynamic), checks)
+
+    def _with_static(self, values: np.ndarray, static: np.ndarray) -> np.ndarray:
+        """A copy of the value row(s) ``values`` with the steerability row(s) ``static`` in their place."""
+        values = values.copy()
+        values[..., self._steer_at: self._steer_at + static.shape[-1]] = static
+        return values
 
     def _budgets(self, dues: Sequence[Due], results: Sequence[Result], machines: Sequence[MachineResult],
                  status: Sequence[int] | np.ndarray) -> list[Budget | None]:

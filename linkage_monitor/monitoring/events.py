@@ -39,6 +39,21 @@ class PressureEvent:
     receive_ns: int
 
 
+# built per input event: a plain dataclass, not a frozen one (docs/architecture.md, One pipeline)
+@dataclass
+class ImuEvent:
+    """A sensor_msgs/Imu on the tractor's body (REP 103 axes: x forward, y left, z up): its frame_id,
+    the specific force along z (m/s², +g at rest) and the angular velocity about y (rad/s), header
+    stamp and receive time (ns). The other components are not used (``mechanics.dynamics``)."""
+
+    topic: str
+    frame_id: str
+    specific_force_z: float
+    rate_y: float
+    stamp_ns: int
+    receive_ns: int
+
+
 @dataclass(frozen=True)
 class UnreadableEvent:
     """An input message whose bytes are not its type: ``size`` (bytes), ``reason`` (what is wrong,
@@ -63,5 +78,5 @@ class ConfigEvent:
     config: MonitorConfig
 
 
-InputEvent = Union[JointStateEvent, PressureEvent, UnreadableEvent]
+InputEvent = Union[JointStateEvent, PressureEvent, ImuEvent, UnreadableEvent]
 Event = Union[InputEvent, ConfigEvent]

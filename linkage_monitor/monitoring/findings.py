@@ -44,6 +44,8 @@ class Code(Enum):
     # machine-level limits
     AXLE_LIFT_OFF = ("axle_lift_off", Level.ERROR)          # an axle's ground load < 0: the machine tips over
     STEERABILITY_LOW = ("steerability_low", Level.WARN)     # steerability margin < 0
+    # the dynamic steerability margin < 0 while the static one is not: the front axle unloads on a bump (an IMU)
+    STEERABILITY_DYNAMIC_LOW = ("steerability_dynamic_low", Level.WARN)
     LIFT_RESERVE_LOW = ("lift_reserve_low", Level.WARN)     # lift reserve < 1
     IMPLEMENT_CHANGED = ("implement_changed", Level.WARN)   # the weighing found a new load: the mass in use is stale
     # the 95 % interval of a value that clears its limit reaches across it (monitoring.bounds)

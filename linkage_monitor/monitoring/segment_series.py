@@ -79,9 +79,11 @@ def limit_values(machine: MachineBatch, size: int) -> tuple[np.ndarray, np.ndarr
             capacity.get("reserve", missing))
 
 
-def segment_checks(batch: BatchResult, machine: MachineBatch) -> np.ndarray:
+def segment_checks(batch: BatchResult, machine: MachineBatch, dynamic_margin: np.ndarray | None = None) -> np.ndarray:
     """``pose_checks`` of every pose of a solved segment at once ((N,) ints; a failed pose's NaN
-    values pass every check, and its verdict is worded from its status)."""
+    values pass every check, and its verdict is worded from its status); ``dynamic_margin`` (N,)
+    with an IMU (``monitoring.road``)."""
     return np.asarray(pose_checks(CheckedValues(
         batch.status == Status.LIFT_OFF, batch.consistency_residual, batch.residual, batch.largest_force,
-        *limit_values(machine, len(batch)), batch.load_amplification)))
+        *limit_values(machine, len(batch)), batch.load_amplification,
+        dynamic_margin if dynamic_margin is not None else math.nan)))

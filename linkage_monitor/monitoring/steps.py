@@ -13,6 +13,7 @@ from functools import cached_property
 import numpy as np
 
 from linkage_monitor.mechanics import BatchResult, Inputs, Mechanism, Result
+from linkage_monitor.mechanics.dynamics import DYNAMIC_FRONT, DYNAMIC_MARGIN, BodyAcceleration
 from linkage_monitor.mechanics.error_sources import Motion
 from linkage_monitor.mechanics.machine import MachineBatch, MachineResult
 from linkage_monitor.mechanics.uncertainty import Budget
@@ -36,6 +37,8 @@ class Pose:
     machine: MachineResult
     values: np.ndarray | None = None   # its value row (mechanics.programs.ValueRow) when the compiled call wrote one
     budget: Budget | None = None       # its error budget, with MonitorConfig.uncertainty
+    # with an IMU reading: mechanics.dynamics.DYNAMIC_KEYS (N, N, -, -); the steerability row is then the unit's at rest
+    dynamic: np.ndarray | None = None
 
 
 # built per input event: a plain dataclass, not a frozen one (docs/architecture.md, One pipeline)
@@ -68,6 +71,9 @@ class Step:
                 "steerability ratio [-]": f"{steer.get('ratio', math.nan):.4f}",
                 "steerability margin [-]": f"{steer.get('margin', math.nan):.4f}",
                 "front axle load [N]": fmt(steer.get("front_axle_load", math.nan)),
+                **({"dynamic steerability margin [-]": f"{self.pose.dynamic[DYNAMIC_MARGIN]:.4f}",
+                    "dynamic front axle load [N]": fmt(float(self.pose.dynamic[DYNAMIC_FRONT]))}
+                   if self.pose.dynamic is not None else {}),
                 "lift reserve [-]": f"{capacity.get('reserve', math.nan):.4f}",
                 "largest hinge reaction [N]": fmt(max(result.hinge_magnitude.tolist(), default=math.nan)),
                 "equilibrium residual [N]": f"{result.residual:.3g}",
@@ -132,4 +138,5 @@ class Due:
     trigger: str
     inputs: Inputs
     motions: dict[str, Motion] | None = None   # each measured cylinder's motion since the due before (uncertainty)
+    body: BodyAcceleration | None = None       # the tractor body's acceleration in use (an IMU configured)
 

@@ -5,6 +5,7 @@ checks (``checks.Check``), each worded with the pose's numbers. Units in the tex
 from __future__ import annotations
 
 from linkage_monitor.mechanics import Mechanism, Status
+from linkage_monitor.mechanics.dynamics import DYNAMIC_FRONT, DYNAMIC_MARGIN
 
 from .bounds import ballast_at_bound_text, uncertain_findings, weak_inference_finding
 from .checks import CONSISTENCY_WARN_M, RESIDUAL_WARN_SHARE, Check
@@ -55,6 +56,11 @@ def pose_findings(checks: Check, pose: Pose, mechanism: Mechanism) -> tuple[Find
                                 f"{fmt(round(steer['front_ballast_needed']))} kg"
                                 + (ballast_at_bound_text(pose.budget, mechanism, steer["total_weight"])
                                    if pose.budget is not None else "")))
+    if Check.STEERABILITY_DYNAMIC_LOW in checks and pose.dynamic is not None:
+        margin, front = pose.dynamic[DYNAMIC_MARGIN], pose.dynamic[DYNAMIC_FRONT]
+        findings.append(Finding(Code.STEERABILITY_DYNAMIC_LOW, (
+            f"dynamic steerability margin {margin:+.3f} < 0 (static {machine.value('margin'):+.3f}): the body's "
+            f"bouncing unloads the front axle to {fmt(front / 1e3)} kN; slow down on this road or add front ballast")))
     if Check.LIFT_RESERVE_LOW in checks:
         findings.append(Finding(Code.LIFT_RESERVE_LOW, f"lift reserve {machine.value('reserve'):.2f} < 1: implement "
                                 f"load {fmt(result.implement_load / 1e3)} kN exceeds the lift capacity "

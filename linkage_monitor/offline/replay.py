@@ -47,7 +47,7 @@ from linkage_monitor.monitoring.implement_mass import weighing_series
 from linkage_monitor.monitoring.weighing import WeighingEstimate, estimate_text
 from linkage_monitor.wire.outputs import OutputEncoder, per_step
 from linkage_monitor.wire.input_block import input_items
-from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE
+from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, IMU, JOINT_STATE
 
 from .history import HistoryRecorder, LoadHistory
 
@@ -164,7 +164,8 @@ def _events(path: Path, config: MonitorConfig, raw: list[RecordedInput]) -> Iter
     (``wire.input_block``); inputs also appended to ``raw`` (the caller takes them out piece by piece).
     The inputs are read from their bytes as the node reads them (``wire.sensor_messages``); bytes
     that are not their type (the node records them as they came) are an UnreadableEvent, as in the node."""
-    wanted = [config.topics.joint_states, *config.pressure_topics, CONFIG_TOPIC]
+    imu = config.topics.imu   # the IMU the node was configured with ('' none; MonitorConfig)
+    wanted = [config.topics.joint_states, *config.pressure_topics, *([imu] if imu else []), CONFIG_TOPIC]
     first_config = True
     block: list[RawMessage] = []
     for message in read_bag_raw(path, topics=wanted):
@@ -176,7 +177,8 @@ def _events(path: Path, config: MonitorConfig, raw: list[RecordedInput]) -> Iter
             first_config = False
             continue
         if ((type_name == JOINT_STATE and topic == config.topics.joint_states)
-                or (type_name == FLUID_PRESSURE and topic in config.pressure_topics)):
+                or (type_name == FLUID_PRESSURE and topic in config.pressure_topics)
+                or (type_name == IMU and topic == imu)):
             block.append(message)
             if len(block) >= READ_BLOCK:
                 yield from _read_inputs(block, raw)

@@ -9,13 +9,13 @@ from __future__ import annotations
 
 from typing import Any, Callable, Protocol
 
-from sensor_msgs.msg import FluidPressure, JointState
+from sensor_msgs.msg import FluidPressure, Imu, JointState
 
 from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Monitor
 from linkage_monitor.monitoring.findings import Level
-from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, input_event
+from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, IMU, JOINT_STATE, input_event
 
 from .publishing import OutputPublisher
 from .recording import Recording
@@ -76,8 +76,8 @@ class InputSource(Protocol):
 
 
 class SensorTopics:
-    """The sensors' topics: the JointState topic and each pressure topic of the monitor's config,
-    taken serialized (the bag records the bytes that arrived), read into input events, solved."""
+    """The sensors' topics: the JointState topic, each pressure topic of the monitor's config and its
+    IMU topic if it has one, taken serialized (the bag records the bytes that arrived), read into input events, solved."""
 
     def __init__(self) -> None:
         self._node: InputHost | None = None
@@ -87,12 +87,14 @@ class SensorTopics:
         return description
 
     def start(self, node: InputHost) -> None:
-        """Subscribe to the JointState topic, then to each pressure topic."""
+        """Subscribe to the JointState topic, then to each pressure topic, then to the IMU's."""
         self._node = node
         topics = node.monitor.config.topics
         node.subscribe(JointState, topics.joint_states, self._callback(topics.joint_states, JOINT_STATE))
         for topic in node.monitor.config.pressure_topics:
             node.subscribe(FluidPressure, topic, self._callback(topic, FLUID_PRESSURE))
+        if topics.imu:
+            node.subscribe(Imu, topics.imu, self._callback(topics.imu, IMU))
 
     def _callback(self, topic: str, type_name: str) -> Callable[[bytes, dict], None]:
         def callback(data: bytes, info: dict) -> None:

@@ -59,6 +59,15 @@ PARAMETERS: dict[str, Declaration] = {d.name: d for d in (
                 "or gauge", False, config="pressure_absolute"),
     Declaration("atmospheric_pressure", ATMOSPHERIC_PRESSURE, "Pa", "subtracted from absolute pressures", False,
                 (50_000.0, 110_000.0), config="atmospheric_pressure"),
+    Declaration("imu_topic", "", "", "Input sensor_msgs/Imu topic of an IMU on the tractor body (m/s², rad/s): the "
+                "steerability's dynamic axle loads and margin on the road, the static ones at rest (docs/dynamics.md); "
+                "'' (the default): no IMU", False, config="topics.imu"),
+    Declaration("imu_frame", "imu_link", "", "the frame_id the IMU's messages carry; its axes must be the tractor "
+                "body's (REP 103: x forward, y left, z up), messages in another frame are refused", False,
+                config="imu_frame"),
+    Declaration("imu_x", 0.0, "m", "where the IMU sits on the tractor body: ahead of the rear wheels' ground contact "
+                "(over the front axle: the wheelbase; there the dynamic margin needs the least pitch acceleration, "
+                "docs/dynamics.md)", False, (-20.0, 20.0), config="imu_x"),
     Declaration("sensor_qos", "sensor_data", "", "QoS of the inputs: 'sensor_data' (best effort, keep last 5) or "
                 "'reliable' (keep last reliable_queue_depth)", False),
     Declaration("reliable_queue_depth", 10_000, "messages", "queued per input topic with sensor_qos 'reliable': a "
@@ -117,7 +126,7 @@ PARAMETERS: dict[str, Declaration] = {d.name: d for d in (
 SENSOR_QOS = ("sensor_data", "reliable")
 RERUN_MODES = ("off", "save", "connect")
 # MonitorConfig fields built by monitor_config from their parameters' text (resolved topics, NAME=VALUE entries)
-STRUCTURED = frozenset({"topics.joint_states", "joint_map", "pressure_topics"})
+STRUCTURED = frozenset({"topics.joint_states", "topics.imu", "joint_map", "pressure_topics"})
 KEEP_FILE_VALUE = -1.0   # an override parameter's value that keeps the mechanism file's own value (the default)
 
 
@@ -187,7 +196,8 @@ def monitor_config(p: Mapping[str, Any], mech: Mechanism, resolve: Callable[[str
                            else {resolve(f"pressure/{s.name}"): s.name for s in mech.measurements.pressures})
     topics = Topics(joint_states=resolve(p["joint_state_topic"]), hinge_reactions=resolve("hinge_reactions"),
                     hitch_state=resolve("hitch_state"), steerability=resolve("steerability"),
-                    diagnostics="/diagnostics", markers=resolve("linkage_markers"))
+                    diagnostics="/diagnostics", markers=resolve("linkage_markers"),
+                    imu=resolve(p["imu_topic"]) if p["imu_topic"] else "")
     return MonitorConfig(overrides=overrides, topics=topics, joint_map=_pairs(list(p["joint_map"]), "joint_map"),
                          pressure_topics=pressure_topics, **scalars)
 

@@ -141,6 +141,10 @@ class Reader:
         """A float64."""
         return float(self._f64.unpack_from(self.data, self._take(8, what, 8))[0])
 
+    def float64_array(self, what: str, count: int) -> tuple[float, ...]:
+        """A float64[count] (a fixed array: no count on the wire)."""
+        return struct.unpack_from(f"{self.order}{count}d", self.data, self._take(8 * count, f"{what} ({count} values)", 8))
+
     def float64s(self, what: str) -> tuple[float, ...]:
         """A sequence<float64> (not aligned when it is empty, as Fast CDR)."""
         count = self.uint32(f"count of {what}")

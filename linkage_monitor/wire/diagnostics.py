@@ -52,7 +52,10 @@ class DiagnosticGate:
         self._last: tuple[Level, str] | None = None
 
     def due(self, step: Step) -> bool:
-        """True if `step` should be reported now."""
+        """True if `step` should be reported now (never a step that solved nothing and found nothing:
+        an IMU message taken, which says nothing of the outputs)."""
+        if step.pose is None and not step.findings:
+            return False
         key = (step.level, step.message) if step.findings else _OK   # most steps: OK without findings
         report = key[0] != Level.OK or key != self._last
         self._last = key

@@ -27,12 +27,14 @@ from typing import Any, Callable, Hashable, NamedTuple, Sequence
 import numpy as np
 
 from linkage_monitor.mechanics import Mechanism, Result
+from linkage_monitor.mechanics.dynamics import DYNAMIC_KEYS
 from linkage_monitor.mechanics.machine import STEERABILITY_KEYS
 from linkage_monitor.mechanics.programs import ROW_SCALARS, ValueRow
 from linkage_monitor.mechanics.results import CylinderResult
 from linkage_monitor.monitoring.core import NO_FINDINGS, Monitor, Pose, Step
 from linkage_monitor.monitoring.findings import Code, Level
 from linkage_monitor.monitoring.implement_mass import WeighingState
+from linkage_monitor.monitoring.road import NO_DYNAMIC
 
 from .compose import STAMP, Column, Composer, Flag
 from .layout import constants
@@ -44,7 +46,8 @@ HINGE_REACTIONS, HITCH_STATE, STEERABILITY = ("linkage_monitor/msg/HingeReaction
 # HitchState's capacity fields <- MachineResult.lift_capacity keys
 CAPACITY_FIELDS = {"lift_capacity_hitch_axis": "hitch_axis", "lift_capacity_610mm": "behind_610mm",
                    "lift_capacity_implement_cg": "implement_cg", "lift_reserve": "reserve"}
-# Steerability's float64 fields are MachineResult.steerability keys of the same names
+# Steerability's float64 fields are MachineResult.steerability keys and, with an IMU, mechanics.dynamics.DYNAMIC_KEYS
+# (Pose.dynamic) of the same names
 # the standard uncertainty fields (1 sigma) <- the error budget's outputs (mechanics.uncertainty.OutputTable)
 HITCH_UNCERTAINTIES = {"implement_load_u": "implement_load",
                        "lift_capacity_hitch_axis_u": "lift_capacity.hitch_axis",
@@ -163,7 +166,7 @@ class OutputEncoder:
         result = pose.result
         source = pose.values if pose.values is not None else monitor.machine.value_rows([result], [pose.machine])[0]
         flags: tuple[int, ...] = (hitch_status(step),)
-        if self._extra_width:   # the error budget or the weighing: off by default
+        if self._extra_width:   # the error budget, the weighing or an IMU: off by default
             source = np.concatenate([source, self._extra_row(step)])
             flags += weighing_flags(step.weighing) if self._weighed else ()
         hinges = self._hinge_template(hinge_status(step, result, self._overdetermined))
@@ -205,10 +208,12 @@ class OutputEncoder:
         n_h, n_c = len(mech.hinges), len(mech.cylinders)
         row = ValueRow.of(n_h, len(mech.points), n_c, len(machine.capacity_keys),
                           len(machine.steerability_keys))
-        # the extra columns after the value row: the budget's standard uncertainties, then the weighing's
+        # the extra columns after the value row: the budget's standard uncertainties, then the weighing's,
+        # then the dynamic steerability (an IMU)
         outputs = monitor.uncertainty.outputs if monitor.uncertainty is not None else ()
-        self._n_budget, self._weighed = len(outputs), monitor.weighing is not None
-        self._extra_width = self._n_budget + len(WEIGHING_FIELDS) * self._weighed
+        self._n_budget, self._weighed, self._dynamic = len(outputs), monitor.weighing is not None, monitor.road is not None
+        dynamic_at = row.width + self._n_budget + len(WEIGHING_FIELDS) * self._weighed
+        self._extra_width = dynamic_at - row.width + len(DYNAMIC_KEYS) * self._dynamic
         budget_at = {o.name: row.width + k for k, o in enumerate(outputs)}
 
         def u(output: str) -> Column | float:
@@ -256,17 +261,22 @@ class OutputEncoder:
 
         ratios = {f: Column(row.steerability + machine.steerability_keys.index(f)) if f in machine.steerability_keys
                   else math.nan for f in STEERABILITY_KEYS}
+        dynamic = {f: Column(dynamic_at + k) if self._dynamic else math.nan for k, f in enumerate(DYNAMIC_KEYS)}
         self._steerability = Template.of(Composer(strict=True).message(
             STEERABILITY, {"header": header, "reference": steerability_reference(mech), **ratios,
-                           **{f: u(output) for f, output in STEERABILITY_UNCERTAINTIES.items()}}))
+                           **{f: u(output) for f, output in STEERABILITY_UNCERTAINTIES.items()}, **dynamic}))
 
     def _extra_row(self, step: Step) -> np.ndarray:
         """The extra columns of a solved step (``_lay_out``): its budget's standard uncertainties (NaN
-        without a budget) and its weighing's ``weighing_row``."""
+        without a budget), its weighing's ``weighing_row`` and its dynamic steerability (NaN without an
+        IMU reading)."""
         budget = step.pose.budget if step.pose is not None else None
         parts = [budget.u if budget is not None else np.full(self._n_budget, math.nan)] if self._n_budget else []
         if self._weighed:
             parts.append(np.array(weighing_row(step.weighing) if step.weighing is not None else _NO_ESTIMATE))
+        if self._dynamic:
+            dynamic = step.pose.dynamic if step.pose is not None else None
+            parts.append(dynamic if dynamic is not None else NO_DYNAMIC)
         return np.concatenate(parts)
 
     def _hinge_template(self, key: tuple[int, str]) -> Template:

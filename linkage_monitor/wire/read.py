@@ -186,6 +186,11 @@ class _Tracer(Reader):
         self.numbers.append(_Number(self.offset - 8, "d", 1))
         return value
 
+    def float64_array(self, what: str, count: int) -> tuple[float, ...]:
+        values = super().float64_array(what, count)
+        self.numbers.append(_Number(self.offset - 8 * count, f"{count}d", count))
+        return values
+
     def float64s(self, what: str) -> tuple[float, ...]:
         values = super().float64s(what)
         if values:
@@ -253,6 +258,9 @@ def _field(f: Field, what: str) -> Callable[[Reader], Any]:
             return lambda r: r.string(what)
         if f.kind == "float64":
             return lambda r: r.float64(what)
+    elif f.array > 0 and f.kind == "float64":   # a fixed array (Imu's covariances)
+        count = f.array
+        return lambda r: r.float64_array(what, count)
     elif f.array == 0:
         if f.kind == "string":
             return lambda r: r.strings(what)

@@ -39,7 +39,8 @@ def outputs(monitor: Monitor, step: Step) -> Outputs | None:
     u = _uncertainty(step.pose.budget)
     return Outputs(hinge_reactions=hinge_reactions(mech, step, result, monitor.overdetermined),
                    hitch_state=hitch_state(mech, step, result, machine.lift_capacity, monitor.estimates_load),
-                   steerability=steerability(step.stamp_ns, machine.steerability, steerability_reference(mech), u))
+                   steerability=steerability(step.stamp_ns, machine.steerability, steerability_reference(mech), u,
+                                             step.pose.dynamic))
 
 
 def _uncertainty(budget: Budget | None):
@@ -97,11 +98,16 @@ def hitch_state(mech: Mechanism, step: Step, result: Result, lift_capacity: Mapp
                       status_text=step.message)
 
 
-def steerability(stamp: int, values: Mapping[str, float], ref: int, u=lambda name: math.nan) -> Steerability:
+def steerability(stamp: int, values: Mapping[str, float], ref: int, u=lambda name: math.nan,
+                 dynamic=None) -> Steerability:
     """Steerability message from the machine-level values (N, m, -, kg); ref: Steerability.REFERENCE_*;
-    ``u``: the standard uncertainty (1 sigma) of a budget output by name."""
+    ``u``: the standard uncertainty (1 sigma) of a budget output by name; ``dynamic``: the pose's dynamic
+    front / rear axle load (N), ratio, margin (-), NaN without one."""
     fields = ("front_axle_load", "rear_axle_load", "total_weight", "wheelbase", "ratio", "ratio_unit",
               "ratio_tractor", "ratio_min", "margin", "front_ballast_needed", "max_implement_mass")
     return Steerability(header=header(stamp), reference=ref,
                         **{name: float(values.get(name, math.nan)) for name in fields},
-                        **{f: u(output) for f, output in STEERABILITY_UNCERTAINTIES.items()})
+                        **{f: u(output) for f, output in STEERABILITY_UNCERTAINTIES.items()},
+                        **{name: float(dynamic[k]) if dynamic is not None else math.nan
+                           for k, name in enumerate(("dynamic_front_axle_load", "dynamic_rear_axle_load",
+                                                     "dynamic_ratio", "dynamic_margin"))})

@@ -1,0 +1,97 @@
+"""The monitor with an IMU on the tractor body (monitoring.road): ImuEvents taken, each solve's static
+steerability at rest and its dynamic one, the steerability_dynamic_low verdict, the live and the
+batched paths alike. No ROS: the core alone.
+
+Oracle: a body heaving without pitch (every point up with the same a, the gyro still) is the unit
+at rest under gravity g + a (d'Alembert: each mass m adds m·a where its weight m·g acts), so every
+axle load scales by (g + a)/g: R_A* = R_A·(g + a)/g, and the dynamic ratio is R_A*/W at rest.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from linkage_monitor.mechanics import load_preset
+from linkage_monitor.mechanics.constants import STANDARD_GRAVITY
+from linkage_monitor.monitoring.config import MonitorConfig, Topics
+from linkage_monitor.monitoring.core import Monitor
+from linkage_monitor.monitoring.events import ImuEvent, JointStateEvent
+from linkage_monitor.monitoring.findings import Code, Level
+from support.monitor_steps import step_by_step
+
+START = 1_700_000_000_000_000_000
+IMU_RATE_NS = 2_500_000   # 400 Hz
+
+
+def _config(mech, **changes) -> MonitorConfig:
+    """belarus_1221 without pressures (the implement's load is its file's weight), the IMU on /imu."""
+    return replace(MonitorConfig(mechanism=mech.name, topics=Topics(imu="/imu"), staleness_limit_s=0.5), **changes)
+
+
+def _events(mech, heave: float, frame: str = "imu_link") -> list:
+    """20 IMU messages of a body heaving with ``heave`` m/s² (no pitch), then the reference pose's JointState."""
+    events: list = [ImuEvent("/imu", frame, STANDARD_GRAVITY + heave, 0.0, START + k * IMU_RATE_NS,
+                             START + k * IMU_RATE_NS) for k in range(20)]
+    inputs = mech.reference_inputs
+    names = [*inputs["angles"], *inputs["cylinders"]]
+    positions = [*inputs["angles"].values(), *inputs["cylinders"].values()]
+    stamp = START + 20 * IMU_RATE_NS
+    return events + [JointStateEvent("joint_states", names, positions, [], stamp, stamp)]
+
+
+def _static(mech, config) -> dict:
+    """The reference pose's steerability without an IMU."""
+    steps = step_by_step(mech, replace(config, topics=Topics()), _events(mech, 0.0)[-1:])
+    return steps[-1].pose.machine.steerability
+
+
+@pytest.mark.parametrize("heave", [-3.0, 2.0])
+def test_a_heave_scales_the_axle_loads_and_the_static_ones_stay(heave):
+    mech = load_preset("belarus_1221")
+    config = _config(mech)
+    rest = _static(mech, config)
+    events = _events(mech, heave)
+    for steps in (step_by_step(mech, config, events), Monitor(mech, config).run(events).steps):
+        assert all(s.pose is None and not s.findings for s in steps[:-1])   # an IMU message solves nothing
+        pose = steps[-1].pose
+        assert pose.machine.steerability == rest   # without pressures the load carries no inertia: as without an IMU
+        front, rear, ratio, margin = pose.dynamic.tolist()
+        scale = (STANDARD_GRAVITY + heave) / STANDARD_GRAVITY
+        assert front == pytest.approx(rest["front_axle_load"] * scale, rel=1e-9)
+        assert rear == pytest.approx(rest["rear_axle_load"] * scale, rel=1e-9)
+        assert ratio == pytest.approx(front / rest["total_weight"], rel=1e-12)
+        assert margin == pytest.approx(ratio - rest["ratio_min"], rel=1e-12)
+
+
+def test_the_dynamic_margin_below_zero_while_the_static_one_clears_it_is_a_warning():
+    """ratio_min set 0.05 below the ratio at rest: a drop of 3 m/s² takes the front axle's share down
+    by 3/g ≈ 31 %, below ratio_min (the dynamic margin < 0), the static margin +0.05."""
+    mech = load_preset("belarus_1221")
+    ratio = _static(mech, _config(mech))["ratio"]
+    config = _config(mech).with_overrides({"tractor.ratio_min": ratio - 0.05})
+    events = _events(mech, -3.0)
+    for steps in (step_by_step(mech, config, events), Monitor(mech, config).run(events).steps):
+        step = steps[-1]
+        assert step.pose.machine.value("margin") == pytest.approx(0.05, abs=1e-9)
+        assert step.pose.dynamic[3] < 0.0
+        assert [f.code for f in step.findings] == [Code.STEERABILITY_DYNAMIC_LOW] and step.level == Level.WARN
+        assert f"dynamic steerability margin {step.pose.dynamic[3]:+.3f} < 0 (static +0.050)" in step.message
+    # the same drop, the static margin itself below 0: steerability_low says it, not the dynamic one again
+    low = _config(mech).with_overrides({"tractor.ratio_min": ratio + 0.05})
+    codes = [f.code for f in step_by_step(mech, low, _events(mech, -3.0))[-1].findings]
+    assert codes == [Code.STEERABILITY_LOW]
+
+
+def test_without_a_recent_imu_message_the_dynamic_values_are_nan_and_a_foreign_frame_is_refused():
+    mech = load_preset("belarus_1221")
+    config = _config(mech, staleness_limit_s=0.01)
+    events = _events(mech, 1.0)
+    late = replace(events[-1], stamp_ns=events[-1].stamp_ns + 20_000_000, receive_ns=events[-1].receive_ns + 20_000_000)
+    pose = step_by_step(mech, config, [*events[:-1], late])[-1].pose
+    assert np.isnan(pose.dynamic).all() and pose.machine.steerability == _static(mech, config)
+    steps = step_by_step(mech, _config(mech), _events(mech, 1.0, frame="base_link"))
+    assert steps[0].findings[0].code is Code.UNKNOWN_INPUT and "frame 'base_link'" in steps[0].message
+    assert np.isnan(steps[-1].pose.dynamic).all()   # every IMU message refused: none in use
