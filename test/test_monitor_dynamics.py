@@ -95,3 +95,30 @@ def test_without_a_recent_imu_message_the_dynamic_values_are_nan_and_a_foreign_f
     steps = step_by_step(mech, _config(mech), _events(mech, 1.0, frame="base_link"))
     assert steps[0].findings[0].code is Code.UNKNOWN_INPUT and "frame 'base_link'" in steps[0].message
     assert np.isnan(steps[-1].pose.dynamic).all()   # every IMU message refused: none in use
+
+
+def test_the_weighing_takes_the_imu_s_vertical_acceleration():
+    """The weighing (implement_mass_source 'estimate') over a simulated lift: without an IMU it uses the
+    lifting steps; with an IMU reading 2 m/s² of heave (above its 0.03·g threshold) every moving step
+    is BOUNCING, none used."""
+    from linkage_monitor.monitoring.events import PressureEvent
+    from linkage_monitor.monitoring.weighing import WeighingPhase
+    from linkage_monitor.sim.telemetry import simulate
+
+    mech = load_preset("belarus_1221")
+    stream = simulate(mech, "lift", rate_hz=50.0, seed=4, start_ns=START)
+    config = MonitorConfig(mechanism=mech.name, pressure_topics={"/pressure": "lift_cap_pressure"},
+                           pressure_absolute=False, implement_mass_source="estimate")
+    events: list = []
+    for i, stamp in enumerate(stream.stamps_ns.tolist()):
+        events += [ImuEvent("/imu", "imu_link", STANDARD_GRAVITY + 2.0, 0.0, stamp - k * IMU_RATE_NS,
+                            stamp - k * IMU_RATE_NS) for k in (7, 5, 3, 1)] if i else []
+        events += [PressureEvent("/pressure", float(stream.pressure_values[i, 0]), stamp, stamp),
+                   JointStateEvent("joint_states", list(stream.joint_names), stream.joint_positions[i].tolist(), [],
+                                   stamp, stamp)]
+    phases = {}
+    for imu in ("", "/imu"):
+        steps = Monitor(mech, replace(config, topics=Topics(imu=imu))).run(events).steps
+        phases[imu] = {s.weighing.phase for s in steps if s.weighing is not None}
+    assert WeighingPhase.LIFTING in phases[""] and WeighingPhase.BOUNCING not in phases[""]
+    assert WeighingPhase.BOUNCING in phases["/imu"] and WeighingPhase.LIFTING not in phases["/imu"]

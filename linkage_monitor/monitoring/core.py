@@ -115,13 +115,16 @@ class Monitor:
         self.reconfigure(replace(self.config, implement=implement))
         return self.config
 
-    def _weigh(self, steps: Iterable[Step | None]) -> None:
-        """The weighing's look at solved steps in input order (``implement_changed`` added while the
-        mass in use is stale)."""
+    def _weigh(self, steps: Iterable[tuple[Step | None, Due]]) -> None:
+        """The weighing's look at solved steps in input order, each with its due (``implement_changed``
+        added while the mass in use is stale); with an IMU reading, the body's vertical acceleration at
+        the implement's cg tells it a bouncing implement."""
         weighing = self.weighing
-        for step in steps:
+        for step, due in steps:
             if weighing is not None and step is not None and step.pose is not None:
-                weighing.observe(step.stamp_ns, step.pose.result)
+                result = step.pose.result
+                weighing.observe(step.stamp_ns, result,
+                                 float(due.body.at(result.implement_cg[0])) if due.body is not None else None)
                 step.weighing = weighing.state()
                 finding = weighing.finding()
                 if finding is not None:
@@ -161,7 +164,7 @@ class Monitor:
             self.warm = result
             step = self._finish(due, result, machine, values)
             if self.weighing is not None:   # off by default: nothing added to the live step
-                self._weigh((step,))
+                self._weigh(((step, due),))
                 self._use_estimate()
             return step
         except Exception as exc:  # noqa: BLE001 - the adapter boundary: report, forget the warm start, go on
@@ -338,7 +341,7 @@ class Monitor:
             steps[i] = (self._pose_step(due, pose, check) if status < Status.INPUT
                         else failed_step(due, Status(status), batch.messages[k]))
         if self.weighing is not None:
-            self._weigh(steps[i] for i, _ in indexed)
+            self._weigh((steps[i], due) for i, due in indexed)
         segments.append(Segment(np.array([i for i, _ in indexed]),
                                 np.array([d.stamp_ns for d in dues], dtype=np.int64), batch, machine, self.mechanism,
                                 self.config))

@@ -114,9 +114,10 @@ class ImplementMass:
         self._state_fit = 0   # the fit ``state``'s estimate is of (none before the first)
         self._state_estimate: tuple[WeighingEstimate | None, bool] = (None, False)
 
-    def observe(self, stamp_ns: int, result: Result) -> None:
-        """One solved step, in input order."""
-        self.estimator.step_result(stamp_ns, result)
+    def observe(self, stamp_ns: int, result: Result, vertical_acceleration: float | None = None) -> None:
+        """One solved step, in input order; the body's vertical acceleration at the implement (m/s², gravity
+        excluded; None without an IMU reading)."""
+        self.estimator.step_result(stamp_ns, result, vertical_acceleration)
         self.last_stamp_ns = stamp_ns
         if len(self.estimator.changes) != self._changes:
             self._changes = len(self.estimator.changes)
