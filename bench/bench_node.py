@@ -1,6 +1,6 @@
 """The live node under load, against a no-op rclpy relay (bench/node_load.py) measured in the same run.
 
-Usage: .venv/bin/python bench/bench_node.py [--quick] [--repeats R] [--soak-minutes M] [--no-soak]
+Usage: .venv/bin/python bench/bench_node.py [--quick] [--repeats R] [--soak-minutes M] [--no-soak] [--imu]
 
 Paired: the relay and the node run side by side (namespaces /relay and /monitor), and every rate
 step is measured R times for each, alternating which goes first, so that both see the same
@@ -13,6 +13,9 @@ one FluidPressure first, staleness limit 1 h, so every JointState triggers one s
   more than its queue depth behind drops the oldest);
 - added latency: receive time here minus header.stamp (= wall time at publish), p50 / p99;
 - CPU: the target process's user+system CPU time over the step / messages it handled.
+With ``--imu`` the node also takes a sensor_msgs/Imu (``imu_topic``) before every JointState, at
+the same rate (the relays are sent it too and do not subscribe): the steerability's dynamic fields
+computed on every solve (docs/dynamics.md).
 The highest sustained rate (zero loss and a latency that does not grow over the step), and ratios node / relay, are printed. Then the node's RSS
 while it is fed 1 kHz for --soak-minutes (default 1; more than it can solve: it drops, the point
 is whether memory grows). The node records its bag (default parameters) to a temporary directory.
@@ -34,7 +37,7 @@ import numpy as np
 import psutil
 import rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import FluidPressure, JointState
+from sensor_msgs.msg import FluidPressure, Imu, JointState
 from std_msgs.msg import String
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))
@@ -92,9 +95,10 @@ class Driver:
     """This process: publishes the inputs of the target in namespace ``ns`` and timestamps every
     HitchState on arrival."""
 
-    def __init__(self, ns: str) -> None:
+    def __init__(self, ns: str, imu: bool = False) -> None:
         self.ns = ns
         self.node = rclpy.create_node(f"bench_driver_{ns.strip('/')}")
+        self.imu_pub = self.node.create_publisher(Imu, f"{ns}/imu", RELIABLE) if imu else None
         self.joint_pub = self.node.create_publisher(JointState, f"{ns}/joint_states", RELIABLE)
         self.pressure_pub = self.node.create_publisher(FluidPressure, f"{ns}/pressure/lift_cap_pressure", RELIABLE)
         self.arrivals: list[tuple[int, int]] = []   # (receive ns, stamp ns)
@@ -122,11 +126,16 @@ class Driver:
         self.spin_for(0.5)
 
     def drive(self, rate: float, seconds: float) -> int:
-        """Publish JointStates at `rate` Hz for `seconds` s, stamped with the wall time; returns the count."""
+        """Publish JointStates at `rate` Hz for `seconds` s, stamped with the wall time (each after an Imu
+        of a body at rest with ``--imu``); returns the count."""
         period_ns = int(1e9 / rate)
         start = time.time_ns()
         i = 0
         while time.time_ns() - start < seconds * 1e9:
+            if self.imu_pub is not None:
+                imu = Imu(header=header(time.time_ns()))
+                imu.header.frame_id, imu.linear_acceleration.z = "imu_link", 9.80665
+                self.imu_pub.publish(imu)
             self.joint_pub.publish(JointState(header=header(time.time_ns()), name=JOINTS, position=POSE))
             i += 1
             while (wait := start + i * period_ns - time.time_ns()) > 0:
@@ -217,6 +226,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=2, help="measurements per rate and target (default 2)")
     parser.add_argument("--soak-minutes", type=float, default=1.0, help="minutes at 1 kHz for the RSS check")
     parser.add_argument("--no-soak", action="store_true")
+    parser.add_argument("--imu", action="store_true", help="an Imu before every JointState (the node's imu_topic)")
     args = parser.parse_args()
     isolate_ros_domain()
     rates = [50.0, 100.0, 200.0, 400.0] if args.quick else [50.0, 100.0, 150.0, 200.0, 250.0, 300.0, 400.0, 600.0,
@@ -230,9 +240,11 @@ def main() -> None:
             procs.append(start_relay("/relay", work / "relay.log"))
             procs.append(start_relay("/floor", work / "floor.log", "--outputs", "--record-dir", str(work / "floor")))
             procs.append(start_monitor("/monitor", {"mechanism": "belarus_1221", "sensor_qos": "reliable",
-                                                    "staleness_limit": 3600.0, "record_dir": str(work / "bags")},
+                                                    "staleness_limit": 3600.0, "record_dir": str(work / "bags"),
+                                                    **({"imu_topic": "imu"} if args.imu else {})},
                                        work / "node.log"))
-            drivers = {"relay": Driver("/relay"), "floor": Driver("/floor"), "node": Driver("/monitor")}
+            drivers = {name: Driver(ns, args.imu) for name, ns in (("relay", "/relay"), ("floor", "/floor"),
+                                                                     ("node", "/monitor"))}
             for driver in drivers.values():
                 driver.wait_for_target()
             targets = {name: (drivers[name], proc.pid) for name, proc in zip(drivers, procs)}
