@@ -103,7 +103,7 @@ def split_bag(tmp_path_factory) -> Path:
     messages = _source_messages()
     span_s = (messages[-1][2] - messages[0][2]) / 1e9
     bag = tmp_path_factory.mktemp("split") / "lift"
-    with BagWriter(bag, chunk_size=16 * 1024, max_bag_duration_s=span_s / 11.5) as writer:
+    with BagWriter(bag, chunk_size=16 * 1024, max_bag_duration_s=span_s / 13.5) as writer:
         for topic, type_name, stamp, data in messages:
             writer.write(topic, data, stamp, type_name=type_name, log_time_ns=stamp)
     assert len(list(bag.glob("*.mcap"))) >= 11
