@@ -26,6 +26,8 @@ from functools import cache
 import numpy as np
 from scipy.special import ndtr
 
+from . import kernels
+
 COVERAGE = 0.95
 NORMAL_FACTOR = 1.959963984540054   # the normal's 95 % coverage factor (its 0.975 quantile)
 _SHARES = np.linspace(0.0, 1.0, 21)                                   # w: the uniform terms' share of u²
@@ -97,24 +99,6 @@ def coverage_factors(contributions: np.ndarray, uniform: np.ndarray, sign: np.nd
     uniform ±|d|/2 about it. The factor is the symmetric bound's: k·u = |Σ d/2| + k_Y·u_Y, Y the error
     without the shifts (its normal and uniform terms, the table's k_Y), so that neither side's tail
     is above 2.5 % (a verdict on either bound errs on the safe side). With no source of known sign
-    it is the 95 % quantile of |error| / u."""
-    one_sided = sign != 0.0
-    shift = 0.5 * np.sqrt(3.0) * np.abs((contributions[:, one_sided] * sign[one_sided]).sum(axis=1))
-    squares = contributions**2
-    total = squares.sum(axis=1)
-    flat = np.concatenate([squares[:, uniform & ~one_sided], 0.25 * squares[:, uniform & one_sided]], axis=1)
-    normal = squares[:, ~uniform].sum(axis=1)
-    spread = normal + flat.sum(axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        share = np.where(spread > 0.0, flat.sum(axis=1) / spread, 0.0)
-        inverse = np.where(flat.sum(axis=1) > 0.0, (flat**2).sum(axis=1) / flat.sum(axis=1) ** 2, 0.0)
-    table = _table()
-    i = np.clip(np.searchsorted(_SHARES, share, side="right") - 1, 0, _SHARES.size - 2)
-    j = np.clip(np.searchsorted(_INVERSE_COUNTS, inverse, side="right") - 1, 0, _INVERSE_COUNTS.size - 2)
-    a = np.clip((share - _SHARES[i]) / (_SHARES[i + 1] - _SHARES[i]), 0.0, 1.0)
-    b = np.clip((inverse - _INVERSE_COUNTS[j]) / (_INVERSE_COUNTS[j + 1] - _INVERSE_COUNTS[j]), 0.0, 1.0)
-    k = ((1 - a) * (1 - b) * table[i, j] + a * (1 - b) * table[i + 1, j] + (1 - a) * b * table[i, j + 1]
-         + a * b * table[i + 1, j + 1])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        factor = np.where(total > 0.0, (shift + k * np.sqrt(spread)) / np.sqrt(total), NORMAL_FACTOR)
-    return np.where(np.isfinite(total), factor, np.nan)
+    it is the 95 % quantile of |error| / u. The rows in one compiled call (``kernels.coverage_factors``)."""
+    return kernels.coverage_factors(np.ascontiguousarray(contributions, dtype=np.float64), np.asarray(uniform, np.bool_),
+                                    np.asarray(sign, np.float64), _table(), _SHARES, _INVERSE_COUNTS, NORMAL_FACTOR)

@@ -70,23 +70,27 @@ _STEER, _RESERVE = int(Check.STEERABILITY_UNCERTAIN), int(Check.LIFT_RESERVE_UNC
 _FRONT, _REAR = int(Check.FRONT_AXLE_UNCERTAIN), int(Check.REAR_AXLE_UNCERTAIN)
 
 
-def straddles(value: float | np.ndarray, half_width: float | np.ndarray, limit: float) -> np.ndarray:
+def straddles(value: float | np.ndarray, half_width: float | np.ndarray, limit: float | np.ndarray) -> np.ndarray:
     """True where a finite ``value`` clears ``limit`` (≥) but its 95 % interval, value ± ``half_width``,
     does not, or the half-width is unbounded (a NaN value fails no check; an infinite one, a reserve
-    without load, clears); a 0-d array for one pose."""
+    without load, clears); a 0-d array for one pose (the three broadcast together)."""
     with np.errstate(invalid="ignore"):
         bound = np.subtract(value, np.asarray(half_width))
         return np.asarray(np.isfinite(value) & np.greater_equal(value, limit) & ~np.greater_equal(bound, limit))
+
+
+_LIMITS = np.array([0.0, 0.0, 0.0, 1.0])   # the limits of the four (``LimitUncertainties``' order)
+_BITS = np.array([_FRONT, _REAR, _STEER, _RESERVE])
 
 
 def interval_checks(front_axle_load: float | np.ndarray, rear_axle_load: float | np.ndarray,
                     margin: float | np.ndarray, reserve: float | np.ndarray, u: LimitUncertainties) -> np.ndarray:
     """The ``Check`` bits of the values whose interval straddles their limit: a 0-d int array for one
     pose, an int array (N,) for N poses (the limits of ``checks.pose_checks``: 0 N, 0, 1)."""
-    return (straddles(front_axle_load, u.front_axle_load, 0.0) * _FRONT
-            + straddles(rear_axle_load, u.rear_axle_load, 0.0) * _REAR
-            + straddles(margin, u.margin, 0.0) * _STEER
-            + straddles(reserve, u.reserve, 1.0) * _RESERVE)
+    values = np.array([front_axle_load, rear_axle_load, margin, reserve], dtype=float)   # (4,) or (4, N)
+    shape = (4,) + (1,) * (values.ndim - 1)
+    crossed = straddles(values, np.array(u, dtype=float), _LIMITS.reshape(shape))
+    return np.asarray(np.sum(crossed * _BITS.reshape(shape), axis=0))
 
 
 def ballast_at_bound(mech: Mechanism, ratio: float, half_width: float, total_weight: float) -> float:

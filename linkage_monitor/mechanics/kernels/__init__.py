@@ -16,7 +16,7 @@ The modules, each one job: ``threads`` (where a batch runs), ``linalg`` (small d
 algebra), ``closure`` (positions, Φ and ∂Φ/∂q), ``dyads`` (the pose along the chain of dyads),
 ``assembly`` (Newton, the branch, a batch's kinematics), ``equilibrium`` (the general statics),
 ``reduced`` (the statics along the chain, transmission), ``capacity`` (lift capacity),
-``steerability`` (axle loads), ``rows`` (a pose's published numbers), ``live`` (the live pose
+``steerability`` (axle loads), ``coverage`` (an error budget's coverage factors), ``rows`` (a pose's published numbers), ``live`` (the live pose
 in one call). The names other modules use are importable from the package.
 """
 
@@ -30,6 +30,7 @@ ensure_writable()    # and where it can keep them
 from .assembly import (assembled, assembled_batch, condition, loop_signs, newton,  # noqa: E402
                        newton_batch, solve_poses)
 from .capacity import lift_capacity  # noqa: E402
+from .coverage import coverage_factors  # noqa: E402
 from .closure import positions, positions_batch, residual_jacobian, residual_jacobian_batch  # noqa: E402
 from .dyads import chain_fit, chain_pose  # noqa: E402
 from .equilibrium import equilibrium_matrix, solve_statics  # noqa: E402
@@ -44,7 +45,7 @@ from .threads import PARALLEL_MIN, PARALLEL_PARTS, allow_threads  # noqa: E402
 
 __all__ = ["NO_MACHINE", "N_STEERABILITY", "PARALLEL_MIN", "PARALLEL_PARTS", "STEERABILITY_COLUMNS",
            "STEERABILITY_PARAMETERS", "allow_threads",
-           "assembled", "assembled_batch", "chain_fit", "chain_pose", "closed_step", "condition", "det_sign",
+           "assembled", "assembled_batch", "chain_fit", "chain_pose", "closed_step", "condition", "coverage_factors", "det_sign",
            "equilibrium_matrix", "factor_and_condition", "gram", "largest_force", "largest_forces", "lift_capacity",
            "live_buffer", "live_programs", "live_rows", "live_series", "loop_signs", "lu_factor", "lu_solve",
            "measured_force", "measured_forces", "newton", "newton_batch", "pack_row", "pack_rows", "positions",
