@@ -130,13 +130,18 @@ class OutputUncertainty:
 class Budget:
     """The error budget of one pose: ``outputs`` and ``sources`` named, ``values`` (n_out,) and
     ``contributions`` (n_out, n_src) = ∂y/∂s · u_s in the output's unit (signed); ``motions`` the
-    motion whose friction band each force-measured cylinder took."""
+    motion whose friction band each force-measured cylinder took; ``index`` output name -> its row;
+    each source's shape for the coverage factor: ``uniform`` (n_src,) bool (``Source.uniform``) and
+    ``sign`` (n_src,) the known sign of a moving seal's friction, else 0 (``FRICTION_SIGN``)."""
 
     outputs: tuple[Output, ...]
     sources: tuple[Source, ...]
     values: np.ndarray
     contributions: np.ndarray
     motions: Mapping[str, Motion]
+    index: Mapping[str, int]
+    uniform: np.ndarray
+    sign: np.ndarray
 
     @cached_property
     def u(self) -> np.ndarray:
@@ -148,20 +153,13 @@ class Budget:
         """The 95 % coverage factor (n_out,) of every output from the shape of its budget: 1.96 where the
         normal sources dominate, down to 1.645 where one uniform source does, 1.69 where a moving seal's
         friction (its sign known) does (``coverage_factor.coverage_factors``)."""
-        uniform = np.array([s.uniform for s in self.sources], dtype=bool)
-        sign = np.array([FRICTION_SIGN[self.motions[s.input]] if s.part == "friction" else 0.0
-                         for s in self.sources])
-        return coverage_factors(self.contributions.reshape(len(self.outputs), len(self.sources)), uniform, sign)
+        return coverage_factors(self.contributions.reshape(len(self.outputs), len(self.sources)), self.uniform,
+                                self.sign)
 
     @cached_property
     def half_width(self) -> np.ndarray:
         """The 95 % interval's half-width k·u (n_out,) of every output (its unit; NaN where unbounded)."""
         return self.k * self.u
-
-    @cached_property
-    def index(self) -> dict[str, int]:
-        """Output name -> its row."""
-        return {o.name: k for k, o in enumerate(self.outputs)}
 
     def line(self, name: str) -> OutputUncertainty:
         """The budget line of the output called ``name``."""
@@ -208,6 +206,7 @@ class OutputTable:
         if model.has_capacity:
             outputs.append(Output("lift_reserve", "lift_reserve", "-"))
         self.outputs: tuple[Output, ...] = tuple(outputs)
+        self.index = {o.name: k for k, o in enumerate(self.outputs)}   # output name -> its column
         self.n_hinges, self.n_cylinders = len(hinges), len(cylinders)
         self._steer_columns = [STEERABILITY_KEYS.index(k) for k in ("front_axle_load", "rear_axle_load", "ratio",
                                                                      "margin")]
@@ -299,7 +298,8 @@ class _Plan:
     is then solved on its own), the derivatives they give, a row each of (P + L, n_out): P lengths
     and angles (central differences of rows ``up`` and ``down`` over ``spans`` (P, 1), twice their
     steps; ``reach`` (P, 1) each input's combined standard uncertainty) then L pressure sensors (rows ``loads``, step LOAD_STEP_PRESSURE), ``derivative`` by input name; the
-    sources of the measured inputs (``sources``, each from its input's derivative ``which``) and the
+    sources of the measured inputs (``sources``, each from its input's derivative ``which``; their
+    ``scales`` u and ``uniform`` shapes) and the
     sensor each cylinder's seal friction enters by (``friction_sensors``: None for one whose force is
     not measured) with its N per Pa (``per_pascal``)."""
 
@@ -313,6 +313,8 @@ class _Plan:
     derivative: Mapping[str, int]
     sources: tuple[Source, ...]
     which: tuple[int, ...]
+    scales: tuple[float, ...]
+    uniform: tuple[bool, ...]
     friction_sensors: Mapping[str, str | None]
     per_pascal: Mapping[str, float]
 
@@ -347,7 +349,8 @@ class UncertaintyModel:
         with np.errstate(invalid="ignore"):   # an infinite reserve (no load) has no derivative
             per_pose = (moved[plan.up] - moved[plan.down]) / plan.spans
         derivatives = np.concatenate([per_pose, self._linear.derivative(y0, moved[plan.loads], LOAD_STEP_PRESSURE)])
-        sources, which, scales = list(plan.sources), list(plan.which), [source.u for source in plan.sources]
+        sources, which, scales = list(plan.sources), list(plan.which), list(plan.scales)
+        uniform, sign = list(plan.uniform), [0.0] * len(sources)
         used = {}
         forces = result.cylinders
         for cylinder, sensor in plan.friction_sensors.items():
@@ -358,9 +361,13 @@ class UncertaintyModel:
             sources.append(Source(f"{cylinder} seal friction", cylinder, "friction", u, "N"))
             which.append(plan.derivative[sensor])
             scales.append(u / plan.per_pascal[sensor])
+            uniform.append(True)
+            sign.append(FRICTION_SIGN[motions[cylinder]])
         contributions = derivatives[which].T * np.array(scales)
         if self.sources.implement_mass > 0.0 and self.mech.implement is not None:
             sources.append(Source("implement mass", "implement", "mass", self.sources.implement_mass, "kg"))
+            uniform.append(False)
+            sign.append(0.0)
             contributions = np.column_stack([contributions,
                                              self._mass_derivative(inputs, y0) * self.sources.implement_mass])
         if result.load_amplification > LOAD_AMPLIFICATION_WARN:   # a weak inference: does the first order hold?
@@ -369,7 +376,8 @@ class UncertaintyModel:
                 second = np.sum(2.0 * np.abs(curvature) * plan.reach**2, axis=0)
                 linear = NONLINEAR_SHARE * NORMAL_FACTOR * np.sqrt(np.sum(contributions**2, axis=1))
             contributions[second > linear] = math.nan   # not over the interval: unbounded
-        return Budget(self.table.outputs, tuple(sources), y0, contributions, used)
+        return Budget(self.table.outputs, tuple(sources), y0, contributions, used, self.table.index,
+                      np.array(uniform, dtype=bool), np.array(sign))
 
     def _plan(self, inputs: Inputs) -> _Plan:
         """The ``_Plan`` of the input names of ``inputs`` (in their order), built once for them."""
@@ -412,7 +420,8 @@ class UncertaintyModel:
                      np.array([self.sources.sensor(move.name, move.kind).total
                                for move in moves[:n_pose:2]]).reshape(-1, 1), slice(n_pose, None),
                      derivative,
-                     tuple(sources), tuple(which), friction_sensors,
+                     tuple(sources), tuple(which), tuple(s.u for s in sources), tuple(s.uniform for s in sources),
+                     friction_sensors,
                      {sensor: force_per_pressure(self.mech, sensor)
                       for sensor in friction_sensors.values() if sensor is not None})
 

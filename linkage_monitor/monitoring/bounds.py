@@ -55,9 +55,14 @@ class LimitUncertainties(NamedTuple):
 
     @staticmethod
     def of(budget: Budget) -> "LimitUncertainties":
-        """The four from a pose's budget (NaN for one the mechanism does not compute)."""
-        return LimitUncertainties(*(verdict_half_width(budget, name) for name in (
-            "front_axle_load", "rear_axle_load", "steerability_margin", "lift_reserve")))
+        """The four from a pose's budget (NaN for one the mechanism does not compute), each as
+        ``verdict_half_width`` gives it."""
+        half_width = np.maximum(budget.half_width, VERDICT_FACTOR_FLOOR * budget.u).tolist()
+        rows = (budget.index.get(name) for name in _LIMIT_OUTPUTS)
+        return LimitUncertainties(*(half_width[k] if k is not None else math.nan for k in rows))
+
+
+_LIMIT_OUTPUTS = ("front_axle_load", "rear_axle_load", "steerability_margin", "lift_reserve")   # the budget's names
 
 
 def verdict_half_width(budget: Budget, name: str) -> float:
