@@ -133,6 +133,8 @@ RUNS: dict[str, Run] = {
     ".venv/bin/linkage-monitor weigh bags/damping_hitch_lift --json": AS_IS,
     ".venv/bin/linkage-monitor replay bags/belarus_1221_lift_transport --implement-mass-source estimate": AS_IS,
     "linkage-monitor replay BAG --implement-mass-source estimate": Run(arguments={"BAG": "bags/damping_hitch_lift"}),
+    # docs/dead-centre.md
+    ".venv/bin/linkage-monitor replay bags/ttz1080_base_change_lift": AS_IS,
     # docs/lifecycle.md
     "linkage_monitor_lifecycle_node --ros-args --params-file config/belarus_1221.yaml":
         Run(ready="unconfigured: ", ros=True),
@@ -178,6 +180,7 @@ CANNOT_RUN: dict[str, str] = {
         "bench_node.py --quick", "bench_node_rss.py", "bench_startup.py", "bench_fleet.py", "bench_can.py",
         "bench_can.py --log-only", "bench_can.py --log-only --per-frame", "bench_encode.py", "bench_memory.py",
         "bench_bag.py", "bench_spin.py", "bench_cli_start.py", "bench_weighing.py", "bench_uncertainty_step.py", "bench_uncertainty_mc.py",
+        "bench_dynamics.py",
         "bench_uncertainty_coverage.py", "bench_replay_process.py --repeat 2", "bench_startup.py 5", "run_all.py --full", "profile_step.py",
         "profile_step.py --idle-ms 5",
         "profile_node.py --stages --rate 50")},
