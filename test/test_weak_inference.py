@@ -113,8 +113,9 @@ def test_the_bag_publishes_the_poses_it_refused_with_a_warn_and_the_rest_bit_for
     assert len(spared) == len(before)
     codes_before = Counter(f.code for step in before for f in step.findings)
     codes_now = Counter(f.code for step in spared for f in step.findings)
-    # 625 refused by the angle rule alone on the bundled bag (docs/dead-centre.md), none now
-    assert codes_before[Code.DEAD_CENTRE] > 500 and codes_now[Code.DEAD_CENTRE] == 0, (codes_before, codes_now)
+    # 484 of 1,738 refused by the angle rule alone on the bundled bag (docs/dead-centre.md: it lifts
+    # through the load's line over pivot O), none now
+    assert codes_before[Code.DEAD_CENTRE] > len(before) // 5 and codes_now[Code.DEAD_CENTRE] == 0, (codes_before, codes_now)
     newly = 0
     for now, then in zip(spared, before):
         if then.pose is None:
