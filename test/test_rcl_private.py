@@ -3,7 +3,8 @@ ros/spin.py and ros/input_events.py make them: a distribution that changes them 
 
 In this process: one node with a subscription, a publisher, a timer and a guard condition. The
 wait set sees the published message ready (the subscription's handle pointer), the timer ready after
-its period and the triggered guard condition; the subscription's two event handles take statuses.
+its period and the triggered guard condition; the subscription's two event handles take statuses;
+the serialized taker takes what rclpy's raw take takes, with the publisher's GID the graph gives.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from rclpy.event_handler import QoSSubscriptionEventType
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
-from linkage_monitor.ros.rcl_private import event_handle, wait_set
+from linkage_monitor.ros.rcl_private import SerializedTaker, event_handle, wait_set
 
 
 @pytest.fixture
@@ -84,3 +85,34 @@ def test_event_handles_take_their_statuses(node):
     assert hasattr(status, "last_policy_kind")
     for handle in handles:
         handle.destroy_when_not_in_use()
+
+
+def test_serialized_taker_takes_rclpy_s_bytes_and_the_publisher(node):
+    """Two messages of two publishers: each taken as rclpy's own raw take gives its bytes (the oracle:
+    rclpy's serialize_message), in order, with its sequence number and the GID of the publisher that
+    sent it (the graph's endpoint GID, get_publishers_info_by_topic); then nothing (None)."""
+    from rclpy.serialization import serialize_message
+
+    qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    sub = node.create_subscription(String, "rcl_private_taker", lambda _: None, qos, raw=True)
+    other = node.__class__("rcl_private_other")
+    pubs = [node.create_publisher(String, "rcl_private_taker", qos),
+            other.create_publisher(String, "rcl_private_taker", qos)]
+    deadline = time.monotonic() + 5.0
+    while sub.get_publisher_count() < 2 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    gids = {i.node_name: bytes(bytearray(i.endpoint_gid)) for i in node.get_publishers_info_by_topic("/rcl_private_taker")}
+    taker = SerializedTaker(sub)
+    sent = [String(data="from the probe"), String(data="from the other node")]
+    taken = []
+    for pub, msg in zip(pubs, sent):
+        pub.publish(msg)
+        assert sub.handle.pointer in _ready(node, "subscription")
+        taken.append(taker.take())
+    assert taker.take() is None
+    taker.release()
+    other.destroy_node()
+    assert [data for data, _ in taken] == [serialize_message(m) for m in sent]
+    assert [info["publisher_gid"]["data"] for _, info in taken] == [gids["rcl_private_probe"], gids["rcl_private_other"]]
+    assert [info["publication_sequence_number"] for _, info in taken] == [1, 1]
+    assert all(info["received_timestamp"] > 0 for _, info in taken)

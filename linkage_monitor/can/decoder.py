@@ -38,6 +38,7 @@ from linkage_monitor.mechanics import InputError, Mechanism
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.events import InputEvent, JointStateEvent, PressureEvent
 from linkage_monitor.monitoring.findings import Code, Finding, fmt
+from linkage_monitor.monitoring.sources import two_sources
 
 from .frames import CAN_ERR_MASK, Frame, FrameBlock
 from .j1939 import CAN_ERR_BUSOFF, Raw, classify, is_value, pgn, source_address
@@ -122,10 +123,9 @@ class CanDecoder:
         route = self._routing.routes[index]
         self.counts.two_sources[route.message.name] = list(senders)
         names = ", ".join(r.input.name for r in route.routes)
-        return self._refuse(frame, Code.SENSORS_DISAGREE, (
-            f"comes from source address 0x{sender:02X}; {' and '.join(f'0x{a:02X}' for a in senders)} both send "
-            f"PGN {pgn(frame.arbitration_id)}: two ECUs give {names}, neither is used. Name the one to trust in "
-            f"the mapping (inputs.{route.routes[0].input.name}.source_address: 0x{senders[0]:02X})"), route.message)
+        return self._refuse(frame, Code.SENSORS_DISAGREE, f"comes from source address 0x{sender:02X}; " + two_sources(
+            [f"0x{a:02X}" for a in senders], f"PGN {pgn(frame.arbitration_id)}", f"ECUs give {names}",
+            f"in the mapping (inputs.{route.routes[0].input.name}.source_address: 0x{senders[0]:02X})"), route.message)
 
     def _name(self, frame: Frame, message: Any = None) -> str:
         ident = f"0x{frame.arbitration_id:08X}" if frame.is_extended else f"0x{frame.arbitration_id:03X}"

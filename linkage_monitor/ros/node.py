@@ -25,7 +25,7 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, NamedTuple
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult
@@ -52,7 +52,9 @@ from linkage_monitor.ros.input_events import INCOMPATIBLE_QOS, LOST, InputEvents
 from linkage_monitor.ros.inputs import InputCallback, InputSource, SensorTopics
 from linkage_monitor.ros.parameters import (PARAMETERS, Declaration, check_bounds, check_choices, config_with,
                                             is_double, monitor_config, usage_table)
+from linkage_monitor.ros.publishers import publisher_gid
 from linkage_monitor.ros.publishing import HEARTBEAT_S, OUTPUT_QOS, OutputPublisher
+from linkage_monitor.ros.rcl_private import SerializedTaker
 from linkage_monitor.ros.recording import ABANDONED_RERUN, Recording
 from linkage_monitor.ros.spin import InputSpinner
 
@@ -75,10 +77,13 @@ def descriptor(d: Declaration) -> ParameterDescriptor:
     return desc
 
 
-def publisher_id(info: dict) -> object:
-    """The publisher of a message (its GID, from rclpy's message info), or None if not given."""
-    gid = info.get("publisher_gid")
-    return tuple(gid["data"]) if isinstance(gid, dict) and "data" in gid else None
+class InputQueue(NamedTuple):
+    """An input subscription, the callback its messages go to and the taker that takes them with their
+    publisher (``rcl_private.SerializedTaker``)."""
+
+    subscription: Any
+    callback: InputCallback
+    taker: SerializedTaker
 
 
 class LinkageMonitorNode(Node):
@@ -142,7 +147,7 @@ class LinkageMonitorNode(Node):
                 f"numba compiled {compiled} physics kernel(s) in {time.monotonic() - loading:.0f} s at this start: its "
                 "on-disk cache (in linkage_monitor/mechanics/kernels/, or NUMBA_CACHE_DIR) was cold or not "
                 "writable; `python -m linkage_monitor.mechanics.warm` compiles them ahead of the next start")
-        self._inputs: list[tuple[Any, InputCallback]] = []   # (subscription, its callback)
+        self._inputs: list[InputQueue] = []
         self.input_events = InputEvents()   # taken at the heartbeat (ros/input_events.py)
 
     def start_inputs(self) -> None:
@@ -162,6 +167,7 @@ class LinkageMonitorNode(Node):
         self._take_input_events(now)
         self._report_losses(when, now)
         self.input_events.destroy()
+        self._release_takers()
         for subscription in self.input_subscriptions:
             self.destroy_subscription(subscription)
         self._inputs = []
@@ -182,7 +188,7 @@ class LinkageMonitorNode(Node):
         drained (``_drain``). The subscription's middleware events are taken at the heartbeat, not
         waited on (``ros.input_events``)."""
         def counted(data: bytes, info: dict) -> None:
-            self.loss.on_message(topic, publisher_id(info), info.get("publication_sequence_number"))
+            self.loss.on_message(topic, publisher_gid(info), info.get("publication_sequence_number"))
             callback(data, info)
 
         def take(data: bytes, info: dict) -> None:   # under rclpy's executor (main() takes inputs itself)
@@ -191,12 +197,16 @@ class LinkageMonitorNode(Node):
                                             self.input_qos, raw=True,
                                             event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
         self.input_events.watch(topic, sub)   # the loss counter's key for this topic, as for its sequence gaps
-        self._inputs.append((sub, counted))
+        self._inputs.append(InputQueue(sub, counted, SerializedTaker(sub)))
 
     @property
     def input_subscriptions(self) -> list[Any]:
         """The subscriptions of the inputs (JointState, then each pressure topic)."""
-        return [sub for sub, _ in self._inputs]
+        return [queue.subscription for queue in self._inputs]
+
+    def _release_takers(self) -> None:
+        for queue in self._inputs:
+            queue.taker.release()
 
     def take_inputs(self) -> None:
         """Work off what is waiting in the input queues (``ros.spin.InputSpinner``'s wake-up)."""
@@ -222,16 +232,16 @@ class LinkageMonitorNode(Node):
             cycle = self._take_cycle()
 
     def _take_cycle(self) -> list[tuple[int, InputCallback, tuple[bytes, dict]]]:
-        """One message from each input queue that has one: (received_timestamp, callback, (bytes, info))."""
+        """One message from each input queue that has one: (received_timestamp, callback, (bytes, info)),
+        taken with its publisher (``rcl_private.SerializedTaker``: rclpy's take names it from Kilted on only)."""
         cycle = []
-        for sub, callback in self._inputs:
+        for queue in self._inputs:
             try:
-                with sub.handle:   # as rclpy's executor takes a message (Executor._take_subscription)
-                    message = sub.handle.take_message(sub.msg_type, sub.raw)
+                message = queue.taker.take()
             except InvalidHandle:   # destroyed while shutting down: nothing more to take from it
                 continue
             if message is not None:
-                cycle.append((message[1]["received_timestamp"], callback, message))
+                cycle.append((message[1]["received_timestamp"], queue.callback, message))
         return cycle
 
     def now(self) -> int:
@@ -346,6 +356,8 @@ class LinkageMonitorNode(Node):
             self.input_source.close()
         except Exception as exc:  # noqa: BLE001 - the bag is finished whatever happens here
             self.get_logger().error(f"closing the inputs failed: {type(exc).__name__}: {exc}")
+        self._release_takers()
+        self._inputs = []   # nothing is taken after the close
         try:
             now = self.now()
             self._take_input_events(now)

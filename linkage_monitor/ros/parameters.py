@@ -78,6 +78,10 @@ PARAMETERS: dict[str, Declaration] = {d.name: d for d in (
                 "second)", True, (0.0, 3600.0), config="staleness_limit_s"),
     Declaration("stamp_tolerance", 10.0, "s", "an input whose header stamp is farther than this from the node's clock "
                 "is refused (ERROR)", True, (0.001, 1e6), config="stamp_tolerance_s"),
+    Declaration("trusted_publishers", [""], "", "The one node to take an input topic from when two publish it, as "
+                "'topic=/namespace/node' (its other publishers' messages are not used, recorded on "
+                "'<topic>/refused'); an input topic without one: while two nodes publish it (both heard within "
+                "staleness_limit) neither is used (sensors_disagree, naming both)", False),
     Declaration("kinetostatics", False, "", "Add inertia loads from JointState velocities and their change "
                 "(Naumenko et al. 2021)", False, config="kinetostatics"),
     Declaration("dead_centre_transmission_deg", DEAD_CENTRE_TRANSMISSION_DEG, "degrees", "a pose whose smallest "
@@ -181,6 +185,13 @@ def _typed(d: Declaration, value: Any) -> Any:
 
 def _pairs(items: list[str], what: str) -> dict[str, str]:
     return dict(name_value(item, f"parameter {what}:") for item in items if item)
+
+
+def trusted_publishers(items: list[str], resolve: Callable[[str], str]) -> dict[str, str]:
+    """Parameter ``trusted_publishers``: resolved topic -> the trusted node's full name (``/node`` for ``node``);
+    InputError naming a malformed entry."""
+    return {resolve(topic): node if node.startswith("/") else f"/{node}"
+            for topic, node in _pairs(items, "trusted_publishers").items()}
 
 
 def monitor_config(p: Mapping[str, Any], mech: Mechanism, resolve: Callable[[str], str]) -> MonitorConfig:

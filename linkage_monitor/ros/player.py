@@ -24,16 +24,19 @@ from linkage_monitor.bag.reader import read_bag_raw
 from linkage_monitor.bag.step_recorder import RecordedInput
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE, input_event
 
+from .inputs import REFUSED
+
 PLAYER_QOS = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
 
 
 def recorded_inputs(bag: Path) -> list[RecordedInput]:
-    """Every sensor message of ``bag`` as recorded, in order (the stamp of bytes that do not read as
-    their type: their log time)."""
+    """Every sensor message of ``bag`` the node used, as recorded, in order (the stamp of bytes that do not
+    read as their type: their log time); not those it refused (``<topic>/refused``, ``ros.inputs``)."""
     return [RecordedInput(raw.topic, raw.type_name,
                           input_event(raw.type_name, raw.data, raw.topic, raw.log_time_ns).stamp_ns, raw.log_time_ns,
                           raw.data)
-            for raw in read_bag_raw(bag) if raw.type_name in (JOINT_STATE, FLUID_PRESSURE)]
+            for raw in read_bag_raw(bag)
+            if raw.type_name in (JOINT_STATE, FLUID_PRESSURE) and not raw.topic.endswith(REFUSED)]
 
 
 def play(node: Node, messages: list[RecordedInput], rate: float = 1.0,
