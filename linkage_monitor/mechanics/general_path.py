@@ -63,7 +63,9 @@ def solve_general(solver: SolverParts, previous: KinematicState | None, cylinder
         names = weakest_names(reduced, weakest)
         amplification = sol.amplification
         below = (status == Status.OK) & ~(smallest >= solver.dead_centre_sine)
-        for i in np.flatnonzero(below & ~inferred_load_spared(sine, weakest, amplification, solver.dead_centre_sine)):
+        if below.any():   # (the spared poses are looked for among these only)
+            below &= ~inferred_load_spared(sine, weakest, amplification, solver.dead_centre_sine)
+        for i in np.flatnonzero(below):
             status[i] = Status.DEAD_CENTRE
             if np.isinf(amplification[i]):
                 messages[i] = (f"dead centre at {kin.describe_inputs(s[i])}: {names[i]} passes through its pivot "
@@ -74,7 +76,7 @@ def solve_general(solver: SolverParts, previous: KinematicState | None, cylinder
                            f"{math.degrees(math.asin(smallest[i])):.3g} deg at {names[i]} < "
                            f"{solver.dead_centre_transmission_deg:g} deg (the linkage cannot hold a load there; "
                            f"forces would be unbounded)")
-        angle, statics_condition = np.arcsin(smallest), np.full(n_pose, np.nan)
+        angle, statics_condition = sol.transmission.angle, np.full(n_pose, np.nan)   # arcsin(smallest)
     else:   # one linear system; a dead centre where it is near-singular
         general = sol = layout.solve(p, measured_force, accel)
         static_dead_centre_verdicts(kin, s, general.condition, solver.dead_centre_cond, status, messages)
@@ -89,7 +91,8 @@ def solve_general(solver: SolverParts, previous: KinematicState | None, cylinder
         names = np.where(failed, "", np.array(names, dtype=object)).tolist()
     batch = solver.result_layout.batch(n_pose, q, p, u, sol, layout, measured_force, cap, rod, failed)
     batch.status, batch.messages = status, messages
-    batch.consistency_residual = np.where(failed, np.nan, np.linalg.norm(ks.phi, axis=1))
+    # |Φ| (N,) m: np.linalg.norm's sum of squares along axis 1, without its conjugate's copy
+    batch.consistency_residual = np.where(failed, np.nan, np.sqrt(np.add.reduce(ks.phi * ks.phi, axis=1)))
     batch.condition = np.fmax(statics_condition, ks.condition)
     batch.transmission_angle = np.where(failed, np.nan, angle)
     batch.weakest_transmission = names

@@ -142,7 +142,8 @@ class Kinematics(KinematicLayout):
         with_condition = dead_centre_cond is not None
         q, phi, cond, on_branch = self.continue_from(start, s, with_condition)
         limit = 1e-9 * self.lc if self.m == self.n else consistency_tol
-        retry = np.flatnonzero(~on_branch | ~self.assembled(phi, limit))
+        assembled = self.assembled(phi, limit)
+        retry = np.flatnonzero(~on_branch | ~assembled)
         still = off = np.zeros(0, dtype=int)
         if retry.size:  # continuation from the reference pose along a straight input path
             qr, phir, jacr = self.continuation(s[retry])
@@ -150,10 +151,10 @@ class Kinematics(KinematicLayout):
             q[retry], phi[retry] = qr, phir
             if with_condition:
                 cond[retry] = [kernels.condition(j, self.column_scale) for j in jacr]
-            closed = self.assembled(phir, limit)
+            closed = assembled[retry] = self.assembled(phir, limit)
             still = retry[~closed]
             off = retry[~self.on_branch(jacr) & closed]
-        status, messages = self.verdicts(s, phi, cond, self.assembled(phi, limit), off, still, dead_centre_cond, reach)
+        status, messages = self.verdicts(s, phi, cond, assembled, off, still, dead_centre_cond, reach)
         return KinematicState(s=s, q=q, phi=phi, status=status, messages=messages, condition=cond)
 
     def continue_from(self, start: KinematicState, s: np.ndarray, with_condition: bool = True

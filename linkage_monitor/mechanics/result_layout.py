@@ -75,7 +75,8 @@ class ResultLayout:
         for k, c in enumerate(mech.cylinders):
             f = measured_force[:, k] if c.name in layout.force_known else u[:, layout.cyl_col[c.name]]
             cyl_force[c.name] = np.where(failed, np.nan, f)
-        hinge_force = {h.name: u[:, layout.hinge_cols[i]] for i, h in enumerate(mech.hinges)}
+        hinges = np.ascontiguousarray(u[:, layout.hinge_cols])   # (N, H, 2): one gather; the dict holds its views
+        hinge_force = {h.name: hinges[:, i] for i, h in enumerate(mech.hinges)}
         contact_n = {c.name: u[:, layout.contact_col[c.name]] for c in mech.contacts}
         imp = mech.implement
         if layout.implement_col is not None:
@@ -84,19 +85,15 @@ class ResultLayout:
             imp_load = np.where(failed, np.nan, imp.mass * mech.gravity)
         else:
             imp_load = np.full(n_pose, np.nan)
-        member_force = np.concatenate([sol.spring_force, np.column_stack(list(cyl_force.values()))
-                                       if cyl_force else np.zeros((n_pose, 0))], axis=1)
+        cylinders = np.column_stack(list(cyl_force.values())) if cyl_force else np.zeros((n_pose, 0))   # (N, C)
+        member_force = np.concatenate([sol.spring_force, cylinders], axis=1)
         axes = np.concatenate([sol.spring_axis, sol.cylinder_axis], axis=1)
-        fl_points, fl_forces = [], []
-        for i, att, sign in self.frame_hinges:
-            fl_points.append(p[:, att])
-            fl_forces.append(sign * hinge_force[mech.hinges[i].name])
-        for m, att, sign in self.frame_members:
-            fl_points.append(p[:, att])
-            fl_forces.append(sign * member_force[:, m, None] * axes[:, m])
-        shape = (n_pose, 0, 2)
-        hinges = np.stack(list(hinge_force.values()), axis=1) if hinge_force else np.zeros(shape)
-        largest = kernels.largest_forces(hinges, np.ascontiguousarray(member_force[:, sol.spring_force.shape[1]:]))
+        # the frame loads (N, F, 2): frame-side hinges, then member ends, each a gather of all poses
+        members = self.frame_member_index
+        frame_forces = np.concatenate([self.frame_hinge_sign * hinges[:, self.frame_hinge_index],
+                                       self.frame_member_sign * member_force[:, members, None] * axes[:, members]],
+                                      axis=1)
+        largest = kernels.largest_forces(hinges, cylinders)
         return BatchResult(
             points={n: p[:, a] for n, a in self.point_att.items()},
             body_poses={b.name: q[:, 3 * i:3 * i + 3] for i, b in enumerate(mech.moving_bodies)},
@@ -110,8 +107,7 @@ class ResultLayout:
             implement_load=imp_load,
             implement_cg=p[:, self.cg_att] if self.cg_att is not None else np.full((n_pose, 2), np.nan),
             frame_load_names=list(self.frame_load_names),
-            frame_load_points=np.stack(fl_points, axis=1) if fl_points else np.zeros(shape),
-            frame_load_forces=np.stack(fl_forces, axis=1) if fl_forces else np.zeros(shape),
+            frame_load_points=p[:, self.frame_att], frame_load_forces=frame_forces,
             residual=np.where(failed, np.nan, sol.residual), consistency_residual=np.zeros(n_pose),
             condition=np.zeros(n_pose), largest_force=largest, status=np.zeros(n_pose, dtype=int),
             messages=[""] * n_pose,
