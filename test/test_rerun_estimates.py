@@ -1,7 +1,7 @@
 """The Rerun view with the error budget and the weighing on (``viz.rerun_estimates``): a replay of the
 bundled belarus_1221 lift-and-transport bag with ``uncertainty`` and ``implement_mass_source: estimate``,
-its .rrd read back. The 95 % bands are the plotted value ∓ 1.96 times the standard uncertainty of each
-step's error budget (``mechanics.uncertainty``, on the replay's Steps); the weighed mass is the
+its .rrd read back. The 95 % bands are the plotted value ∓ the 95 % half-width of each step's error
+budget (``Budget.half_width_of``, k·u; ``mechanics.uncertainty``, on the replay's Steps); the weighed mass is the
 steps' estimate; the weighed cg is carried with the implement body to the pose (checked against the
 solver's own implement cg: the file's cg carried the same way lands on it); and the real viewer draws it.
 """
@@ -48,11 +48,11 @@ def test_the_bands_are_the_budgets_95_percent_intervals(replayed):
         for stamp, (v,) in band.items():
             budget = solved[stamp].pose.budget
             # the .rrd holds one sample per stamp: the last step of that stamp (a pressure and a joint state)
-            assert v == pytest.approx(value[stamp][0] + sign * COVERAGE_FACTOR * budget.u_of("lift_cylinder.force")
-                                      / 1e3, rel=1e-9)
+            assert v == pytest.approx(value[stamp][0] + sign * budget.half_width_of("lift_cylinder.force") / 1e3,
+                                      rel=1e-9)
         for stamp, (v,) in list(ratio.items())[::50]:
             line = solved[stamp].pose.budget.line("steerability_ratio")
-            assert v == pytest.approx(line.value + sign * COVERAGE_FACTOR * line.u, rel=1e-9)
+            assert v == pytest.approx(line.value + sign * line.half_width, rel=1e-9)
     assert all(b < v[0] for (b,), v in zip(_by_time(tables, "lift/reserve/low95", "Scalars:scalars").values(),
                                            _by_time(tables, "lift/reserve", "Scalars:scalars").values()))
 

@@ -2,8 +2,9 @@
 
 - 95 % bands: beside a plotted series ``<path>`` (a cylinder force, a hinge reaction, the
   steerability ratio, the lift reserve, the weighed mass), two thin series ``<path>/low95`` and
-  ``<path>/high95`` = value ∓ 1.96 u, u its standard uncertainty (1 sigma) in the series' unit
-  (``budget_bands`` from the poses' error budgets, ``mechanics.uncertainty``);
+  ``<path>/high95`` = value ∓ its 95 % half-width in the series' unit: k·u from the poses' error
+  budgets (``budget_bands``; ``mechanics.uncertainty``, k from the budget's shape), 1.96 u for the
+  weighing's estimate (its intervals);
 - the weighing: ``weighing/mass`` (kg, the estimate converging, with its band) and on the linkage
   ``linkage/implement_cg`` the weighed centre of gravity carried with the implement to the pose,
   and ``linkage/implement_cg/interval`` its 95 % box (±1.96 u along x and z of the reference pose).
@@ -21,7 +22,7 @@ import rerun as rr
 from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.mechanics.uncertainty import Budget
 
-COVERAGE_FACTOR = 1.96   # the 95 % interval's half-width in standard uncertainties
+COVERAGE_FACTOR = 1.96   # the weighing estimate's 95 % half-width in standard uncertainties (WeighingEstimate.interval)
 BAND_PARTS = ("low95", "high95")
 CG_PATH, CG_BOX_PATH = "linkage/implement_cg", "linkage/implement_cg/interval"
 MASS_PATH = "weighing/mass"
@@ -30,9 +31,10 @@ _DRAW = np.array([1.0, -1.0])  # (x, z) -> Rerun 2D (x, y down), as rerun_view
 
 
 def budget_bands(mechanism: Mechanism, budgets: Sequence[Budget | None]) -> dict[str, np.ndarray]:
-    """The standard uncertainty (1 sigma) of every series the view plots that the budgets cover, by
-    entity path, (N,) each in the series' unit (cylinder forces and hinge reactions kN, the
-    steerability ratio and the lift reserve dimensionless); NaN for a pose without a budget."""
+    """The 95 % half-width (``Budget.half_width_of``: k times the standard uncertainty, k from the budget's
+    shape) of every series the view plots that the budgets cover, by entity path, (N,) each in the
+    series' unit (cylinder forces and hinge reactions kN, the steerability ratio and the lift reserve
+    dimensionless); NaN for a pose without a budget."""
     outputs = {**{f"forces/cylinders/{rr.escape_entity_path_part(c.name)}": (f"{c.name}.force", 1e-3)
                   for c in mechanism.cylinders},
                **{f"forces/hinges/{rr.escape_entity_path_part(h.name)}": (f"{h.name}.magnitude", 1e-3)
@@ -40,23 +42,22 @@ def budget_bands(mechanism: Mechanism, budgets: Sequence[Budget | None]) -> dict
                "steerability/ratio": ("steerability_ratio", 1.0), "lift/reserve": ("lift_reserve", 1.0)}
     bands = {}
     for path, (output, scale) in outputs.items():
-        u = np.array([b.u_of(output) if b is not None else np.nan for b in budgets]) * scale
-        if np.isfinite(u).any():
-            bands[path] = u
+        half = np.array([b.half_width_of(output) if b is not None else np.nan for b in budgets]) * scale
+        if np.isfinite(half).any():
+            bands[path] = half
     return bands
 
 
 def band_series(values: Mapping[str, np.ndarray], bands: Mapping[str, np.ndarray]
                 ) -> list[tuple[str, str, np.ndarray]]:
-    """(band path, the series' path, band values) of each plotted series with a band: its
-    ``low95`` and ``high95`` (value ∓ COVERAGE_FACTOR u)."""
+    """(band path, the series' path, band values) of each plotted series with a band (its 95 %
+    half-width by path, the series' unit): its ``low95`` and ``high95`` (value ∓ half-width)."""
     out = []
-    for path, u in bands.items():
+    for path, half in bands.items():
         value = values.get(path)
         if value is None:
             continue
-        out += [(f"{path}/{BAND_PARTS[0]}", path, value - COVERAGE_FACTOR * u),
-                (f"{path}/{BAND_PARTS[1]}", path, value + COVERAGE_FACTOR * u)]
+        out += [(f"{path}/{BAND_PARTS[0]}", path, value - half), (f"{path}/{BAND_PARTS[1]}", path, value + half)]
     return out
 
 

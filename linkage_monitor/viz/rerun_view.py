@@ -204,8 +204,8 @@ class RerunView:
 
         extra: machine-level scalars by entity path (e.g. ``steerability/ratio``: 1, ``lift/reserve``: 1);
         non-finite values are skipped. A pose whose status is not ok is also written to ``status``.
-        bands: standard uncertainties (1 sigma) of plotted series by entity path, (1,) each in the
-        series' unit (``rerun_estimates.budget_bands``): their 95 % bands beside them.
+        bands: 95 % half-widths of plotted series by entity path, (1,) each in the series' unit
+        (``rerun_estimates.budget_bands``): their 95 % bands beside them.
         """
         rec = self.recording
         series = _with_reference_lines({k: np.array([v], dtype=float) for k, v in (extra or {}).items()})
@@ -253,7 +253,7 @@ class RerunView:
         """Log N solved poses at ROS times ``stamps_ns`` (N,) ns with ``send_columns`` (geometry and scalars).
 
         extra: machine-level series by entity path, each (N,); non-finite samples are skipped.
-        bands: standard uncertainties (1 sigma) of plotted series, (N,) each (as ``log_pose``'s).
+        bands: 95 % half-widths of plotted series, (N,) each (as ``log_pose``'s).
         Poses whose status is not ok go to ``status``; poses that could not be solved (NaN) are
         left out of the geometry and of the series.
         """
@@ -305,7 +305,8 @@ class RerunView:
             self._style_series(estimates.MASS_PATH)
             self._weighing_styled = True
         self._send_series(estimates.MASS_PATH, times, mass)
-        for path, source, values in estimates.band_series({estimates.MASS_PATH: mass}, {estimates.MASS_PATH: mass_u}):
+        for path, source, values in estimates.band_series({estimates.MASS_PATH: mass},
+                                                          {estimates.MASS_PATH: estimates.COVERAGE_FACTOR * mass_u}):
             self._style_band(path, source)
             self._send_series(path, times, values)
         estimates.send_implement_cg(self.recording, TIMELINE, times,
