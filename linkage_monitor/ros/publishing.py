@@ -49,9 +49,7 @@ class OutputPublisher:
         self.encoder = OutputEncoder()
         self.messenger = StepMessenger(description, f"{node_name}: {description.name}", marker_rate_hz)
         self.freshness = Freshness()   # STALE on /diagnostics when nothing was solved for staleness_limit
-        # the latest step of the status last sent (the gate's, or the STALE's replacement): what the heartbeat
-        # repeats, with that step's numbers (a step the gate holds back has the status of the last one sent)
-        self._reported: Step | None = None
+        self._reported: Step | None = None   # the last step the gate let through: what the heartbeat repeats
         self._stale = True   # the last status the heartbeat sent was STALE: the next step is reported
         self._last_heartbeat = 0.0
         self.pub_hinges = make_publisher(HingeReactions, topics.hinge_reactions, OUTPUT_QOS)
@@ -84,8 +82,6 @@ class OutputPublisher:
         elif self._stale:   # the STALE the heartbeat sent is replaced at once (not recorded: the gate did not pass it)
             self._reported = step
             self._send_diagnostic(self.messenger.diagnostic(step, now))
-        else:   # the status unchanged: the heartbeat says it with the latest numbers (the weighing's, the budget's)
-            self._reported = step
         self._stale = False
         self.recording.step(messages, step, self.monitor.config.dead_centre_transmission_deg, now)
         if step.level == Level.ERROR:
