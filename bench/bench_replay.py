@@ -32,7 +32,6 @@ from pathlib import Path
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from linkage_monitor.mechanics import kernels  # noqa: E402
 from linkage_monitor.offline.replay import mechanism_in_bag, replay
 
 from long_bag import write_long_bag  # noqa: E402  # bench/ is the script's directory
@@ -44,9 +43,7 @@ LONG_INPUTS = 100_000
 RSS_GOAL_MB = 500.0   # for 10^6 inputs
 MEASURE = """import resource, sys
 from pathlib import Path
-from linkage_monitor.mechanics import kernels
 from linkage_monitor.offline.replay import replay_streaming
-kernels.allow_threads()
 summary = replay_streaming(Path(sys.argv[1]), out_dir=Path(sys.argv[2]), progress=None).summary
 print(summary.inputs, summary.seconds, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)"""
 
@@ -82,7 +79,6 @@ def main() -> int:
     parser.add_argument("bag", nargs="?", type=Path, default=BAG)
     parser.add_argument("--long-inputs", type=int, default=LONG_INPUTS, help="inputs of the long bag (0: none)")
     args = parser.parse_args()
-    kernels.allow_threads()   # as `linkage-monitor replay` does
     bag = args.bag
     mech = mechanism_in_bag(bag)
     with tempfile.TemporaryDirectory() as tmp:

@@ -76,7 +76,6 @@ def trigonometry(x: np.ndarray, calls: int) -> float:
 
 
 def main() -> None:
-    kernels.allow_threads()
     if "belarus_1221" in preset_names():
         mech, label = load_preset("belarus_1221"), "preset belarus_1221"
     else:

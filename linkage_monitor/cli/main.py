@@ -80,10 +80,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser(argv).parse_args(argv)
     command = COMMANDS[args.command]
     module = importlib.import_module(command.module)
-    if command.threads:
-        from linkage_monitor.mechanics import kernels
-
-        kernels.allow_threads()   # large batches on every core (fleet: one process per core instead)
     try:
         return int(getattr(module, command.run)(args))
     except BrokenPipeError:   # `linkage-monitor presets | head -1`: the reader has what it wanted

@@ -40,6 +40,7 @@ def warm_up() -> float:
     """Solve every preset once per path (single pose warm-started, small and large batches, with
     rates, lift capacity, a recorded series) and sweep its input limits; returns the seconds it took."""
     started = time.perf_counter()
+    allowed = kernels.threads_allowed()
     kernels.allow_threads(True)   # compile the thread-pool drivers too
     for name in preset_names():
         mech = load_preset(name)
@@ -70,7 +71,7 @@ def warm_up() -> float:
             solver.solve(Inputs(**far))
         except LinkageError:
             pass
-    kernels.allow_threads(False)
+    kernels.allow_threads(allowed)
     return time.perf_counter() - started
 
 

@@ -18,7 +18,7 @@ from typing import Any, Iterable, TextIO
 
 from linkage_monitor.bag.faults import ReadFault, read_faults
 from linkage_monitor.bag.storage import STORAGE_SUFFIXES, is_split_bag
-from linkage_monitor.mechanics import Mechanism
+from linkage_monitor.mechanics import Mechanism, kernels
 from linkage_monitor.monitoring.findings import Code
 
 from .history import LoadHistory
@@ -125,6 +125,7 @@ def run_fleet(bags: list[Path], mech: Mechanism | None = None, slope: float = DE
     if scheduler is None:
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
     client = Client(scheduler or cluster)
+    client.run(kernels.allow_threads, False)   # a worker is one process per core already: no thread pool in it
     try:
         futures = client.map(analyse_bag, bags, mech=mech, slope=slope, bin_width=bin_width, uncertainty=uncertainty,
                              pure=False)

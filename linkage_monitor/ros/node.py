@@ -41,7 +41,7 @@ from rclpy.signals import SignalHandlerOptions
 from linkage_monitor.bag.errors import BagError
 from linkage_monitor.bag.step_recorder import StepRecorder
 from linkage_monitor.bag.writer import BagWriter
-from linkage_monitor.mechanics import LinkageError, apply_overrides, load_description
+from linkage_monitor.mechanics import LinkageError, apply_overrides, kernels, load_description
 from linkage_monitor.mechanics.warm import compiled_kernels
 from linkage_monitor.monitoring.config import MonitorConfig
 from linkage_monitor.monitoring.core import Monitor
@@ -391,6 +391,7 @@ def main(argv: list[str] | None = None, make_node: Callable[[], LinkageMonitorNo
     if "--help" in own or "-h" in own:
         print(usage())
         return 0
+    kernels.allow_threads(False)   # a pose at a time: no thread pool in the live node
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stopping = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):

@@ -41,7 +41,7 @@ from .reduced import (smallest_sine, smallest_sines, solve_reduced_statics,  # n
 from .rows import largest_force, largest_forces, measured_force, measured_forces, pack_row, pack_rows  # noqa: E402
 from .steerability import (N_STEERABILITY, STEERABILITY_COLUMNS, STEERABILITY_PARAMETERS,  # noqa: E402
                            steerability_pose, steerability_rows)
-from .threads import PARALLEL_MIN, PARALLEL_PARTS, allow_threads  # noqa: E402
+from .threads import PARALLEL_MIN, PARALLEL_PARTS, allow_threads, threads_allowed  # noqa: E402
 
 __all__ = ["NO_MACHINE", "N_STEERABILITY", "PARALLEL_MIN", "PARALLEL_PARTS", "STEERABILITY_COLUMNS",
            "STEERABILITY_PARAMETERS", "allow_threads",
@@ -51,4 +51,4 @@ __all__ = ["NO_MACHINE", "N_STEERABILITY", "PARALLEL_MIN", "PARALLEL_PARTS", "ST
            "measured_force", "measured_forces", "newton", "newton_batch", "pack_row", "pack_rows", "positions",
            "positions_batch", "residual_jacobian", "residual_jacobian_batch", "smallest_sine", "smallest_sines",
            "solve_linear", "solve_poses", "solve_reduced_statics", "solve_statics", "steerability_pose",
-           "steerability_rows", "step_transmission", "transmission_batch", "transmission_pose"]
+           "steerability_rows", "step_transmission", "threads_allowed", "transmission_batch", "transmission_pose"]

@@ -3,20 +3,28 @@
 from __future__ import annotations
 
 
-PARALLEL_MIN = 512  # poses: smaller batches stay on the calling thread (no thread-pool wake-up)
+# poses: smaller batches stay on the calling thread (no thread-pool wake-up). A batch's kinematics
+# (belarus_1221, 2 cores, the second idle) take half the time on 2 threads from ~64 poses on; with
+# the other core busy a wake-up can wait for the scheduler (ms): the threshold keeps that rare
+PARALLEL_MIN = 512
 
 
 PARALLEL_PARTS = 64  # a parallel loop's parts, each with its own work arrays (several per core: balanced)
 
 
-_threads = {"allowed": False}
+_threads = {"allowed": True}
 
 
 def allow_threads(allowed: bool = True) -> None:
-    """Let batches of ≥ PARALLEL_MIN poses run on every core (numba's thread pool). Off by default:
-    the live node solves one pose at a time and keeps no thread pool; the offline commands
-    (replay, fleet, calibrate, capacity) turn it on."""
+    """Whether batches of ≥ PARALLEL_MIN poses run on every core (numba's thread pool). On by default
+    (``Solver.solve_batch``, the offline commands); the live node turns it off (it solves a pose at a
+    time and keeps no thread pool), and so do a fleet's workers (one process per core already)."""
     _threads["allowed"] = allowed
+
+
+def threads_allowed() -> bool:
+    """Whether batches of ≥ PARALLEL_MIN poses run on every core (``allow_threads``)."""
+    return _threads["allowed"]
 
 
 def _parallel(n_pose: int) -> bool:
