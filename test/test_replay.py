@@ -24,6 +24,7 @@ from linkage_monitor.cli.main import main as cli_main
 from linkage_monitor.mechanics import load_preset
 from linkage_monitor.offline.history import LoadHistory
 from linkage_monitor.offline import replay as replay_module
+from linkage_monitor.offline import replay_outputs
 from linkage_monitor.mechanics.reduced import DEAD_CENTRE_TRANSMISSION_DEG
 from linkage_monitor.sim.telemetry import Noise, simulate
 
@@ -207,17 +208,17 @@ def test_replay_pauses_the_cyclic_gc_only_while_it_runs(ros2_bag: Path, tmp_path
     """A replay runs with the cyclic garbage collector paused (it only walks the Steps the replay keeps)
     and leaves it as it found it: on after a replay and after one that fails, off when it was off."""
     seen: list[bool] = []
-    original = replay_module._BagOutput.write
+    original = replay_outputs.BagOutput.write
 
     def spy(*args, **kwargs):
         seen.append(gc.isenabled())
         return original(*args, **kwargs)
 
-    replay_module._BagOutput.write = spy  # type: ignore[method-assign]
+    replay_outputs.BagOutput.write = spy  # type: ignore[method-assign]
     try:
         replay_module.replay(ros2_bag, load_preset("belarus_1221"), out_dir=tmp_path / "out", progress=None)
     finally:
-        replay_module._BagOutput.write = original  # type: ignore[method-assign]
+        replay_outputs.BagOutput.write = original  # type: ignore[method-assign]
     assert seen and not any(seen) and gc.isenabled()
     with pytest.raises(replay_module.BagError):
         replay_module.replay(tmp_path / "no_such_bag", progress=None)

@@ -25,7 +25,7 @@ from collections import Counter
 from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Iterator, ParamSpec, TextIO, TypeVar
+from typing import Callable, Iterator, ParamSpec, TextIO, TypeVar
 
 import numpy as np
 from rclpy.serialization import deserialize_message
@@ -34,27 +34,21 @@ from tqdm import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
 from linkage_monitor.bag.reader import RawMessage, read_bag, read_bag_raw
-from linkage_monitor.bag.step_recorder import RecordedInput, StepRecorder
+from linkage_monitor.bag.step_recorder import RecordedInput
 from linkage_monitor.bag.errors import BagError
-from linkage_monitor.bag.writer import MECHANISM_TOPIC, BagWriter
+from linkage_monitor.bag.writer import MECHANISM_TOPIC
 from linkage_monitor.mechanics import Mechanism, Status, mechanism_from_text
 from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
 from linkage_monitor.monitoring.core import Monitor, Run, Segment, Step
 from linkage_monitor.monitoring.events import ConfigEvent, Event, InputEvent
 from linkage_monitor.monitoring.input_columns import InputColumns
-from linkage_monitor.monitoring.findings import Level
-from linkage_monitor.monitoring.implement_mass import weighing_series
 from linkage_monitor.monitoring.weighing import WeighingEstimate, estimate_text
-from linkage_monitor.wire.outputs import OutputEncoder, per_step
 from linkage_monitor.wire.input_block import input_items
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, IMU, JOINT_STATE
 
 from .history import HistoryRecorder, LoadHistory
+from .replay_outputs import ENCODE_BLOCK, BagOutput, RerunOutput
 
-if TYPE_CHECKING:
-    from linkage_monitor.viz.rerun_view import RerunView
-
-ENCODE_BLOCK = 4096   # inputs replayed at once: read, solved, accounted, encoded and written, then let go
 READ_BLOCK = 1024     # input messages read from their bytes at once
 
 
@@ -338,8 +332,8 @@ class _Replayer:
         """The summary of the whole replay (its outputs written)."""
         monitor = Monitor(self.description, self.config)
         raw: list[RecordedInput] = []
-        output: _BagOutput | None = None
-        view: _RerunOutput | None = None
+        output: BagOutput | None = None
+        view: RerunOutput | None = None
         try:
             # with a bar, what the reader finds (a cut file, a skipped chunk) is written on a line of its own
             bar_shown = self.progress is not None
@@ -351,7 +345,7 @@ class _Replayer:
                     if not self.summary.inputs:
                         self.summary.start_ns = inputs[0].stamp_ns
                         output = self._bag_output(inputs[0].receive_ns)
-                        view = _RerunOutput(self.rrd, self.description) if self.rrd is not None else None
+                        view = RerunOutput(self.rrd, self.description) if self.rrd is not None else None
                     self.summary.inputs += len(inputs)
                     _account(self.summary, piece)
                     if output is not None:
@@ -376,58 +370,11 @@ class _Replayer:
         self.summary.seconds = time.perf_counter() - self.started
         return self.summary
 
-    def _bag_output(self, first_receive_ns: int) -> _BagOutput | None:
+    def _bag_output(self, first_receive_ns: int) -> BagOutput | None:
         """The output bag (begun at the first input's receive time), or None when none is asked for."""
         if self.out_dir is None:
             return None
-        return _BagOutput(self.out_dir, self.description, self.config, first_receive_ns, self.rate)
-
-
-class _BagOutput:
-    """The output bag: inputs (their recorded bytes, unchanged), outputs and diagnostics in recording
-    order, as the node records them (``bag.step_recorder``), ENCODE_BLOCK steps at a time: their outputs
-    encoded at once (``OutputEncoder.output_rows``, with the monitor in the steps' configuration) and,
-    as fast as possible, all their messages written at once (``StepRecorder.steps``). With ``rate`` the
-    messages go one by one (``StepRecorder.input``, ``step``), each input's written at its receive time
-    scaled by 1 / ``rate`` from the first: a block written at once cannot keep that pace."""
-
-    def __init__(self, out_dir: Path, description: Mechanism, config: MonitorConfig, first_receive_ns: int,
-                 rate: float | None) -> None:
-        from linkage_monitor.wire.markers import DEFAULT_RATE_HZ
-        from linkage_monitor.wire.step_messages import StepMessenger
-
-        self.writer = BagWriter(out_dir)
-        try:
-            self.recorder = StepRecorder(self.writer, config.topics)
-            self.recorder.begin(description, config, first_receive_ns)
-        except BaseException:
-            self.writer.close()
-            raise
-        self.messenger = StepMessenger(description, f"linkage_monitor: {description.name}", DEFAULT_RATE_HZ)
-        self.encoder = OutputEncoder()
-        self.first, self.rate, self.pace_start = first_receive_ns, rate, time.perf_counter()
-
-    def write(self, monitor: Monitor, raw: list[RecordedInput], piece: Run) -> None:
-        """The messages of a piece's steps (``raw``: their inputs, in order)."""
-        for start in range(0, len(raw), ENCODE_BLOCK):
-            inputs, steps = raw[start:start + ENCODE_BLOCK], piece.steps[start:start + ENCODE_BLOCK]
-            outputs = self.encoder.output_rows(monitor, steps)
-            if not self.rate:
-                besides = self.messenger.sent_of(steps, [r.receive_ns for r in inputs])
-                stamps = np.fromiter((step.stamp_ns for step in steps), np.int64, len(steps))
-                self.recorder.steps(inputs, stamps, besides, outputs)
-                continue
-            sent = self.messenger.messages_of(steps, per_step(outputs, len(steps)), [r.receive_ns for r in inputs])
-            for recorded, messages in zip(inputs, sent):
-                receive = recorded.receive_ns
-                delay = (receive - self.first) * 1e-9 / self.rate - (time.perf_counter() - self.pace_start)
-                if delay > 0:
-                    time.sleep(delay)
-                self.recorder.input(recorded.topic, recorded.type_name, recorded.data, recorded.stamp_ns, receive)
-                self.recorder.step(messages, receive)
-
-    def close(self) -> None:
-        self.writer.close()
+        return BagOutput(self.out_dir, self.description, self.config, first_receive_ns, self.rate)
 
 
 def _account(summary: Summary, run: Run) -> None:
@@ -460,45 +407,3 @@ def _smallest(values: np.ndarray | None, solved: np.ndarray, at: np.ndarray,
     if candidates[k] < math.inf and (smallest is None or candidates[k] < smallest[0]):
         return float(candidates[k]), float(at[k])
     return smallest
-
-
-class _RerunOutput:
-    """The Rerun recording: every solved pose as columns (one send per entity per piece), refused
-    inputs as status text; opened at the first piece, its hinge plot showing the largest hinges of
-    the first piece's first segment."""
-
-    def __init__(self, path: Path, description: Mechanism) -> None:
-        self.path, self.description = path, description
-        self.view: RerunView | None = None
-
-    def log(self, piece: Run) -> None:
-        from linkage_monitor.viz.rerun_estimates import budget_bands
-        from linkage_monitor.viz.rerun_view import RerunView, default_blueprint, largest_hinges, machine_series
-
-        segments = piece.segments
-        if self.view is None:
-            hinges = largest_hinges(segments[0].batch) if segments else None
-            weighing = bool(segments) and segments[0].config.implement_mass_source != "file"
-            self.view = RerunView.to_file(self.description, self.path, blueprint=default_blueprint(
-                self.description, hinges=hinges, weighing=weighing))
-        view = self.view
-        solved_in_batch = {int(i) for seg in segments for i in seg.steps}   # log_batch reports the solver's rejections
-        for i, s in enumerate(piece.steps):
-            if s.pose is None and s.level == Level.ERROR and i not in solved_in_batch:
-                view.log_status(s.stamp_ns, s.message)
-        for seg in segments:
-            m = seg.machine
-            steps = [piece.steps[i] for i in seg.steps.tolist()]
-            bands = (budget_bands(self.description, [s.pose.budget if s.pose is not None else None for s in steps])
-                     if seg.config.uncertainty else None)
-            view.log_batch(seg.stamps_ns, seg.batch, machine_series(m.steerability, m.lift_capacity,
-                                                                    seg.batch.transmission_angle,
-                                                                    seg.config.dead_centre_transmission_deg), bands)
-            implement = self.description.implement
-            if seg.config.implement_mass_source != "file" and implement is not None:
-                view.log_weighing(seg.stamps_ns, seg.batch.body_poses[implement.body],
-                                  **weighing_series([s.weighing for s in steps])._asdict())
-
-    def close(self) -> None:
-        if self.view is not None:
-            self.view.close()
