@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-from linkage_monitor.mechanics.uncertainty import Budget, OutputUncertainty
+from linkage_monitor.mechanics.budget import Budget, OutputUncertainty
 
 SHOWN_SHARE = 0.005       # the text table names the sources of at least this share of u²
 

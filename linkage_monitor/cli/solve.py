@@ -27,7 +27,7 @@ from linkage_monitor.mechanics import (InputError, Inputs, Mechanism, Result, So
 from linkage_monitor.mechanics.calibration import drive_mechanism
 from linkage_monitor.mechanics.machine import CAPACITY_KEYS, STEERABILITY_KEYS, MachineResult
 from linkage_monitor.mechanics.results import Status, angle_readings
-from linkage_monitor.mechanics.uncertainty import Budget
+from linkage_monitor.mechanics.budget import Budget
 from linkage_monitor.monitoring.core import Step
 from linkage_monitor.monitoring.name_value import name_value, number
 

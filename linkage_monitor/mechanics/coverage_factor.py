@@ -2,7 +2,7 @@
 propagation of distributions, for the two shapes the declared sources have).
 
 An output's error is a sum of independent terms, each a source's contribution c (the output's unit,
-``uncertainty.Budget.contributions``): a normal one for a sensor's bias and noise and the implement's
+``budget.Budget.contributions``): a normal one for a sensor's bias and noise and the implement's
 mass, a uniform one over ±√3·|c| for a quantization step and a standing seal's friction, and over 0 to
 ±√3·c for a moving seal's friction, whose sign the motion gives (``Source.uniform``, ``coverage_factors``). The
 95 % interval is value ± k·u, k the 95 % quantile of |error| / u. For normal terms alone k = 1.96;

@@ -26,7 +26,7 @@ from linkage_monitor.mechanics.error_sources import ErrorSources, Motion
 from linkage_monitor.mechanics.inputs import Inputs
 from linkage_monitor.mechanics.model import Mechanism
 from linkage_monitor.mechanics.results import Result
-from linkage_monitor.mechanics.uncertainty import Budget
+from linkage_monitor.mechanics.budget import Budget
 
 from .checks import LOAD_AMPLIFICATION_WARN, Check
 from .findings import Code, Finding, fmt

@@ -25,7 +25,8 @@ from linkage_monitor.mechanics import (AssemblyError, DeadCentreError, InputErro
 from linkage_monitor.mechanics.dynamics import DYNAMIC_MARGIN
 from linkage_monitor.mechanics.machine import MachineBatch, MachineModel, MachineResult
 from linkage_monitor.mechanics.programs import ValueRow
-from linkage_monitor.mechanics.uncertainty import Budget, UncertaintyModel
+from linkage_monitor.mechanics.budget import Budget
+from linkage_monitor.mechanics.uncertainty import UncertaintyModel
 
 from .bounds import LimitUncertainties, MotionTracker, interval_checks
 from .checks import Check, CheckedValues, pose_checks

@@ -16,7 +16,7 @@ from linkage_monitor.mechanics import BatchResult, Inputs, Mechanism, Result
 from linkage_monitor.mechanics.dynamics import DYNAMIC_FRONT, DYNAMIC_MARGIN, BodyAcceleration
 from linkage_monitor.mechanics.error_sources import Motion
 from linkage_monitor.mechanics.machine import MachineBatch, MachineResult
-from linkage_monitor.mechanics.uncertainty import Budget
+from linkage_monitor.mechanics.budget import Budget
 
 from .bounds import uncertainty_values
 from .config import MonitorConfig

@@ -26,7 +26,7 @@ from linkage_monitor.monitoring.findings import Code
 from .sensor_errors import SensorErrorSimulator, TrueInputs
 from .telemetry import SimulatedStream, simulate
 
-# output kind (mechanics.uncertainty.Output.kind) -> the group it is tallied in
+# output kind (mechanics.budget.Output.kind) -> the group it is tallied in
 KIND_GROUPS = {"hinge_fx": "hinge force", "hinge_fz": "hinge force", "hinge_magnitude": "hinge force",
                "cylinder_force": "cylinder force", "implement_load": "implement load", "axle_load": "axle load",
                "steerability_ratio": "steerability ratio", "lift_reserve": "lift reserve",

@@ -14,7 +14,7 @@ matplotlib.use("Agg")  # files only, no display needed
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from linkage_monitor.mechanics.uncertainty import Budget  # noqa: E402
+from linkage_monitor.mechanics.budget import Budget  # noqa: E402
 
 
 def plot_budget(lengths: np.ndarray, budgets: Sequence[Budget], outputs: Sequence[str], xlabel: str, title: str,

@@ -20,7 +20,7 @@ import numpy as np
 import rerun as rr
 
 from linkage_monitor.mechanics import Mechanism
-from linkage_monitor.mechanics.uncertainty import Budget
+from linkage_monitor.mechanics.budget import Budget
 
 COVERAGE_FACTOR = 1.96   # the weighing estimate's 95 % half-width in standard uncertainties (WeighingEstimate.interval)
 BAND_PARTS = ("low95", "high95")

@@ -18,7 +18,8 @@ import numpy as np
 from linkage_monitor.mechanics import LinkageError, Mechanism, Solver, load_preset
 from linkage_monitor.mechanics.machine import STEERABILITY_KEYS, MachineModel, MachinePose
 from linkage_monitor.mechanics.inputs import Inputs
-from linkage_monitor.mechanics.uncertainty import Budget, UncertaintyModel, force_per_pressure
+from linkage_monitor.mechanics.budget import Budget
+from linkage_monitor.mechanics.uncertainty import UncertaintyModel, force_per_pressure
 from linkage_monitor.monitoring.core import ASSEMBLY_LIMIT_M
 from linkage_monitor.sim.telemetry import simulate
 

@@ -16,7 +16,7 @@ from linkage_monitor.mechanics import Mechanism, Result
 from linkage_monitor.monitoring.core import Monitor, Step
 from linkage_monitor.msg import CylinderState, HingeReaction, HingeReactions, HitchState, Steerability
 from linkage_monitor.ros.messages import header
-from linkage_monitor.mechanics.uncertainty import Budget
+from linkage_monitor.mechanics.budget import Budget
 from linkage_monitor.wire.outputs import (HITCH_UNCERTAINTIES, STEERABILITY_UNCERTAINTIES, WEIGHING_FIELDS,
                                           hinge_status, hitch_status, steerability_reference, weighing_flags,
                                           weighing_row)
