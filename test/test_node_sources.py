@@ -55,7 +55,11 @@ def _node(tmp_path: Path, **params) -> tuple[subprocess.Popen, MonitorClient]:
     proc = start_node({"mechanism": "belarus_1221", "record_dir": str(tmp_path / "bags"), "sensor_qos": "reliable",
                        "pressure_topics": ["none"], "staleness_limit": 0.5, **params}, tmp_path / "node.log")
     client = MonitorClient(pressure_topics=())
-    client.wait_for_node()
+    try:
+        client.wait_for_node()
+    except BaseException:
+        _end(proc, client)
+        raise
     return proc, client
 
 
