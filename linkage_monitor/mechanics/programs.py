@@ -148,6 +148,20 @@ class OutputsProgram(NamedTuple):
     measure_count: int
 
 
+class FrameRows(NamedTuple):
+    """What ``kernels.batch_outputs`` takes of a statics layout and a result layout
+    (``ResultLayout.frame_rows``): the hinges' columns (H, 2) in the unknowns, and the frame loads as
+    ``OutputsProgram`` has them: their attachments (F,), the frame-side hinges' indices and signs, the
+    frame-side member ends' member indices and signs."""
+
+    hinge_cols: np.ndarray
+    frame_att: np.ndarray
+    frame_hinge_index: np.ndarray
+    frame_hinge_sign: np.ndarray
+    frame_member_index: np.ndarray
+    frame_member_sign: np.ndarray
+
+
 class MachineProgram(NamedTuple):
     """The machine-level results in the live solve (``MachineModel.program``): the steerability
     parameters (``kernels.STEERABILITY_PARAMETERS``; empty: no tractor block); for the lift

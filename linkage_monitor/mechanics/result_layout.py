@@ -13,6 +13,7 @@ import numpy as np
 
 from . import kernels
 from .model import Mechanism
+from .programs import FrameRows
 from .reduced import ReducedSolution
 from .results import BatchResult, ResultNames
 from .statics import StaticsLayout, StaticsSolution
@@ -59,9 +60,22 @@ class ResultLayout:
         self.frame_hinge_sign = np.array([[sg] for _, _, sg in self.frame_hinges]).reshape(-1, 1)
         self.frame_member_index = np.array([m for m, _, _ in self.frame_members], dtype=np.intp)
         self.frame_member_sign = np.array([[sg] for _, _, sg in self.frame_members]).reshape(-1, 1)
+        self._frame_rows: dict[frozenset[str], FrameRows] = {}
         self.names = ResultNames(tuple(self.point_att), tuple(b.name for b in mech.moving_bodies),
                                  tuple((h.name, h.bodies[1], h.bodies[0]) for h in mech.hinges),
                                  tuple(c.name for c in mech.cylinders), tuple(c.name for c in mech.contacts))
+
+    def frame_rows(self, layout: StaticsLayout) -> FrameRows:
+        """The ``FrameRows`` of poses solved with ``layout`` (``kernels.batch_outputs``), built once per layout."""
+        rows = self._frame_rows.get(layout.force_known)
+        if rows is None:
+            rows = self._frame_rows[layout.force_known] = FrameRows(
+                hinge_cols=np.ascontiguousarray(layout.hinge_cols, dtype=np.int64), frame_att=self.frame_att.astype(np.int64),
+                frame_hinge_index=self.frame_hinge_index.astype(np.int64),
+                frame_hinge_sign=self.frame_hinge_sign.ravel().astype(float),
+                frame_member_index=self.frame_member_index.astype(np.int64),
+                frame_member_sign=self.frame_member_sign.ravel().astype(float))
+        return rows
 
     def batch(self, n_pose: int, q: np.ndarray, p: np.ndarray, u: np.ndarray,
               sol: StaticsSolution | ReducedSolution, layout: StaticsLayout, measured_force: np.ndarray,
@@ -75,8 +89,6 @@ class ResultLayout:
         for k, c in enumerate(mech.cylinders):
             f = measured_force[:, k] if c.name in layout.force_known else u[:, layout.cyl_col[c.name]]
             cyl_force[c.name] = np.where(failed, np.nan, f)
-        hinges = np.ascontiguousarray(u[:, layout.hinge_cols])   # (N, H, 2): one gather; the dict holds its views
-        hinge_force = {h.name: hinges[:, i] for i, h in enumerate(mech.hinges)}
         contact_n = {c.name: u[:, layout.contact_col[c.name]] for c in mech.contacts}
         imp = mech.implement
         if layout.implement_col is not None:
@@ -88,12 +100,9 @@ class ResultLayout:
         cylinders = np.column_stack(list(cyl_force.values())) if cyl_force else np.zeros((n_pose, 0))   # (N, C)
         member_force = np.concatenate([sol.spring_force, cylinders], axis=1)
         axes = np.concatenate([sol.spring_axis, sol.cylinder_axis], axis=1)
-        # the frame loads (N, F, 2): frame-side hinges, then member ends, each a gather of all poses
-        members = self.frame_member_index
-        frame_forces = np.concatenate([self.frame_hinge_sign * hinges[:, self.frame_hinge_index],
-                                       self.frame_member_sign * member_force[:, members, None] * axes[:, members]],
-                                      axis=1)
-        largest = kernels.largest_forces(hinges, cylinders)
+        # the hinge forces (N, H, 2), frame loads (N, F, 2) and largest forces of all poses in one compiled pass
+        out = kernels.batch_outputs(u, p, member_force, axes, cylinders, self.frame_rows(layout))
+        hinge_force = {h.name: out.hinge_force[:, i] for i, h in enumerate(mech.hinges)}
         return BatchResult(
             points={n: p[:, a] for n, a in self.point_att.items()},
             body_poses={b.name: q[:, 3 * i:3 * i + 3] for i, b in enumerate(mech.moving_bodies)},
@@ -107,9 +116,9 @@ class ResultLayout:
             implement_load=imp_load,
             implement_cg=p[:, self.cg_att] if self.cg_att is not None else np.full((n_pose, 2), np.nan),
             frame_load_names=list(self.frame_load_names),
-            frame_load_points=p[:, self.frame_att], frame_load_forces=frame_forces,
+            frame_load_points=out.frame_points, frame_load_forces=out.frame_forces,
             residual=np.where(failed, np.nan, sol.residual), consistency_residual=np.zeros(n_pose),
-            condition=np.zeros(n_pose), largest_force=largest, status=np.zeros(n_pose, dtype=int),
+            condition=np.zeros(n_pose), largest_force=out.largest, status=np.zeros(n_pose, dtype=int),
             messages=[""] * n_pose,
             transmission_angle=np.full(n_pose, np.nan), weakest_transmission=[""] * n_pose,
             load_amplification=np.full(n_pose, np.nan))

@@ -38,15 +38,16 @@ from .linalg import closed_step, det_sign, factor_and_condition, gram, lu_factor
 from .live import NO_MACHINE, live_buffer, live_programs, live_rows, live_series  # noqa: E402
 from .reduced import (smallest_sine, smallest_sines, solve_reduced_statics,  # noqa: E402
                       step_transmission, transmission_batch, transmission_pose)
-from .rows import largest_force, largest_forces, measured_force, measured_forces, pack_row, pack_rows  # noqa: E402
+from .rows import (BatchOutputs, batch_outputs, frame_loads, largest_force, measured_force,  # noqa: E402
+                   measured_forces, pack_row, pack_rows)
 from .steerability import (N_STEERABILITY, STEERABILITY_COLUMNS, STEERABILITY_PARAMETERS,  # noqa: E402
                            steerability_pose, steerability_rows)
 from .threads import PARALLEL_MIN, PARALLEL_PARTS, allow_threads, threads_allowed  # noqa: E402
 
-__all__ = ["NO_MACHINE", "N_STEERABILITY", "PARALLEL_MIN", "PARALLEL_PARTS", "STEERABILITY_COLUMNS",
+__all__ = ["BatchOutputs", "NO_MACHINE", "N_STEERABILITY", "PARALLEL_MIN", "PARALLEL_PARTS", "STEERABILITY_COLUMNS",
            "STEERABILITY_PARAMETERS", "allow_threads",
-           "assembled", "assembled_batch", "chain_fit", "chain_pose", "closed_step", "condition", "coverage_factors", "det_sign",
-           "equilibrium_matrix", "factor_and_condition", "gram", "largest_force", "largest_forces", "lift_capacity",
+           "assembled", "assembled_batch", "batch_outputs", "chain_fit", "chain_pose", "closed_step", "condition", "coverage_factors", "det_sign",
+           "equilibrium_matrix", "factor_and_condition", "frame_loads", "gram", "largest_force", "lift_capacity",
            "live_buffer", "live_programs", "live_rows", "live_series", "loop_signs", "lu_factor", "lu_solve",
            "measured_force", "measured_forces", "newton", "newton_batch", "pack_row", "pack_rows", "positions",
            "positions_batch", "residual_jacobian", "residual_jacobian_batch", "smallest_sine", "smallest_sines",

@@ -17,7 +17,7 @@ from .capacity import CapacityJob, _capacity_pose, _reserve
 from .closure import positions
 from .equilibrium import StaticsJob, _statics_pose
 from .reduced import ReducedJob, _reduced_pose, _reduced_work, smallest_sine
-from .rows import largest_force, measured_force, pack_row
+from .rows import frame_loads, largest_force, measured_force, pack_row
 from .steerability import N_STEERABILITY, steerability_pose
 
 
@@ -204,18 +204,8 @@ def _live_pose_at(i, buffer, start: LiveStart, limit, max_condition, programs):
         cylinder[2] = force * outputs.per_cap_area[k]
         cylinder[3], cylinder[4] = pressures[i, 0, k], pressures[i, 1, k]
     rows.pose[i].largest_force = largest_force(rows.hinge_force[i], rows.cylinder_values[i, :, 1])
-    n_frame_hinges = outputs.frame_hinge_index.shape[0]
     frame_points, frame_forces = rows.frame_load_points[i], rows.frame_load_forces[i]
-    for j in range(outputs.frame_att.shape[0]):   # the forces ON the ground body: hinges, then member ends
-        a = outputs.frame_att[j]
-        frame_points[j, 0], frame_points[j, 1] = p1[a, 0], p1[a, 1]
-        if j < n_frame_hinges:
-            sign, h = outputs.frame_hinge_sign[j], outputs.frame_hinge_index[j]
-            frame_forces[j, 0], frame_forces[j, 1] = sign * rows.hinge_force[i, h, 0], sign * rows.hinge_force[i, h, 1]
-        else:
-            e = outputs.frame_member_index[j - n_frame_hinges]
-            f = outputs.frame_member_sign[j - n_frame_hinges] * member_force[0, e]
-            frame_forces[j, 0], frame_forces[j, 1] = f * axes[0, e, 0], f * axes[0, e, 1]
+    frame_loads(frame_points, frame_forces, p1, rows.hinge_force[i], member_force[0], axes[0], outputs)
     if outputs.cg_att >= 0:
         rows.implement_cg[i, 0], rows.implement_cg[i, 1] = p1[outputs.cg_att, 0], p1[outputs.cg_att, 1]
     load = u[outputs.implement_col] if outputs.implement_col >= 0 else outputs.implement_weight

@@ -75,7 +75,7 @@ def smallest_sine(sine: np.ndarray, weakest: int) -> float:
     return 0.0 if math.isnan(value) else min(value, 1.0)
 
 
-# The batch loop of a per-pose function, written out as rows.largest_forces' is: a compiled function
+# The batch loop of a per-pose function, written out (as rows.batch_outputs' is): a compiled function
 # given another as an argument is compiled again at every start (numba keeps no cache of it).
 @njit(cache=True)
 def smallest_sines(sine: np.ndarray, weakest: np.ndarray) -> np.ndarray:
