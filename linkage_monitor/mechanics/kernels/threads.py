@@ -4,8 +4,9 @@ from __future__ import annotations
 
 
 # poses: smaller batches stay on the calling thread (no thread-pool wake-up). A batch's kinematics
-# (belarus_1221, 2 cores, the second idle) take half the time on 2 threads from ~64 poses on; with
-# the other core busy a wake-up can wait for the scheduler (ms): the threshold keeps that rare
+# (belarus_1221, 2 cores, the second idle) take 0.6 of their one-thread time on 2 threads at 64
+# poses, half from 256 on; with the other core busy a wake-up can wait for the scheduler (ms): the
+# threshold keeps that rare
 PARALLEL_MIN = 512
 
 
