@@ -97,6 +97,26 @@ def test_without_a_recent_imu_message_the_dynamic_values_are_nan_and_a_foreign_f
     assert np.isnan(steps[-1].pose.dynamic).all()   # every IMU message refused: none in use
 
 
+@pytest.mark.parametrize("fault, hint", [("gravity removed", "gravity removed"), ("1e308", "gravity removed"),
+                                         ("gyro in deg/s", "deg/s sent as rad/s")])
+def test_an_implausible_imu_reading_is_refused_and_the_solve_is_as_without_an_imu(fault, hint):
+    """An IMU publishing its acceleration with gravity removed (f_z ≈ 0: the implement at rest would
+    weigh P·g/(g + a) → ∞), an absurd one, or its gyro in deg/s: each message refused out_of_range with
+    the hint, none in use; the static steerability is that without an IMU, the dynamic one NaN."""
+    mech = load_preset("belarus_1221")
+    config = _config(mech)
+    events = _events(mech, 0.0)
+    change = {"gravity removed": {"specific_force_z": 0.05},
+              "1e308": {"specific_force_z": 1e308},
+              "gyro in deg/s": {"rate_y": np.degrees(0.1)}}[fault]
+    events = [replace(e, **change) if isinstance(e, ImuEvent) else e for e in events]
+    for steps in (step_by_step(mech, config, events), Monitor(mech, config).run(events).steps):
+        refused = [s for s in steps[:-1]]
+        assert all(s.findings and s.findings[0].code is Code.OUT_OF_RANGE and hint in s.message for s in refused)
+        pose = steps[-1].pose
+        assert np.isnan(pose.dynamic).all() and pose.machine.steerability == _static(mech, config)
+
+
 def test_the_weighing_takes_the_imu_s_vertical_acceleration():
     """The weighing (implement_mass_source 'estimate') over a simulated lift: without an IMU it uses the
     lifting steps; with an IMU reading 2 m/s² of heave (above its 0.03·g threshold) every moving step

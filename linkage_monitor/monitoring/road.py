@@ -20,6 +20,7 @@ from typing import Sequence
 import numpy as np
 
 from linkage_monitor.mechanics import Mechanism
+from linkage_monitor.mechanics.constants import STANDARD_GRAVITY
 from linkage_monitor.mechanics.dynamics import (DYNAMIC_KEYS, BodyAcceleration, ImplementAtRest, PitchAcceleration,
                                                 RestLoad, RoadBalance, imu_body_acceleration, implement_at_rest,
                                                 road_balance)
@@ -30,6 +31,13 @@ from .findings import Code, Finding, fmt
 from .inputs import NS, Refused
 
 NO_DYNAMIC = np.full(len(DYNAMIC_KEYS), math.nan)   # the dynamic values of a pose without an IMU reading
+# The plausible readings of an IMU on a tractor body driving on its wheels: the specific force along z
+# within g ± 0.8 g (the road's bumps are a few tenths of g; 0 is a reading with gravity removed, which
+# sensor_msgs/Imu's linear_acceleration includes, REP 145), the pitch rate within ±2 rad/s (a body on
+# its wheels pitches a few tenths of rad/s; a gyro in deg/s reads 57x more). A reading outside is
+# refused: it would take the implement's weight at rest (P·g/(g + a)) anywhere.
+SPECIFIC_FORCE_Z_RANGE = (0.2 * STANDARD_GRAVITY, 1.8 * STANDARD_GRAVITY)   # m/s²
+PITCH_RATE_MAX = 2.0   # rad/s
 
 
 class RoadInput:
@@ -58,6 +66,14 @@ class RoadInput:
         if not (math.isfinite(event.specific_force_z) and math.isfinite(event.rate_y)):
             raise Refused(Finding(Code.MALFORMED_INPUT, f"{what}: linear_acceleration.z {event.specific_force_z} m/s² "
                                   f"and angular_velocity.y {event.rate_y} rad/s must be finite"))
+        low, high = SPECIFIC_FORCE_Z_RANGE
+        if not low <= event.specific_force_z <= high:
+            raise Refused(Finding(Code.OUT_OF_RANGE, f"{what}: linear_acceleration.z {fmt(event.specific_force_z)} m/s² "
+                                  f"outside [{fmt(low)}, {fmt(high)}] m/s² (a body on its wheels feels g; gravity "
+                                  "removed, or not in m/s²?): not used"))
+        if abs(event.rate_y) > PITCH_RATE_MAX:
+            raise Refused(Finding(Code.OUT_OF_RANGE, f"{what}: angular_velocity.y {fmt(event.rate_y)} rad/s beyond "
+                                  f"±{fmt(PITCH_RATE_MAX)} rad/s (deg/s sent as rad/s?): not used"))
         if event.stamp_ns < self._stamp_ns:
             raise Refused(Finding(Code.OUT_OF_ORDER, f"{what}: stamped {fmt((self._stamp_ns - event.stamp_ns) / 1e6)} "
                                   "ms before the one in use: not applied"))
