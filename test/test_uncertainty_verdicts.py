@@ -7,7 +7,9 @@ give the same verdicts and budgets; without the option the verdicts are today's.
 
 from __future__ import annotations
 
+import warnings
 from collections import Counter
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -186,3 +188,27 @@ def test_an_axle_load_whose_interval_reaches_below_zero_names_the_machine_tippin
     assert [f.code for f in findings] == [Code.AXLE_LOAD_UNCERTAIN]
     assert "rear axle load" in findings[0].text and "tip over its front axle" in findings[0].text
     assert "dominant source lift_cylinder seal friction" in findings[0].text
+
+
+def test_an_infinite_uncertainty_reads_as_unbounded() -> None:
+    """A contribution that is infinite (the lift reserve where a moved pose's lift capacity is infinite,
+    near ttz1080_base_change's pivot O) is an unbounded u, as a NaN one is: no share, no dominant source,
+    no half-width, and the verdict on it straddles (WARN, never OK); read without a RuntimeWarning."""
+    step = _judged(10.132e6)
+    contributions = step.pose.budget.contributions.copy()
+    row = step.pose.budget.index["lift_reserve"]
+    contributions[row, 0] = -np.inf
+    budget = replace(step.pose.budget, contributions=contributions)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        line = budget.line("lift_reserve")
+        assert np.isnan(line.u) and np.isnan(line.half_width) and np.isnan(budget.half_width_of("lift_reserve"))
+        assert set(line.shares.values()) == {0.0} and line.dominant == ""
+        limits = LimitUncertainties.of(budget)
+        assert np.isnan(limits.reserve) and np.isfinite(limits.margin)
+        bits = int(interval_checks(budget.line("front_axle_load").value, budget.line("rear_axle_load").value,
+                                   budget.line("steerability_margin").value, line.value, limits))
+        assert bits == int(Check.LIFT_RESERVE_UNCERTAIN)   # the reserve's interval unbounded: it straddles
+        findings = uncertain_findings(Check.LIFT_RESERVE_UNCERTAIN, budget, MECH, step.pose.machine.value("total_weight"))
+        assert [f.code for f in findings] == [Code.LIFT_RESERVE_UNCERTAIN] and "unbounded" in findings[0].text
+    assert budget.line("implement_load").u == step.pose.budget.line("implement_load").u   # the other rows as they were

@@ -101,16 +101,19 @@ class Budget:
 
     @cached_property
     def u(self) -> np.ndarray:
-        """Standard uncertainty (n_out,) of every output (NaN where a contribution is)."""
-        return np.sqrt(np.sum(self.contributions**2, axis=1))
+        """Standard uncertainty (n_out,) of every output: NaN (unbounded) where a contribution is NaN or
+        infinite (e.g. the lift reserve where a moved pose's lift capacity is infinite)."""
+        u = np.sqrt(np.sum(self.contributions**2, axis=1))
+        return np.where(np.isfinite(u), u, math.nan)
 
     @cached_property
     def k(self) -> np.ndarray:
         """The 95 % coverage factor (n_out,) of every output from the shape of its budget: 1.96 where the
         normal sources dominate, down to 1.645 where one uniform source does, 1.69 where a moving seal's
         friction (its sign known) does (``coverage_factor.coverage_factors``)."""
-        return coverage_factors(self.contributions.reshape(len(self.outputs), len(self.sources)), self.uniform,
-                                self.sign)
+        factors = coverage_factors(self.contributions.reshape(len(self.outputs), len(self.sources)), self.uniform,
+                                   self.sign)
+        return np.where(np.isfinite(self.u), factors, math.nan)
 
     @cached_property
     def half_width(self) -> np.ndarray:
@@ -118,7 +121,7 @@ class Budget:
         return self.k * self.u
 
     def line(self, name: str) -> OutputUncertainty:
-        """The budget line of the output called ``name``."""
+        """The budget line of the output called ``name``; unbounded (u NaN) it names no share (all 0)."""
         k = self.index[name]
         u = float(self.u[k])
         squares = self.contributions[k] ** 2
