@@ -24,6 +24,7 @@ from linkage_monitor.mechanics.error_sources import Motion
 from linkage_monitor.mechanics.machine import MachineModel
 from linkage_monitor.mechanics.uncertainty import UncertaintyModel
 from linkage_monitor.monitoring.core import ASSEMBLY_LIMIT_M
+from linkage_monitor.monitoring.motion import MOTION_WINDOW_S
 from linkage_monitor.msg import HitchState
 from linkage_monitor.sim.friction import SealFriction
 from linkage_monitor.sim.telemetry import Noise
@@ -32,6 +33,7 @@ from support.lift_pose import lift_pose
 from support.ros_harness import node_bag, read_bag_rosbags, running_node, settle, stop
 from support.rerun_tables import temporal_tables
 
+MOTION_WINDOW_NS = int(MOTION_WINDOW_S * 1e9)
 T0 = (time.time_ns() // 10**9) * 10**9  # ns, now (whole s): the node refuses stamps far from its clock
 JOINTS = ["lift_cylinder", "lift_arm_angle"]
 PRESSURE_TOPIC = "pressure/lift_cap_pressure"
@@ -61,8 +63,8 @@ def _hitch_u(hitch) -> dict[str, float]:
 
 
 def test_published_standard_uncertainties_are_the_budget_of_the_same_inputs(budget_node):
-    """Each pose: the joint state, then its pressure (the pressure's solve: the cylinder standing since
-    the solve before, the friction's whole band). Every ``*_u`` field equals ``UncertaintyModel.budget``
+    """Each pose: the joint state, then its pressure (the pressure's solve: the cylinder standing over the
+    motion window, ``monitoring.motion.MOTION_WINDOW_S``, the poses further apart: the friction's whole band). Every ``*_u`` field equals ``UncertaintyModel.budget``
     of the same inputs, and the diagnostic of the first solved pose names each judged value's
     standard uncertainty and dominant source."""
     client, _, _ = budget_node
@@ -71,7 +73,7 @@ def test_published_standard_uncertainties_are_the_budget_of_the_same_inputs(budg
     cases = []
     for k, (stroke, gauge) in enumerate([(0.54, 9.9e6), (0.60, 8.7e6), (0.66, 9.4e6)]):
         s, angle = lift_pose(stroke)
-        stamp = T0 + k * 100_000_000
+        stamp = T0 + k * 2 * MOTION_WINDOW_NS
         client.publish_joint_state(stamp, JOINTS, [s, angle])
         client.spin_until(lambda: False, 0.3)   # two DDS writers keep no order between them
         client.publish_pressure(PRESSURE_TOPIC, stamp + 1000, gauge + ATMOSPHERIC_PRESSURE)

@@ -86,6 +86,29 @@ def test_readings_carry_the_drawn_bias_and_the_resolution_step() -> None:
     np.testing.assert_allclose(read["pressures"]["lift_cap_pressure"], 1.005e7)   # seal level 0: no friction
 
 
+def test_each_run_draws_where_the_resolution_steps_fall() -> None:
+    """The grid's zero of a quantized sensor is drawn once per run within ±step/2: a cylinder standing at one
+    length reads an error that differs from run to run, uniform over ±step/2 across runs (as the budget's
+    resolution source declares), where a grid at zero would read the same error in every run."""
+    mech = load_preset("belarus_1221")
+    simulator = SensorErrorSimulator(mech)
+    rng = np.random.default_rng(3)
+    truth = TrueInputs({"cylinders": {"lift_cylinder": np.full(2, 0.5354)}}, {"lift_cylinder": 0.0})
+    errors = []
+    for _ in range(2000):
+        run = simulator.draw(rng)
+        assert abs(run.grid["lift_cylinder"]) <= DEFAULT_STROKE_RESOLUTION / 2
+        read = simulator.readings(truth, run, rng)["cylinders"]["lift_cylinder"]
+        assert read[0] == read[1]   # on the run's grid: the same reading while the length stands
+        steps = (read[0] - run.grid["lift_cylinder"]) / DEFAULT_STROKE_RESOLUTION
+        assert steps == pytest.approx(round(steps), abs=1e-6)
+        errors.append(read[0] - 0.5354)
+    errors = np.array(errors) / DEFAULT_STROKE_RESOLUTION
+    assert np.abs(errors).max() <= 0.5 + 1e-9
+    # uniform over ±1/2 step: standard deviation 1/√12 = 0.289 (2,000 draws: ±0.005 at 1 sigma)
+    assert np.std(errors) == pytest.approx(1 / np.sqrt(12), abs=0.02) and abs(np.mean(errors)) < 0.03
+
+
 def test_seal_friction_follows_the_motion() -> None:
     """Moving: the level times the band, against the motion; standing: the breakaway band, the sign of
     the last motion (the run's drawn sign before any)."""

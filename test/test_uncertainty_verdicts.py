@@ -19,7 +19,8 @@ from linkage_monitor.cli.verdict import judge
 from linkage_monitor.mechanics import Inputs, Solver, apply_overrides, load_preset
 from linkage_monitor.mechanics.error_sources import Motion
 from linkage_monitor.mechanics.machine import MachineModel
-from linkage_monitor.monitoring.bounds import (LimitUncertainties, MotionTracker, ballast_at_bound, interval_checks,
+from linkage_monitor.monitoring.motion import MotionTracker
+from linkage_monitor.monitoring.bounds import (LimitUncertainties, ballast_at_bound, interval_checks,
                                                uncertain_findings, verdict_half_width)
 from linkage_monitor.monitoring.checks import Check
 from linkage_monitor.monitoring.core import Monitor
@@ -120,11 +121,30 @@ def test_the_cylinder_moves_beyond_its_deadband() -> None:
     tracker = MotionTracker.of(MECH, MECH.error_sources)
     # default stroke sensor: 1 mm steps, u = 0.29 mm: a change of 3·√2·0.29 mm = 1.2 mm is motion
     assert tracker.deadband["lift_cylinder"] == pytest.approx(3 * np.sqrt(2) * 1e-3 / np.sqrt(12))
-    first = tracker.motions(Inputs(cylinders={"lift_cylinder": 0.535}))
-    assert first == {"lift_cylinder": Motion.STANDING}
-    assert tracker.motions(Inputs(cylinders={"lift_cylinder": 0.5355})) == {"lift_cylinder": Motion.STANDING}
-    assert tracker.motions(Inputs(cylinders={"lift_cylinder": 0.540})) == {"lift_cylinder": Motion.LIFTING}
-    assert tracker.motions(Inputs(cylinders={"lift_cylinder": 0.530})) == {"lift_cylinder": Motion.LOWERING}
+    ms = 1_000_000
+
+    def motion(length: float, stamp_ms: int) -> Motion:
+        return tracker.motions(Inputs(cylinders={"lift_cylinder": length}), stamp_ms * ms)["lift_cylinder"]
+
+    assert motion(0.535, 0) is Motion.STANDING   # the first reading
+    assert motion(0.5355, 20) is Motion.STANDING
+    assert motion(0.540, 40) is Motion.LIFTING
+    assert motion(0.530, 60) is Motion.LOWERING   # against 0.535 at 0 ms, within the window
+
+
+def test_a_slow_rod_moves_over_the_window() -> None:
+    """A rod at 20 mm/s read by 1 mm steps at 50 Hz changes by 0 or 1 mm a reading (within the 1.2 mm
+    deadband) but 2 mm over the 0.1 s window: lifting, once the window holds that travel; a stop reads
+    standing once the window's change is back within the deadband."""
+    tracker = MotionTracker.of(MECH, MECH.error_sources)
+    stamps = np.arange(40) * 20_000_000   # 50 Hz
+    true = 0.535 + np.minimum(np.arange(40), 20) * 0.020 * 0.020   # 20 mm/s for 20 readings, then stands
+    read = np.round(true / 1e-3) * 1e-3
+    motions = [tracker.motions(Inputs(cylinders={"lift_cylinder": float(x)}), int(t))["lift_cylinder"]
+               for x, t in zip(read, stamps)]
+    assert all(abs(d) < tracker.deadband["lift_cylinder"] for d in np.diff(read))   # no reading to the next
+    assert motions[0] is Motion.STANDING and set(motions[5:20]) == {Motion.LIFTING}
+    assert set(motions[26:]) == {Motion.STANDING}   # 0.1 s (5 readings) and one step after the stop
 
 
 @pytest.mark.slow

@@ -16,14 +16,11 @@ whole interval clears its limit passes. One rule for the live pose (floats) and 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
 from linkage_monitor.mechanics.coverage_factor import NORMAL_FACTOR
-from linkage_monitor.mechanics.error_sources import ErrorSources, Motion
-from linkage_monitor.mechanics.inputs import Inputs
 from linkage_monitor.mechanics.model import Mechanism
 from linkage_monitor.mechanics.results import Result
 from linkage_monitor.mechanics.budget import Budget
@@ -40,8 +37,6 @@ UNCERTAINTY_KEYS = (("implement load", "implement_load", "N"), ("steerability ma
 # whose seals held their whole breakaway band (bench/bench_uncertainty_coverage.py, seed 51); the
 # normal's factor passes none. It only ever widens: where the shape's k is larger, k holds.
 VERDICT_FACTOR_FLOOR = NORMAL_FACTOR
-MOTION_DEADBAND_M = 1e-4   # m: the least change of a cylinder's length between two solves that is motion
-MOTION_DEADBAND_SIGMAS = 3.0   # ... or this many standard deviations of the change its noise makes
 
 
 class LimitUncertainties(NamedTuple):
@@ -189,34 +184,3 @@ def weak_inference_finding(result: Result, budget: Budget | None) -> Finding:
         f"(> {fmt(LOAD_AMPLIFICATION_WARN)}): its line passes near the pivot of the step that balances it "
         f"(weakest transmission {result.weakest_transmission or '-'}); the linkage holds it, but a small pressure "
         "error is a large load error"))
-
-
-@dataclass
-class MotionTracker:
-    """The direction each force-measured cylinder moves in, from the change of its measured length
-    between two solves (``Motion``): standing within the deadband (MOTION_DEADBAND_M, or
-    MOTION_DEADBAND_SIGMAS standard deviations of the change the sensor's noise and resolution
-    make), standing at the first solve and for a cylinder whose length is not measured."""
-
-    deadband: dict[str, float]
-    last: dict[str, float]
-
-    @staticmethod
-    def of(mech: Mechanism, sources: ErrorSources) -> "MotionTracker":
-        """The tracker of ``mech``'s measured cylinders."""
-        deadband = {}
-        for name in mech.measurements.cylinders:
-            parts = sources.sensor(name, "cylinders").components()
-            scatter = math.hypot(parts["noise"], parts["resolution"]) * math.sqrt(2.0)
-            deadband[name] = max(MOTION_DEADBAND_M, MOTION_DEADBAND_SIGMAS * scatter)
-        return MotionTracker(deadband, {})
-
-    def motions(self, inputs: Inputs) -> dict[str, Motion]:
-        """Each measured cylinder's motion since the last call's inputs (then these are the last)."""
-        out = {}
-        for name, length in inputs.cylinders.items():
-            change = length - self.last.get(name, length)
-            out[name] = (Motion.STANDING if abs(change) <= self.deadband.get(name, MOTION_DEADBAND_M)
-                         else Motion.LIFTING if change > 0.0 else Motion.LOWERING)
-            self.last[name] = length
-        return out

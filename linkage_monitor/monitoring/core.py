@@ -28,13 +28,14 @@ from linkage_monitor.mechanics.programs import ValueRow
 from linkage_monitor.mechanics.budget import Budget
 from linkage_monitor.mechanics.uncertainty import UncertaintyModel
 
-from .bounds import LimitUncertainties, MotionTracker, interval_checks
+from .bounds import LimitUncertainties, interval_checks
 from .checks import Check, CheckedValues, pose_checks
 from .config import MonitorConfig
 from .events import ConfigEvent, Event, ImuEvent, InputEvent, JointStateEvent, PressureEvent, UnreadableEvent
 from .findings import Code, Finding
 from .implement_mass import ImplementMass, effective_mechanism
 from .input_columns import InputColumns
+from .motion import MotionTracker
 from .inputs import DueRun, InputTracker, Refused
 from .road import RoadInput
 from .segment_series import INPUT_KINDS, SegmentSeries, input_columns, limit_values, segment_checks
@@ -299,7 +300,7 @@ class Monitor:
                                                               *rows):
             inputs = Inputs(cylinders=dict(zip(kinds[0], cylinders)), angles=dict(zip(kinds[1], angles)),
                             pressures=dict(zip(kinds[2], pressures)), rates={}, accelerations={})
-            dues.append(Due(stamp, topic, inputs, self.motion.motions(inputs) if self.uncertainty is not None else None,
+            dues.append(Due(stamp, topic, inputs, self.motion.motions(inputs, stamp) if self.uncertainty is not None else None,
                             self.road.body_at(stamp) if self.road is not None else None))
         return dues
 
@@ -370,7 +371,7 @@ class Monitor:
             unknown = tracker.unknown_joints_finding(event.stamp_ns)
             return Step(event.stamp_ns, event.topic, (inputs,) if unknown is None else (inputs, unknown))
         return Due(event.stamp_ns, event.topic, inputs,
-                   self.motion.motions(inputs) if self.uncertainty is not None else None,
+                   self.motion.motions(inputs, event.stamp_ns) if self.uncertainty is not None else None,
                    self.road.body_at(event.stamp_ns) if self.road is not None else None)
 
     def _accept_imu(self, event: ImuEvent) -> Step:

@@ -5,8 +5,11 @@ pressures that carry the true loads, no friction) become what the sensors read, 
 the declared source (``mechanics.error_sources``, docs/accuracy.md) it stands for:
 
 - a sensor's **bias** once per run (normal, σ = its ``bias``), its **noise** anew per sample (normal,
-  σ = its ``noise``), then the reading **quantized** to its resolution step (rounded to the nearest
-  multiple);
+  σ = its ``noise``), then the reading **quantized** to its resolution step q: rounded to the nearest
+  point of its grid z + n·q, the grid's zero z drawn once per run (uniform in ±q/2: where a sensor's
+  steps fall against the true length is set by how it is mounted and zeroed, as a CAN signal's DBC
+  offset; on the same grid every run, a cylinder standing at the same length would read the same
+  error in every run, where the declared source says uniform over ±q/2);
 - each force-measured cylinder's **seal friction** F_f, a force the pressure carries on top of the
   load's (F_hyd = F + F_f, + = the cylinder pushes harder), read by the cylinder's cap-chamber sensor
   (else its rod-chamber one) as the pressure F_f / (count·A). The seals' level a in their band is drawn
@@ -22,7 +25,7 @@ declares one is refused. Units SI (m, rad, gauge Pa, N).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Mapping
 
 import numpy as np
@@ -55,11 +58,13 @@ class TrueInputs:
 @dataclass(frozen=True)
 class RunErrors:
     """The errors drawn once per run: each sensor's ``bias`` (its unit), each force-measured cylinder's
-    seal ``level`` in its band (0..1) and the ``held_sign`` of its friction before its first motion."""
+    seal ``level`` in its band (0..1) and the ``held_sign`` of its friction before its first motion, each
+    quantized sensor's ``grid`` zero (its unit, within ±step/2; a sensor not named: 0)."""
 
     bias: Mapping[str, float]
     level: Mapping[str, float]
     held_sign: Mapping[str, float]
+    grid: Mapping[str, float] = field(default_factory=dict)
 
 
 class SensorErrorSimulator:
@@ -82,7 +87,9 @@ class SensorErrorSimulator:
         cylinders = [c.name for c in self.mech.cylinders]
         level = {c: float(rng.uniform(0.0, 1.0)) for c in cylinders}
         held = {c: float(rng.choice((-1.0, 1.0))) for c in cylinders}
-        return RunErrors(bias, level, held)
+        steps = {name: self.sources.sensor(name, kind).resolution for name, kind in self.kind_of.items()}
+        grid = {name: float(rng.uniform(-0.5, 0.5) * step) for name, step in steps.items() if step > 0.0}
+        return RunErrors(bias, level, held, grid)
 
     def readings(self, truth: TrueInputs, run: RunErrors, rng: np.random.Generator) -> dict[str, dict[str, np.ndarray]]:
         """What the sensors read of ``truth`` in the run ``run``: by kind and name, arrays (N,) (m, rad,
@@ -97,7 +104,8 @@ class SensorErrorSimulator:
                 if error.noise > 0.0:
                     read = read + error.noise * rng.standard_normal(n)
                 if error.resolution > 0.0:
-                    read = np.round(read / error.resolution) * error.resolution
+                    zero = run.grid.get(name, 0.0)
+                    read = np.round((read - zero) / error.resolution) * error.resolution + zero
                 out[kind][name] = read
         return out
 
