@@ -100,3 +100,44 @@ def test_the_replay_summary_is_the_steps_walked_one_by_one() -> None:
     assert summary.solved == sum(step.pose is not None for step in run.steps)
     assert summary.kinds == kinds and summary.peak_hinge == peaks
     assert (summary.min_margin, summary.min_reserve) == (margin, reserve)
+
+
+def _same_step(quiet, built) -> None:
+    assert (quiet.stamp_ns, quiet.trigger, quiet.findings, quiet.inputs) == (built.stamp_ns, built.trigger,
+                                                                             built.findings, built.inputs)
+    assert quiet.pose is not None and built.pose is not None and quiet.pose.budget is None
+    np.testing.assert_array_equal(quiet.pose.values, built.pose.values)
+    np.testing.assert_array_equal(quiet.pose.result.hinge_force, built.pose.result.hinge_force)
+    assert quiet.pose.result.message == built.pose.result.message
+    np.testing.assert_array_equal(quiet.pose.machine.steerability_row, built.pose.machine.steerability_row)
+
+
+def test_a_quiet_pose_is_built_only_when_asked_for_as_the_run_builds_it() -> None:
+    """``Monitor.runs``' pieces leave the Step of a solved pose without findings unbuilt (``Steps``: the
+    replay writes its outputs from the segment's columns); asked for by index, through a slice or by
+    ``results``, it is the Step ``Monitor.run`` gives the same event, and it is built once."""
+    mech, config, events = _events()
+    built = Monitor(mech, config).run(events).steps
+    pieces = list(Monitor(mech, config).runs(events, piece_steps=97))
+    quiet = [int(piece.steps.is_quiet.sum()) for piece in pieces]
+    assert 0 < sum(quiet) < len(built), quiet   # the disagreeing halves are WARNs: built by the core
+    assert all(piece.steps.made[i] is None for piece in pieces for i in np.flatnonzero(piece.steps.is_quiet))
+    start = 0
+    for piece in pieces:
+        steps, half = piece.steps, len(piece.steps) // 2
+        tail = steps[half:]
+        np.testing.assert_array_equal(tail.stamps_ns, [s.stamp_ns for s in built[start + half:start + len(steps)]])
+        for i in np.flatnonzero(tail.is_quiet).tolist():
+            _same_step(tail[i], built[start + half + i])
+            assert tail[i] is tail[i]
+        assert all(piece.steps.made[i] is None for i in np.flatnonzero(steps.is_quiet))   # the slice built its own
+        solved = [i for i in range(len(steps)) if built[start + i].pose is not None]
+        for i, result in zip(solved, steps.results(solved)):
+            np.testing.assert_array_equal(result.point_xz, built[start + i].pose.result.point_xz)
+        for step, whole in zip(steps, built[start:start + len(steps)]):   # every Step of the piece built
+            if step.findings or step.pose is None:
+                assert [f.text for f in step.findings] == [f.text for f in whole.findings]
+            else:
+                _same_step(step, whole)
+        start += len(steps)
+    assert start == len(built)

@@ -69,7 +69,7 @@ def judge_strokes(mech: Mechanism, spec: str, lengths: Mapping[str, np.ndarray])
     start = time.time_ns()
     events = [JointStateEvent(monitor.config.topics.joint_states, names, row, [], start + k * SERIES_PERIOD_NS,
                               start + k * SERIES_PERIOD_NS) for k, row in enumerate(values.tolist())]
-    return monitor.run(events).steps
+    return list(monitor.run(events).steps)
 
 
 def worst(steps: Sequence[Step]) -> Level:

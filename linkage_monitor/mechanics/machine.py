@@ -52,16 +52,16 @@ class MachineBatch:
     def result(self, i: int) -> "MachineResult":
         """Pose i as a :class:`MachineResult`, as ``MachineModel.evaluate`` returns it."""
         i = range(self.size)[i]   # IndexError out of range; a negative i counts from the end
-        return self.results(i, i + 1)[0]
+        return self.results(slice(i, i + 1))[0]
 
-    def results(self, start: int = 0, stop: int | None = None) -> list["MachineResult"]:
-        """Poses start..stop-1 as :class:`MachineResult` objects (rows of the stacked arrays)."""
-        span = slice(start, stop)
-        n = len(range(*span.indices(self.size)))
+    def results(self, rows: slice | np.ndarray = slice(None)) -> list["MachineResult"]:
+        """The poses ``rows`` (a slice, or an index array) as :class:`MachineResult` objects, in that order
+        (rows of the stacked arrays)."""
+        n = len(np.arange(self.size)[rows])
         steer_keys, capacity_keys = tuple(self.steerability), tuple(self.lift_capacity)
-        steer = (np.stack([v[span] for v in self.steerability.values()], axis=1) if steer_keys
+        steer = (np.stack([v[rows] for v in self.steerability.values()], axis=1) if steer_keys
                  else np.zeros((n, 0)))
-        capacity = (np.stack([v[span] for v in self.lift_capacity.values()], axis=1) if capacity_keys
+        capacity = (np.stack([v[rows] for v in self.lift_capacity.values()], axis=1) if capacity_keys
                     else np.zeros((n, 0)))
         return [MachineResult(steer[j], capacity[j], steer_keys, capacity_keys) for j in range(n)]
 

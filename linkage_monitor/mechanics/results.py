@@ -235,38 +235,38 @@ class BatchResult:
     def result(self, i: int) -> Result:
         """Pose i as a :class:`Result` (its status may be an error: check ``status``/``message``)."""
         i = range(len(self))[i]   # IndexError out of range; a negative i counts from the end
-        return self.results(i, i + 1)[0]
+        return self.results(slice(i, i + 1))[0]
 
-    def results(self, start: int = 0, stop: int | None = None) -> list[Result]:
-        """Poses start..stop-1 as :class:`Result` objects: the arrays are stacked (copied) once for
-        all of them, each pose's rows are views of the stack."""
-        span = slice(start, stop)
+    def results(self, rows: slice | np.ndarray = slice(None)) -> list[Result]:
+        """The poses ``rows`` (a slice, or an index array) as :class:`Result` objects, in that order: the
+        arrays are stacked (copied) once for all of them, each pose's rows are views of the stack."""
         names = self.names
+        n = len(self.status[rows])
+        picked = (lambda texts: texts[rows]) if isinstance(rows, slice) else (lambda texts: [texts[i] for i in rows.tolist()])
 
         def stacked(group: dict[str, np.ndarray], keys: tuple[str, ...], width: int) -> np.ndarray:
-            return (np.stack([group[k][span] for k in keys], axis=1) if keys
-                    else np.zeros((len(self.status[span]), 0, width)))
+            return np.stack([group[k][rows] for k in keys], axis=1) if keys else np.zeros((n, 0, width))
 
         def columns(*groups: dict[str, np.ndarray], keys: tuple[str, ...]) -> np.ndarray:
-            return (np.stack([np.stack([g[k][span] for g in groups], axis=-1) for k in keys], axis=1) if keys
-                    else np.zeros((len(self.status[span]), 0, len(groups))))
+            return (np.stack([np.stack([g[k][rows] for g in groups], axis=-1) for k in keys], axis=1) if keys
+                    else np.zeros((n, 0, len(groups))))
 
         points, poses = stacked(self.points, names.points, 2), stacked(self.body_poses, names.bodies, 3)
         hinges = stacked(self.hinge_force, tuple(h for h, _, _ in names.hinges), 2)
         cylinders = columns(*(getattr(self, field) for field in CYLINDER_FIELDS), keys=names.cylinders)
         contacts = columns(*(getattr(self, field) for field in CONTACT_FIELDS), keys=names.contacts)
-        cgs, load_points, load_forces = (a[span].copy() for a in (self.implement_cg, self.frame_load_points,
-                                                                  self.frame_load_forces))
-        scalars = zip(*(a[span].tolist() for a in (self.implement_load, self.residual, self.consistency_residual,
+        cgs, load_points, load_forces = (np.array(a[rows]) for a in (self.implement_cg, self.frame_load_points,
+                                                                     self.frame_load_forces))
+        scalars = zip(*(a[rows].tolist() for a in (self.implement_load, self.residual, self.consistency_residual,
                                                     self.condition, self.largest_force, self.status,
                                                     self.transmission_angle, self.load_amplification)))
-        rows = zip(points, poses, hinges, cylinders, contacts, cgs, load_points, load_forces)   # views, one per pose
+        views = zip(points, poses, hinges, cylinders, contacts, cgs, load_points, load_forces)   # views, one per pose
         return [Result(names, point, pose, hinge, cylinder, contact, load, cg, load_point, load_force, residual,
                        consistency, condition, largest_force, STATUS_LABELS[int(status)], message,
                        transmission_angle=angle, weakest_transmission=weakest, load_amplification=amplification)
                 for (point, pose, hinge, cylinder, contact, cg, load_point, load_force),
                 (load, residual, consistency, condition, largest_force, status, angle, amplification), message, weakest
-                in zip(rows, scalars, self.messages[span], self.weakest_transmission[span])]
+                in zip(views, scalars, picked(self.messages), picked(self.weakest_transmission))]
 
     @classmethod
     def from_stacked(cls, names: ResultNames, hinge_bodies: dict[str, tuple[str, str]], point_xz: np.ndarray,

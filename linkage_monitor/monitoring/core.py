@@ -39,10 +39,10 @@ from .motion import MotionTracker
 from .inputs import DueRun, InputTracker, Refused
 from .road import RoadInput
 from .segment_series import INPUT_KINDS, SegmentSeries, input_columns, limit_values, segment_checks
-from .steps import NO_FINDINGS, Due, Pose, Run, Segment, Step
+from .steps import NO_FINDINGS, Due, Pose, QuietPoses, Run, Segment, Step, Steps
 from .wording import failed_step, pose_findings
 
-__all__ = ["ASSEMBLY_LIMIT_M", "NO_FINDINGS", "Monitor", "Pose", "Run", "Segment", "Step"]
+__all__ = ["ASSEMBLY_LIMIT_M", "NO_FINDINGS", "Monitor", "Pose", "Run", "Segment", "Step", "Steps"]
 
 # A pose whose sensors misfit the closed linkage by more than this cannot be assembled from the inputs
 # (an ERROR; up to checks.CONSISTENCY_WARN_M the misfit is sensor noise, between the two a WARN).
@@ -182,7 +182,7 @@ class Monitor:
         for piece in self.runs(events):
             segments.extend(replace(segment, steps=segment.steps + len(steps)) for segment in piece.segments)
             steps.extend(piece.steps)
-        return Run(steps, segments)
+        return Run(Steps(list(steps)), segments)
 
     def runs(self, events: Iterable[Event | InputColumns], piece_steps: int | None = None) -> Iterator[Run]:
         """``run`` in pieces, in order: a piece ends at each configuration change and, given
@@ -191,8 +191,9 @@ class Monitor:
         index its own ``steps``. While the caller holds a piece the monitor is in that piece's
         configuration (the next event is read after): what the caller lets go of a piece is freed,
         so that a recording read piece by piece takes memory flat in its length."""
-        steps: list[Step | None] = []
+        steps: list[Step | None] = []   # None: not solved yet, or a quiet pose (``QuietPoses``)
         segments: list[Segment] = []
+        quiet: list[QuietPoses] = []
         with ThreadPoolExecutor(max_workers=1, thread_name_prefix="series") as worker:
             segment = SegmentSeries(self.machine, self.config.kinetostatics, worker)
             pending: list[InputEvent | InputColumns] = []   # read, not yet accepted: ACCEPT_BLOCK at a time
@@ -212,10 +213,10 @@ class Monitor:
             for event in events:
                 if isinstance(event, ConfigEvent):
                     accept_pending()
-                    self._solve_segment(segment, steps, segments)
+                    self._solve_segment(segment, steps, segments, quiet)
                     if steps:
-                        yield Run(steps, segments)  # type: ignore[arg-type]  # every None was filled by _solve_segment
-                        steps, segments = [], []
+                        yield Run(Steps(steps, quiet), segments)
+                        steps, segments, quiet = [], [], []
                     self.reconfigure(event.config)
                     segment = SegmentSeries(self.machine, self.config.kinetostatics, worker)
                     continue
@@ -232,15 +233,15 @@ class Monitor:
                     if full or size >= ACCEPT_BLOCK:
                         accept_pending()
                     if full:
-                        self._solve_segment(segment, steps, segments)
-                        yield Run(steps, segments)  # type: ignore[arg-type]  # as above
-                        steps, segments = [], []
+                        self._solve_segment(segment, steps, segments, quiet)
+                        yield Run(Steps(steps, quiet), segments)
+                        steps, segments, quiet = [], [], []
                         if self._use_estimate():   # a new estimate: the next poses solved with it
                             segment = SegmentSeries(self.machine, self.config.kinetostatics, worker)
             accept_pending()
-            self._solve_segment(segment, steps, segments)
+            self._solve_segment(segment, steps, segments, quiet)
             if steps:
-                yield Run(steps, segments)  # type: ignore[arg-type]  # as above
+                yield Run(Steps(steps, quiet), segments)
 
     def _accept_all(self, items: Sequence[InputEvent | InputColumns]) -> list[Due | Step]:
         """``_accept`` of each event of ``items`` in turn (an internal failure an ERROR Step, as in
@@ -304,9 +305,13 @@ class Monitor:
                             self.road.body_at(stamp) if self.road is not None else None))
         return dues
 
-    def _solve_segment(self, segment: SegmentSeries, steps: list[Step | None], segments: list[Segment]) -> None:
+    def _solve_segment(self, segment: SegmentSeries, steps: list[Step | None], segments: list[Segment],
+                       quiet: list[QuietPoses]) -> None:
         """The Steps of the dues ``segment`` holds (solved, checked, put in their places in ``steps``)
-        and their ``Segment``; the segment is left empty, its series going on from its last pose."""
+        and their ``Segment``; the segment is left empty, its series going on from its last pose. A pose
+        solved by the series whose checks found nothing, in a configuration that adds nothing to its Step
+        (no error budget, IMU or weighing), is left None in ``steps`` and goes to ``quiet``: its Step is
+        built when asked for (``Steps``)."""
         indexed, series = segment.take()
         if not indexed:
             return
@@ -316,10 +321,10 @@ class Monitor:
             batch = self.solver.solve_batch(cylinders=c["cylinders"], angles=c["angles"], pressures=c["pressures"],
                                             rates=c["rates"], accelerations=c["accelerations"])
             machine = self.machine.evaluate_batch(batch)
-            values: list[np.ndarray | None] = [None] * len(batch)
+            values, plain = np.zeros((len(batch), 0)), np.zeros(len(batch), bool)
         else:   # each pose from the one before, as the live path solves them
             batch, machine = series.batch, series.machine
-            values = [row if plain else None for row, plain in zip(series.values, series.plain.tolist())]
+            values, plain = series.values, series.plain   # a row is the pose's where plain
         dynamic: np.ndarray | list[None] = [None] * len(batch)
         if self.road is not None:
             balance = self.road.balance(np.array([due.stamp_ns for due in dues], dtype=np.int64),
@@ -327,26 +332,34 @@ class Monitor:
                                         batch.implement_cg[:, 0], [due.body for due in dues])
             machine = MachineBatch(dict(zip(machine.steerability, balance.static.T)), machine.lift_capacity,
                                    machine.size)
-            values = [self._with_static(row, balance.static[k]) if row is not None else None
-                      for k, row in enumerate(values)]
+            values = self._with_static(values, balance.static) if plain.any() else values
             dynamic = balance.dynamic
-        results, machine_results = batch.results(), machine.results()
         checks = segment_checks(batch, machine, balance.dynamic[:, DYNAMIC_MARGIN] if self.road is not None else None)
-        budgets = self._budgets(dues, results, machine_results, batch.status)
+        adds_nothing = self.uncertainty is None and self.road is None and self.weighing is None
+        still = ((batch.status < Status.INPUT) & (checks == 0) & plain if adds_nothing
+                 else np.zeros(len(batch), bool))
+        said = np.flatnonzero(~still)   # every pose with the error budget on
+        results, machine_results = batch.results(said), machine.results(said)
+        budgets = self._budgets([dues[k] for k in said.tolist()], results, machine_results, batch.status[said])
         if self.uncertainty is not None:
             front, rear, margin, reserve = limit_values(machine, len(batch))
             checks = checks + interval_checks(front, rear, margin, reserve, LimitUncertainties(*(
                 np.array([getattr(LimitUncertainties.of(b), f) if b is not None else math.nan for b in budgets])
                 for f in LimitUncertainties._fields)))
-        for k, ((i, due), status, check) in enumerate(zip(indexed, batch.status.tolist(), checks.tolist())):
-            pose = Pose(results[k], machine_results[k], values[k], budgets[k], dynamic[k])
-            steps[i] = (self._pose_step(due, pose, check) if status < Status.INPUT
+        for k, result, machine_result, budget in zip(said.tolist(), results, machine_results, budgets):
+            i, due = indexed[k]
+            status = int(batch.status[k])
+            pose = Pose(result, machine_result, values[k] if plain[k] else None, budget, dynamic[k])
+            steps[i] = (self._pose_step(due, pose, int(checks[k])) if status < Status.INPUT
                         else failed_step(due, Status(status), batch.messages[k]))
         if self.weighing is not None:
             self._weigh((steps[i], due) for i, due in indexed)
-        segments.append(Segment(np.array([i for i, _ in indexed]),
-                                np.array([d.stamp_ns for d in dues], dtype=np.int64), batch, machine, self.mechanism,
-                                self.config))
+        solved = Segment(np.array([i for i, _ in indexed]), np.array([d.stamp_ns for d in dues], dtype=np.int64),
+                         batch, machine, self.mechanism, self.config)
+        segments.append(solved)
+        if still.any():
+            rows = np.flatnonzero(still)
+            quiet.append(QuietPoses(solved.steps[rows], rows, solved, values[rows], [dues[k] for k in rows.tolist()]))
 
     # ---- the stages both paths share -------------------------------------------------------------
     def _accept(self, event: InputEvent) -> Due | Step:

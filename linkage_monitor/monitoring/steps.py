@@ -1,6 +1,7 @@
 """What the monitoring core returns: one ``Step`` per input event (level, findings, the
-diagnostic's key-values, the solved ``Pose``), and for a batched run the ``Run`` of its Steps with
-the solved configuration ``Segment``s as arrays; ``Due``, an accepted event whose solve is due.
+diagnostic's key-values, the solved ``Pose``), and for a batched run the ``Run`` of its ``Steps`` with
+the solved configuration ``Segment``s as arrays (a quiet pose's Step built only when asked for:
+``QuietPoses``); ``Due``, an accepted event whose solve is due.
 Units SI (m, rad, N, Pa, kg); frame x forward, z up, origin at the rear wheels' ground contact.
 """
 
@@ -9,6 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Iterator, Sequence, overload
 
 import numpy as np
 
@@ -121,11 +123,118 @@ class Segment:
 
 
 @dataclass(frozen=True)
+class QuietPoses:
+    """Solved poses of one ``Segment`` whose checks found nothing, their Steps not built (``Steps``):
+    ``index`` their places among the Steps, ``rows`` their rows of the segment's arrays, ``values`` their
+    value rows (``mechanics.programs.ValueRow``, one per pose), ``dues`` what was solved (one per pose).
+    Such a pose's Step has no finding, no error budget, no dynamic steerability and no weighing."""
+
+    index: np.ndarray
+    rows: np.ndarray
+    segment: Segment
+    values: np.ndarray
+    dues: list[Due]
+
+    def within(self, lo: int, hi: int) -> QuietPoses:
+        """Those of places lo..hi-1, their places counted from lo."""
+        taken = (self.index >= lo) & (self.index < hi)
+        return QuietPoses(self.index[taken] - lo, self.rows[taken], self.segment, self.values[taken],
+                          [self.dues[k] for k in np.flatnonzero(taken).tolist()])
+
+    def steps(self, which: np.ndarray) -> list[Step]:
+        """The Steps of poses ``which`` (positions in these arrays), as ``Monitor`` builds a solved pose's."""
+        batch, machine = self.segment.batch, self.segment.machine
+        rows = self.rows[which]
+        return [Step(due.stamp_ns, due.trigger, (), Pose(result, machine_result, values), due.inputs)
+                for due, result, machine_result, values in zip([self.dues[k] for k in which.tolist()],
+                                                               batch.results(rows), machine.results(rows),
+                                                               self.values[which])]
+
+
+class Steps(Sequence[Step]):
+    """The Steps of a batched run or piece, one per input event, in order. ``made``: the Steps the core
+    built (a finding, a failed or skipped solve, ...), None where a quiet pose's Step is not built yet;
+    ``quiet``: those poses (``QuietPoses``), whose outputs a writer takes from the segments' columns
+    (``is_quiet``). Asking for a quiet pose's Step (an index, iteration) builds it, once."""
+
+    def __init__(self, made: list[Step | None], quiet: Sequence[QuietPoses] = ()) -> None:
+        self.made, self.quiet = made, list(quiet)
+        self.is_quiet = np.zeros(len(made), bool)
+        for poses in self.quiet:
+            self.is_quiet[poses.index] = True
+
+    def __len__(self) -> int:
+        return len(self.made)
+
+    @overload
+    def __getitem__(self, i: int) -> Step: ...
+
+    @overload
+    def __getitem__(self, i: slice) -> Steps: ...
+
+    def __getitem__(self, i: int | slice) -> Step | Steps:
+        if isinstance(i, slice):
+            lo, hi, stride = i.indices(len(self.made))
+            if stride != 1:
+                raise ValueError("Steps are sliced with a stride of 1")
+            hi = max(hi, lo)
+            return Steps(self.made[lo:hi], [q.within(lo, hi) for q in self.quiet])
+        step = self.made[i]
+        if step is None:
+            i = range(len(self.made))[i]
+            for poses in self.quiet:
+                at = int(np.searchsorted(poses.index, i))
+                if at < len(poses.index) and poses.index[at] == i:
+                    step = self.made[i] = poses.steps(np.array([at]))[0]
+        assert step is not None, "every place is a Step made or a quiet pose"
+        return step
+
+    def __iter__(self) -> Iterator[Step]:
+        for poses in self.quiet:
+            missing = np.flatnonzero(np.fromiter((self.made[i] is None for i in poses.index.tolist()), bool,
+                                                 len(poses.index)))
+            if not missing.size:
+                continue
+            for i, step in zip(poses.index[missing].tolist(), poses.steps(missing)):
+                self.made[i] = step
+        return iter(self.made)  # type: ignore[arg-type]  # every None filled above
+
+    @property
+    def stamps_ns(self) -> np.ndarray:
+        """The Steps' stamps (ns), (N,) int64, without building a quiet pose's Step."""
+        stamps = np.fromiter((0 if s is None else s.stamp_ns for s in self.made), np.int64, len(self.made))
+        for poses in self.quiet:
+            stamps[poses.index] = poses.segment.stamps_ns[poses.rows]
+        return stamps
+
+    def results(self, which: Sequence[int]) -> list[Result]:
+        """The ``Result`` of each solved Step at ``which``, a quiet pose's from its segment's columns (its
+        Step not built)."""
+        wanted = np.asarray(which, np.int64)
+        found: dict[int, Result] = {}
+        for poses in self.quiet:
+            at = np.flatnonzero(np.isin(poses.index, wanted))
+            found.update(zip(poses.index[at].tolist(), poses.segment.batch.results(poses.rows[at])))
+        return [found[k] if k in found else self._solved(k).result for k in which]
+
+    def _solved(self, i: int) -> Pose:
+        pose = self[i].pose
+        if pose is None:
+            raise ValueError(f"step {i} has no solved pose")
+        return pose
+
+    def said(self) -> Iterator[tuple[int, Step]]:
+        """The place and Step of each Step that is not a quiet pose's (the only ones with findings)."""
+        return ((i, step) for i, (step, quiet) in enumerate(zip(self.made, self.is_quiet.tolist()))  # type: ignore[misc]
+                if not quiet)   # not quiet: made
+
+
+@dataclass(frozen=True)
 class Run:
     """A batched run, or a piece of one (``Monitor.runs``): one Step per input event, and the solved
     segments as arrays (their ``steps`` index these Steps)."""
 
-    steps: list[Step]
+    steps: Steps
     segments: list[Segment]
 
 

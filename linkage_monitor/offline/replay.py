@@ -39,7 +39,7 @@ from linkage_monitor.bag.errors import BagError
 from linkage_monitor.bag.writer import MECHANISM_TOPIC
 from linkage_monitor.mechanics import Mechanism, Status, mechanism_from_text
 from linkage_monitor.monitoring.config import CONFIG_TOPIC, MonitorConfig
-from linkage_monitor.monitoring.core import Monitor, Run, Segment, Step
+from linkage_monitor.monitoring.core import Monitor, Run, Segment, Step, Steps
 from linkage_monitor.monitoring.events import ConfigEvent, Event, InputEvent
 from linkage_monitor.monitoring.input_columns import InputColumns
 from linkage_monitor.monitoring.weighing import WeighingEstimate, estimate_text
@@ -131,7 +131,7 @@ class Replayed:
     config: MonitorConfig
 
     @property
-    def steps(self) -> list[Step]:
+    def steps(self) -> Steps:
         return self.run.steps
 
 
@@ -278,7 +278,7 @@ class _KeptRun:
     """The pieces of a run joined into one ``Run`` (as ``Monitor.run`` joins them)."""
 
     def __init__(self) -> None:
-        self._steps: list[Step] = []
+        self._steps: list[Step | None] = []
         self._segments: list[Segment] = []
 
     def add(self, piece: Run) -> None:
@@ -286,7 +286,7 @@ class _KeptRun:
         self._steps.extend(piece.steps)
 
     def run(self) -> Run:
-        return Run(self._steps, self._segments)
+        return Run(Steps(self._steps), self._segments)
 
 
 class _Replayer:
@@ -379,8 +379,9 @@ class _Replayer:
 
 def _account(summary: Summary, run: Run) -> None:
     """The run's findings by level and code, its solved poses, and the peaks and minima of its
-    segments' columns with their times (the first pose where a value ties)."""
-    for step in run.steps:
+    segments' columns with their times (the first pose where a value ties). A quiet pose (no finding:
+    ``Steps``) is counted from its segment's columns, its Step not built."""
+    for _, step in run.steps.said():
         for finding in step.findings:
             summary.kinds[(finding.level.name, finding.code.ident)] += 1
     for segment in run.segments:

@@ -9,8 +9,6 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from linkage_monitor.bag.step_recorder import RecordedInput, StepRecorder
 from linkage_monitor.bag.writer import BagWriter
 from linkage_monitor.mechanics import Mechanism
@@ -29,7 +27,8 @@ ENCODE_BLOCK = 4096   # inputs replayed at once: read, solved, accounted, encode
 class BagOutput:
     """The output bag: inputs (their recorded bytes, unchanged), outputs and diagnostics in recording
     order, as the node records them (``bag.step_recorder``), ENCODE_BLOCK steps at a time: their outputs
-    encoded at once (``OutputEncoder.output_rows``, with the monitor in the steps' configuration) and,
+    encoded at once (``OutputEncoder.output_rows``, with the monitor in the steps' configuration; a quiet
+    pose's from its segment's columns, its Step not built: ``monitoring.steps.Steps``) and,
     as fast as possible, all their messages written at once (``StepRecorder.steps``). With ``rate`` the
     messages go one by one (``StepRecorder.input``, ``step``), each input's written at its receive time
     scaled by 1 / ``rate`` from the first: a block written at once cannot keep that pace."""
@@ -57,8 +56,7 @@ class BagOutput:
             outputs = self.encoder.output_rows(monitor, steps)
             if not self.rate:
                 besides = self.messenger.sent_of(steps, [r.receive_ns for r in inputs])
-                stamps = np.fromiter((step.stamp_ns for step in steps), np.int64, len(steps))
-                self.recorder.steps(inputs, stamps, besides, outputs)
+                self.recorder.steps(inputs, steps.stamps_ns, besides, outputs)
                 continue
             sent = self.messenger.messages_of(steps, per_step(outputs, len(steps)), [r.receive_ns for r in inputs])
             for recorded, messages in zip(inputs, sent):

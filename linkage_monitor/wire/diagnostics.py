@@ -56,7 +56,13 @@ class DiagnosticGate:
         an IMU message taken, which says nothing of the outputs)."""
         if step.pose is None and not step.findings:
             return False
-        key = (step.level, step.message) if step.findings else _OK   # most steps: OK without findings
+        return self._due((step.level, step.message) if step.findings else _OK)   # most steps: OK without findings
+
+    def due_quiet(self) -> bool:
+        """``due`` of a solved step without findings (``monitoring.steps.QuietPoses``: its Step not built)."""
+        return self._due(_OK)
+
+    def _due(self, key: tuple[Level, str]) -> bool:
         report = key[0] != Level.OK or key != self._last
         self._last = key
         return report

@@ -31,7 +31,7 @@ from linkage_monitor.mechanics.dynamics import DYNAMIC_KEYS
 from linkage_monitor.mechanics.machine import STEERABILITY_KEYS
 from linkage_monitor.mechanics.programs import ROW_SCALARS, ValueRow
 from linkage_monitor.mechanics.results import CylinderResult
-from linkage_monitor.monitoring.core import NO_FINDINGS, Monitor, Pose, Step
+from linkage_monitor.monitoring.core import NO_FINDINGS, Monitor, Pose, Step, Steps
 from linkage_monitor.monitoring.findings import Code, Level
 from linkage_monitor.monitoring.implement_mass import WeighingState
 from linkage_monitor.monitoring.road import NO_DYNAMIC
@@ -100,11 +100,17 @@ def _statuses() -> _Statuses:
 def hinge_status(step: Step, result: Result, overdetermined: bool) -> tuple[int, str]:
     """HingeReactions.status and status_text: HIGH_RESIDUAL when the measured pressures disagree,
     OVERDETERMINED when more measurements than degrees of freedom were solved by least squares."""
-    statuses = _statuses()
     for finding in step.findings:
         if finding.code is Code.PRESSURES_DISAGREE:
-            return statuses.hinge_high_residual, finding.text
-    return statuses.hinge_overdetermined if overdetermined else statuses.hinge_ok, result.message or NO_FINDINGS
+            return _statuses().hinge_high_residual, finding.text
+    return solve_status(result.message, overdetermined)
+
+
+def solve_status(message: str, overdetermined: bool) -> tuple[int, str]:
+    """HingeReactions.status and status_text of a solved pose without a finding on its pressures:
+    OVERDETERMINED or OK, with the solve's ``message`` (``Result.message``; 'ok' when empty)."""
+    statuses = _statuses()
+    return statuses.hinge_overdetermined if overdetermined else statuses.hinge_ok, message or NO_FINDINGS
 
 
 def hitch_status(step: Step) -> int:
@@ -177,26 +183,42 @@ class OutputEncoder:
 
     def output_rows(self, monitor: Monitor, steps: Sequence[Step]) -> list[OutputRows]:
         """The messages ``outputs`` gives each of ``steps`` (steps of ``monitor`` in its present
-        configuration), as rows: per message kind, one ``OutputRows`` per layout (status text)."""
-        solved = [k for k, step in enumerate(steps) if step.pose is not None]
-        if not solved:
+        configuration), as rows: per message kind, one ``OutputRows`` per layout (status text). The quiet
+        poses of ``Steps`` are taken from their segments' columns, their Steps not built."""
+        steps = steps if isinstance(steps, Steps) else Steps(list(steps))
+        solved = [(k, step) for k, step in steps.said() if step.pose is not None]
+        if not solved and not steps.quiet:
             return []
         if monitor.machine is not self._machine:
             self._lay_out(monitor)
-        poses = [steps[k] for k in solved]
+        poses = [step for _, step in solved]
         results = [step.pose.result for step in poses]   # type: ignore[union-attr]  # solved: a pose each
-        source = _value_rows(monitor, [step.pose for step in poses])  # type: ignore[misc]  # solved: a pose each
+        source = (_value_rows(monitor, [step.pose for step in poses]) if poses  # type: ignore[misc]  # solved: a pose each
+                  else np.zeros((0, self._row_width)))
         stamps = np.array([step.stamp_ns for step in poses], dtype=np.int64)
         hinge_keys = [hinge_status(step, result, self._overdetermined) for step, result in zip(poses, results)]
         if self._extra_width:
             source = np.concatenate([source, np.stack([self._extra_row(step) for step in poses])], axis=1)
         flags = np.array([(hitch_status(step), *weighing_flags(step.weighing)) if self._weighed
-                          else (hitch_status(step),) for step in poses], dtype=np.uint8)
-        index = np.array(solved, dtype=np.intp)
+                          else (hitch_status(step),) for step in poses],
+                         dtype=np.uint8).reshape(len(poses), 1 + 3 * self._weighed)   # Flag(0..3): status, weighing
+        index, texts = np.array([k for k, _ in solved], dtype=np.intp), [step.message for step in poses]
+        if steps.quiet:   # no finding, no budget, weighing or IMU (QuietPoses): OK and the solve's own status
+            assert not self._extra_width, "a quiet pose's configuration adds no columns"
+            quiet = steps.quiet
+            index = np.concatenate([index, *(q.index for q in quiet)])
+            source = np.concatenate([source, *(q.values for q in quiet)])
+            stamps = np.concatenate([stamps, *(q.segment.stamps_ns[q.rows] for q in quiet)])
+            messages = [q.segment.batch.messages[k] for q in quiet for k in q.rows.tolist()]
+            hinge_keys += [solve_status(message, self._overdetermined) for message in messages]
+            texts += [NO_FINDINGS] * len(messages)
+            flags = np.concatenate([flags, np.full((len(messages), 1), _statuses().hitch_ok, np.uint8)])
+            order = np.argsort(index, kind="stable")
+            index, source, stamps, flags = index[order], source[order], stamps[order], flags[order]
+            hinge_keys, texts = [hinge_keys[k] for k in order.tolist()], [texts[k] for k in order.tolist()]
         return [*_filled("hinge_reactions", self._hinge_template, hinge_keys, index, stamps, source),
-                *_filled("hitch_state", self._hitch_template, [step.message for step in poses], index, stamps, source,
-                         flags),
-                *_filled("steerability", lambda _: self._steerability, [None] * len(poses), index, stamps, source)]
+                *_filled("hitch_state", self._hitch_template, texts, index, stamps, source, flags),
+                *_filled("steerability", lambda _: self._steerability, [None] * len(index), index, stamps, source)]
 
     # ---- layouts: the messages' fields by name, their values as columns of the poses' value rows ----
     def _lay_out(self, monitor: Monitor) -> None:
@@ -212,6 +234,7 @@ class OutputEncoder:
         # then the dynamic steerability (an IMU)
         outputs = monitor.uncertainty.outputs if monitor.uncertainty is not None else ()
         self._n_budget, self._weighed, self._dynamic = len(outputs), monitor.weighing is not None, monitor.road is not None
+        self._row_width = row.width
         dynamic_at = row.width + self._n_budget + len(WEIGHING_FIELDS) * self._weighed
         self._extra_width = dynamic_at - row.width + len(DYNAMIC_KEYS) * self._dynamic
         budget_at = {o.name: row.width + k for k, o in enumerate(outputs)}

@@ -7,8 +7,10 @@ from __future__ import annotations
 
 from typing import NamedTuple, Sequence
 
+import numpy as np
+
 from linkage_monitor.mechanics import Mechanism
-from linkage_monitor.monitoring.core import Step
+from linkage_monitor.monitoring.core import Step, Steps
 
 from .diagnostics import DiagnosticGate, diagnostic_array
 from .markers import DisplayGate, LinkageMarkers
@@ -61,13 +63,19 @@ class StepMessenger:
                 for k, (step, out) in enumerate(zip(steps, outputs))]
 
     def sent_of(self, steps: Sequence[Step], now_ns: Sequence[int]) -> SentBesides:
-        """What ``messages`` of each of ``steps`` in turn sends besides its outputs, by step (the markers
-        of those drawn made at once)."""
-        drawn = [k for k, step in enumerate(steps) if step.pose is not None and self._marker_gate.due(step.stamp_ns)]
-        markers = dict(zip(drawn, self.markers.markers_of([steps[k].stamp_ns for k in drawn],
-                                                          [steps[k].pose.result for k in drawn])))  # type: ignore[union-attr]
-        due = self._diagnostic_gate.due
-        reported = [k for k, step in enumerate(steps) if due(step)]
+        """What ``messages`` of each of ``steps`` in turn sends besides their outputs, by step (the markers
+        of those drawn made at once); the quiet poses of ``Steps`` from their segments' columns, the Step
+        of one built only when it is reported (an OK that ends a WARN)."""
+        steps = steps if isinstance(steps, Steps) else Steps(list(steps))
+        solved = steps.is_quiet.copy()
+        for k, step in steps.said():
+            solved[k] = step.pose is not None
+        stamps, drawn_now = steps.stamps_ns.tolist(), self._marker_gate.due
+        drawn = [k for k in np.flatnonzero(solved).tolist() if drawn_now(stamps[k])]
+        markers = dict(zip(drawn, self.markers.markers_of([stamps[k] for k in drawn], steps.results(drawn))))
+        gate = self._diagnostic_gate
+        reported = [k for k, (step, quiet) in enumerate(zip(steps.made, steps.is_quiet.tolist()))
+                    if (gate.due_quiet() if quiet else gate.due(step))]  # type: ignore[arg-type]  # not quiet: made
         return SentBesides(markers, {k: self.diagnostic(steps[k], now_ns[k]) for k in reported})
 
     def _sent(self, step: Step, outputs: Outputs | None, markers: bytes | None, now_ns: int) -> StepMessages:
