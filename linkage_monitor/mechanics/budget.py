@@ -34,9 +34,9 @@ class Output:
 @dataclass(frozen=True)
 class Source:
     """One declared error source at a pose: ``name`` (``lift_cap_pressure bias``, ``lift_cylinder seal
-    friction``, ``implement mass``), the ``input`` it belongs to (a measurement, a cylinder or
-    ``implement``), its ``part`` (``bias``, ``noise``, ``resolution``, ``friction``, ``mass``), its
-    standard uncertainty ``u`` and ``unit`` (m, rad, Pa, N, kg)."""
+    friction``, ``implement mass``, ``P03 x position``), the ``input`` it belongs to (a measurement, a
+    cylinder, ``implement`` or a point), its ``part`` (``bias``, ``noise``, ``resolution``, ``friction``,
+    ``mass``, ``position``), its standard uncertainty ``u`` and ``unit`` (m, rad, Pa, N, kg)."""
 
     name: str
     input: str
@@ -47,7 +47,8 @@ class Source:
     @property
     def uniform(self) -> bool:
         """Whether the error is uniform over ±√3·u (a quantization step, a seal's friction band), else
-        normal (a bias, noise, the implement's mass): the simulator draws them so (``sim.sensor_errors``)."""
+        normal (a bias, noise, the implement's mass, a point's position): the simulator draws them so
+        (``sim.sensor_errors``)."""
         return self.part in UNIFORM_PARTS
 
 

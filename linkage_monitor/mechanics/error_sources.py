@@ -1,5 +1,5 @@
-"""The declared error sources of a mechanism: what its sensors, cylinder seals and implement data are
-known to within (``error_sources`` of the mechanism YAML, docs/mechanism-schema.md; the model and the
+"""The declared error sources of a mechanism: what its sensors, cylinder seals, point coordinates and
+implement data are known to within (``error_sources`` of the mechanism YAML, docs/mechanism-schema.md; the model and the
 defaults: docs/accuracy.md).
 
 Every figure is a standard uncertainty (1 sigma) in the quantity's SI unit (m, rad, Pa, N, kg) once
@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 from enum import Enum
-from typing import Any, Mapping, Protocol
+from typing import Any, Iterable, Mapping, Protocol
 
 SQRT3, SQRT12 = math.sqrt(3.0), math.sqrt(12.0)
 
@@ -78,6 +78,11 @@ DEFAULT_ANGLE_ACCURACY = math.radians(0.2)   # rad: ± bound of a Hall-effect ro
 DEFAULT_STROKE_RESOLUTION = 1.0e-3     # m: ISO 11783-7 rear hitch position, 0.4 %/bit, over a 0.25 m stroke
 DEFAULT_FRICTION_SHARE = 0.03          # of the force: seal friction of a hydraulic cylinder, a few per cent
 DEFAULT_BREAKAWAY = 1.5                # static / kinetic seal friction
+# m, 1 sigma per coordinate of a point the file does not list: 0, the coordinates as exact. A file's
+# coordinates come from a drawing, a fit to published tables or a tape on the tractor, each to its own
+# accuracy, which only its author knows (a tape and a plumb line give a few mm); a default would dominate
+# every budget with a figure of none of them (docs/accuracy.md, "Geometry"): declare yours.
+DEFAULT_POINT_TOLERANCE = 0.0
 
 DEFAULT_PRESSURE = SensorError(bias=DEFAULT_PRESSURE_CLASS / 100.0 * DEFAULT_PRESSURE_FULL_SCALE / SQRT3,
                                origin="default: accuracy class 0.5 % of a 25 MPa full scale (pressure transducer)")
@@ -90,17 +95,43 @@ DEFAULT_FRICTION = SealFriction(share=DEFAULT_FRICTION_SHARE, breakaway=DEFAULT_
 
 
 @dataclass(frozen=True)
+class PointTolerance:
+    """A point's coordinate tolerances (m, 1 sigma, normal: the true point stays where it was built, the
+    same over a run): ``x`` forward, ``z`` up; ``origin`` says where the figures come from."""
+
+    x: float = 0.0
+    z: float = 0.0
+    origin: str = ""
+
+
+@dataclass(frozen=True)
 class ErrorSources:
     """The declared sources of one mechanism: ``sensors`` (measurement name -> SensorError; a measured
     input not listed takes the default of its kind, ``sensor``), ``friction`` (cylinder name ->
-    SealFriction, likewise) and ``implement_mass`` (kg, 1 sigma; 0 when the file gives none).
-    ``declared`` False: the file has no ``error_sources`` block (every figure is a default)."""
+    SealFriction, likewise), ``points`` (point name -> PointTolerance; a point not listed takes
+    ``point_tolerance``, m, for each coordinate) and ``implement_mass`` (kg, 1 sigma; 0 when the file
+    gives none). ``declared`` False: the file has no ``error_sources`` block (every figure is a default)."""
 
     sensors: Mapping[str, SensorError] = field(default_factory=dict)
     friction: Mapping[str, SealFriction] = field(default_factory=dict)
     implement_mass: float = 0.0
     declared: bool = False
     defaults: bool = True
+    points: Mapping[str, PointTolerance] = field(default_factory=dict)
+    point_tolerance: float = DEFAULT_POINT_TOLERANCE
+
+    def point(self, name: str) -> PointTolerance:
+        """The coordinate tolerances of the point ``name``."""
+        if name in self.points:
+            return self.points[name]
+        return PointTolerance(self.point_tolerance, self.point_tolerance,
+                              "file: point_tolerance" if self.point_tolerance > 0.0 else "default: exact")
+
+    def point_coordinates(self, names: Iterable[str]) -> list[tuple[str, int, float]]:
+        """The toleranced coordinates of the points ``names``: (point, axis 0 = x or 1 = z, u in m) for
+        each coordinate whose u is above 0, in the order of ``names``, x before z."""
+        return [(name, axis, u) for name in names
+                for axis, u in enumerate((self.point(name).x, self.point(name).z)) if u > 0.0]
 
     def sensor(self, name: str, kind: str) -> SensorError:
         """The errors of measurement ``name`` of ``kind`` (``cylinders``, ``angles``, ``pressures``)."""
@@ -144,13 +175,13 @@ class _Validator(Protocol):
 _SENSOR_KEYS = {"bias", "noise", "resolution", "accuracy", "class", "full_scale"}
 
 
-def read_error_sources(reader: _Validator, value: Any, cylinders: set[str]) -> ErrorSources:
-    """The ``error_sources`` block (None: every default) checked by ``reader``; ``cylinders`` are the
-    mechanism's cylinder names."""
+def read_error_sources(reader: _Validator, value: Any, cylinders: set[str], points: set[str]) -> ErrorSources:
+    """The ``error_sources`` block (None: every default) checked by ``reader``; ``cylinders`` and
+    ``points`` are the mechanism's cylinder and point names."""
     if value is None:
         return ErrorSources()
     k = "error_sources"
-    block = reader.mapping(value, k, {"defaults", "sensors", "cylinders", "implement"})
+    block = reader.mapping(value, k, {"defaults", "sensors", "cylinders", "implement", "points", "point_tolerance"})
     defaults = block.get("defaults", True)
     if not isinstance(defaults, bool):
         raise reader.fail(f"{k}.defaults", f"expected true or false, got {defaults!r}")
@@ -170,7 +201,21 @@ def read_error_sources(reader: _Validator, value: Any, cylinders: set[str]) -> E
             breakaway=reader.number(c.get("breakaway", 1.0), f"{kc}.breakaway", minimum=1.0), origin="file")
     implement = reader.mapping(block.get("implement") or {}, f"{k}.implement", {"mass"})
     mass = reader.number(implement.get("mass", 0.0), f"{k}.implement.mass", minimum=0.0)
-    return ErrorSources(sensors=sensors, friction=friction, implement_mass=mass, declared=True, defaults=defaults)
+    tolerances = {str(name): _point(reader, spec, f"{k}.points.{name}")
+                  for name, spec in reader.mapping(block.get("points") or {}, f"{k}.points", points).items()}
+    default_point = reader.number(block.get("point_tolerance", 0.0), f"{k}.point_tolerance", minimum=0.0)
+    return ErrorSources(sensors=sensors, friction=friction, implement_mass=mass, declared=True, defaults=defaults,
+                        points=tolerances, point_tolerance=default_point)
+
+
+def _point(reader: _Validator, spec: Any, key: str) -> PointTolerance:
+    """One point's entry: a number (m, 1 sigma, each coordinate) or ``{x: .., z: ..}`` (m, 1 sigma each)."""
+    if not isinstance(spec, dict):
+        u = reader.number(spec, key, minimum=0.0)
+        return PointTolerance(u, u, "file")
+    c = reader.mapping(spec, key, {"x", "z"})
+    return PointTolerance(reader.number(c.get("x", 0.0), f"{key}.x", minimum=0.0),
+                          reader.number(c.get("z", 0.0), f"{key}.z", minimum=0.0), "file")
 
 
 def _sensor(reader: _Validator, spec: Any, key: str) -> SensorError:

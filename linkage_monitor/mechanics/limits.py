@@ -129,7 +129,7 @@ def _reference_length(mech: Mechanism, name: str, reference: Mapping[str, float]
     return float(reference.get(name, np.hypot(*(mech.points[cyl.rod_end.point] - mech.points[cyl.base.point]))))
 
 
-def _driven_by(mech: Mechanism, kind: str, entry: object) -> Solver | None:
+def driven_by(mech: Mechanism, kind: str, entry: object) -> Solver | None:
     """A solver of ``mech`` driven by this one input alone, or None if it does not fix the pose."""
     raw = {**dict(mech.raw), "measurements": {kind: [entry]}, "reference_inputs": {}}
     try:
@@ -168,7 +168,7 @@ def _swept_spans(mech: Mechanism) -> dict[str, tuple[float, float]]:
     angle_values: dict[str, list[np.ndarray]] = {a.name: [] for a in mech.measurements.angles}
     reference = mech.reference_inputs.get("cylinders", {})
     for cyl in mech.measurements.cylinders:
-        solver = _driven_by(mech, "cylinders", cyl)
+        solver = driven_by(mech, "cylinders", cyl)
         if solver is None:
             continue
         length0 = _reference_length(mech, cyl, reference)
@@ -187,7 +187,7 @@ def _swept_spans(mech: Mechanism) -> dict[str, tuple[float, float]]:
     for a, entry in zip(mech.measurements.angles, mech.raw["measurements"].get("angles") or []):
         spans_of: list[np.ndarray] = [v for v in angle_values[a.name] if v.size]
         if not spans_of:
-            solver = _driven_by(mech, "angles", entry)
+            solver = driven_by(mech, "angles", entry)
             if solver is not None:
                 grid = a.reference + np.linspace(-math.pi, math.pi, SWEEP_POINTS)
                 batch = solver.solve_batch(angles={a.name: grid}, reach=False)

@@ -80,7 +80,8 @@ class _Reader(ValueReader):
             loads=self.named_items(top.get("loads"), "loads", self.read_load),
             implement=implement, reference_inputs=self.read_reference_inputs(top.get("reference_inputs"), measurements),
             tractor=self.read_tractor(top.get("tractor")),
-            error_sources=read_error_sources(self, top.get("error_sources"), {c.name for c in cylinders}),
+            error_sources=read_error_sources(self, top.get("error_sources"), {c.name for c in cylinders},
+                                               set(self.points)),
             raw=copy.deepcopy(top))
         self.check_geometry(mech)
         return mech

@@ -4,7 +4,8 @@ output of a solved pose: its standard uncertainty (1 sigma, the output's unit) a
 Outputs (``OutputTable``): hinge reactions (fx, fz, magnitude, N), cylinder forces (N), the implement
 load (N), axle loads (N), steerability ratio and margin (-), lift capacities (N) and the lift reserve
 (-). Sources (``Source``): each measured input's bias, noise and resolution, each force-measured
-cylinder's seal friction, the implement's mass.
+cylinder's seal friction, the implement's mass, each toleranced point coordinate (tabulated once per
+mechanism over its stroke: ``geometry_budget``).
 
 Derivatives, from the pose's inputs moved one at a time, all the moved poses solved in one call of
 the same compiled solve as the pose (``Solver.solve_moved``; a moved pose it does not take: by
@@ -41,6 +42,7 @@ from .budget import FRICTION_SIGN, Budget, Output, Source
 from .coverage_factor import NORMAL_FACTOR
 from .error_sources import ErrorSources, Motion
 from .errors import LinkageError
+from .geometry_budget import GeometryBudget
 from .inputs import Inputs
 from .live_path import InputMoves
 from .machine import STEERABILITY_KEYS, MachineModel, MachineResult
@@ -130,7 +132,12 @@ class _LinearisedOutputs:
         """∂y/∂x (n_out,) from y0 = y(x) and y1 = y(x + step) at one pose; of several loads at once with
         y1 (L, n_out), a row each: (L, n_out)."""
         with np.errstate(invalid="ignore", divide="ignore"):   # an infinite reserve (no load) has no derivative
-            d = (y1 - y0) / step
+            return self.chain(y0, (y1 - y0) / step)
+
+    def chain(self, y0: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """``d`` (n_out,) or (R, n_out), derivatives whose outputs linear in the loads are right, with the
+        others (hinge magnitude, steerability ratio and margin, lift reserve) by the chain rule at ``y0``."""
+        with np.errstate(invalid="ignore", divide="ignore"):   # an infinite reserve (no load) has no derivative
             fx, fz, magnitude = y0[self.fx], y0[self.fz], y0[self.magnitude]
             d[..., self.magnitude] = np.where(magnitude > 0.0,
                                               (fx * d[..., self.fx] + fz * d[..., self.fz]) / magnitude,
@@ -207,6 +214,7 @@ class UncertaintyModel:
         self._linear = _LinearisedOutputs(self.table)
         self._heavier: MachineModel | None = None   # the implement LOAD_STEP_MASS heavier, built when first needed
         self._plans: dict[tuple[tuple[str, ...], ...], _Plan] = {}   # by input names (``_plan``)
+        self.geometry = GeometryBudget(model, self.sources, self.table)
 
     @property
     def outputs(self) -> tuple[Output, ...]:
@@ -241,6 +249,12 @@ class UncertaintyModel:
             uniform.append(True)
             sign.append(FRICTION_SIGN[motions[cylinder]])
         contributions = derivatives[which].T * np.array(scales)
+        if self.geometry.sources:   # the point coordinates' tolerances, from their table (geometry_budget)
+            sources += self.geometry.sources
+            uniform += [False] * len(self.geometry.sources)
+            sign += [0.0] * len(self.geometry.sources)
+            per_point = self._linear.chain(y0, self.geometry.derivatives(inputs))
+            contributions = np.column_stack([contributions, per_point.T * self.geometry.scales])
         if self.sources.implement_mass > 0.0 and self.mech.implement is not None:
             sources.append(Source("implement mass", "implement", "mass", self.sources.implement_mass, "kg"))
             uniform.append(False)

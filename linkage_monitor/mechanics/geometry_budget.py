@@ -1,0 +1,202 @@
+"""Geometry tolerances in the error budget: the derivative of every output with respect to each declared
+point coordinate (``error_sources.points``), tabulated once per mechanism over its stroke.
+
+The true points differ from the file's by the declared tolerances, the same over a run; the sensors read
+the true linkage and the monitor solves the file's. At fixed measured inputs, a moved point moves the
+solved pose (the closure with the inputs held) and the statics. On a linkage one measured input drives
+(one degree of freedom; ``driving``, the first the kinematics takes; the others, redundant, are read off
+the pose it gives), the pose depends on that input alone, and at a fixed pose the outputs are affine in
+the pressures: y = A(s, g) + Σ_l B_l(s, g)·p_l. So ∂y/∂g = ∂A/∂g(s) + Σ_l ∂B_l/∂g(s)·p_l, each term a
+function of the driving input s alone, tabulated at STROKE_NODES points of its assemblable range
+(``limits.input_limits``) by central differences of step POINT_STEP (one model of the mechanism per moved
+coordinate and sign, solved batched at every node and pressure row) and interpolated linearly per step:
+a table lookup. Exact for the outputs linear in the pressures (forces, loads, capacities); the others
+(a hinge's magnitude, the steerability ratio and margin, the lift reserve) follow by the chain rule in
+``uncertainty`` from those. test/test_geometry_budget.py holds the lookup to a direct central difference.
+
+A linkage of more degrees of freedom has no such table: a file declaring point tolerances on one is
+refused (``MechanismFileError``). Units SI (m, Pa, N); frame x forward, z up.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .budget import Source
+from .capacity import interval_around
+from .errors import MechanismFileError
+from .error_sources import ErrorSources
+from .inputs import Inputs
+from .limits import driven_by, input_limits
+from .machine import STEERABILITY_KEYS, MachineModel, MachineSeries
+from .model import Mechanism
+from .results import Status, angle_readings
+from .solver import Solver
+
+if TYPE_CHECKING:
+    from .uncertainty import OutputTable
+
+POINT_STEP = 1.0e-4    # m: the central difference's step of a point coordinate (truncation O(h²): ~1e-8 relative)
+PRESSURE_STEP = 1.0e6  # Pa: the pressure step of the affine part (any step: the outputs are affine in it)
+STROKE_NODES = 513     # the table's nodes over the driving input's range (linear interpolation: test_geometry_budget)
+AXES = ("x", "z")
+
+
+@dataclass(frozen=True)
+class _Table:
+    """The derivatives of one set of given pressures: ``nodes`` (S,) of the driving input (m or rad),
+    ``constant`` (S, G, n_out) ∂A/∂g and ``per_pascal`` (S, L, G, n_out) ∂B_l/∂g, L the ``pressures``."""
+
+    nodes: np.ndarray
+    constant: np.ndarray
+    per_pascal: np.ndarray
+    pressures: tuple[str, ...]
+
+
+class GeometryBudget:
+    """The geometry part of the budgets of ``model``'s poses under ``sources``, for ``table``'s outputs:
+    ``sources`` (a Source per toleranced point coordinate, ``{point} {axis} position``, m, normal) and
+    ``derivatives`` per pose. Empty (no sources) when no point has a tolerance."""
+
+    def __init__(self, model: MachineModel, sources: ErrorSources, table: "OutputTable") -> None:
+        self.model, self.mech, self.table = model, model.mech, table
+        self.coordinates = sources.point_coordinates(model.mech.points)
+        self.sources = tuple(Source(f"{point} {AXES[axis]} position", point, "position", u, "m")
+                             for point, axis, u in self.coordinates)
+        self.scales = np.array([u for _, _, u in self.coordinates])
+        self._tables: dict[tuple[str, ...], _Table] = {}
+        self._moved: list[MachineModel] | None = None
+        self.driving = ""
+        if self.coordinates:
+            self.driving, self.kind = self._driving_input()
+
+    def _driving_input(self) -> tuple[str, str]:
+        """The measured input that drives the linkage alone, and its kind (``cylinders``, ``angles``)."""
+        kin = self.model.solver.kin
+        name = kin.input_names[0]
+        kind = "cylinders" if name in self.mech.measurements.cylinders else "angles"
+        if driven_by(self.mech, kind, _entry(self.mech, kind, name)) is None or input_limits(self.mech)[name].source != "geometry":
+            raise MechanismFileError(self.mech.file, "error_sources.points", (
+                f"point tolerances are propagated on a linkage one measured input drives (one degree of freedom); "
+                f"'{name}' alone does not fix this one's pose"))
+        return name, kind
+
+    def derivatives(self, inputs: Inputs) -> np.ndarray:
+        """∂y/∂g (G, n_out) per m of each toleranced coordinate at the pose of ``inputs`` (its driving input
+        and pressures), the linear outputs' exact to the interpolation (the others: the chain rule's to
+        apply); NaN outside the table's range."""
+        table = self._table(tuple(inputs.pressures))
+        s = getattr(inputs, self.kind)[self.driving]
+        nodes = table.nodes
+        k = int(np.searchsorted(nodes, s)) - 1
+        if not 0 <= k < len(nodes) - 1:
+            return np.full((len(self.coordinates), len(self.table.outputs)), np.nan)
+        w = (s - nodes[k]) / (nodes[k + 1] - nodes[k])
+        d = (1.0 - w) * table.constant[k] + w * table.constant[k + 1]
+        if table.pressures:
+            p = np.array([inputs.pressures[name] for name in table.pressures])
+            d = d + np.einsum("l,lgo->go", p, (1.0 - w) * table.per_pascal[k] + w * table.per_pascal[k + 1])
+        return d
+
+    def _table(self, pressures: tuple[str, ...]) -> _Table:
+        """The table of these given pressures, built once for them."""
+        table = self._tables.get(pressures)
+        if table is None:
+            table = self._tables[pressures] = self._build(pressures)
+        return table
+
+    def stroke_inputs(self) -> tuple[np.ndarray, dict[str, dict[str, np.ndarray]]]:
+        """The table's nodes (S,) and the measured lengths and angles there (by kind and name, (S,)): the
+        driving input over its assemblable range, the others as the file's linkage reads them."""
+        limit = input_limits(self.mech)[self.driving]
+        grid = np.linspace(limit.lo, limit.hi, STROKE_NODES)
+        solver = driven_by(self.mech, self.kind, _entry(self.mech, self.kind, self.driving))
+        assert solver is not None
+        batch = (solver.solve_batch(cylinders={self.driving: grid}) if self.kind == "cylinders"
+                 else solver.solve_batch(angles={self.driving: grid}))
+        angles = angle_readings(self.mech, batch)
+        inputs = {"cylinders": {c: batch.cylinder_length[c] for c in self.mech.measurements.cylinders},
+                  "angles": {a.name: angles[a.name] for a in self.mech.measurements.angles}}
+        inputs[self.kind][self.driving] = grid
+        # the nodes the monitor's solver takes too (on its assembly branch, no dead centre)
+        ok = (batch.status < Status.INPUT) & (self.model.solver.solve_batch(inputs["cylinders"], inputs["angles"],
+                                                                            reach=False).status < Status.INPUT)
+        reference = self.mech.reference_inputs.get(self.kind, {}).get(self.driving, 0.5 * (limit.lo + limit.hi))
+        span = interval_around(grid, ok, reference)   # one assembly branch, without a gap to interpolate across
+        keep = (grid >= span[0]) & (grid <= span[1]) if span is not None else ok
+        return grid[keep], {kind: {name: v[keep] for name, v in group.items()} for kind, group in inputs.items()}
+
+    def _build(self, pressures: tuple[str, ...]) -> _Table:
+        """∂A/∂g and ∂B_l/∂g at the nodes: each moved model solved at every node with the pressures at
+        their reference (the file's, else 0) and each one PRESSURE_STEP above."""
+        nodes, held = self.stroke_inputs()
+        n, rows = len(nodes), len(pressures) + 1
+        reference = self.mech.reference_inputs.get("pressures", {})
+        base = np.array([float(reference.get(name, 0.0)) for name in pressures])
+        levels = np.repeat(base[None], rows, axis=0) + PRESSURE_STEP * np.eye(rows, len(pressures), -1)
+        inputs = {kind: {name: np.tile(v, rows) for name, v in group.items()} for kind, group in held.items()}
+        inputs["pressures"] = {name: np.repeat(levels[:, l], n) for l, name in enumerate(pressures)}
+        moved = self._moved_models()
+        d = np.empty((len(self.coordinates), rows * n, len(self.table.outputs)))
+        for g in range(len(self.coordinates)):
+            up, down = (series_rows(self.table, m, m.solve_series(inputs["cylinders"], inputs["angles"],
+                                                                   inputs["pressures"]))
+                        for m in moved[2 * g: 2 * g + 2])
+            with np.errstate(invalid="ignore"):   # a node a moved model does not solve (NaN) or no load (inf)
+                d[g] = (up - down) / (2.0 * POINT_STEP)
+        by_node = d.reshape(len(self.coordinates), rows, n, -1).transpose(2, 1, 0, 3)   # (S, rows, G, n_out)
+        per_pascal = (by_node[:, 1:] - by_node[:, :1]) / PRESSURE_STEP
+        constant = by_node[:, 0] - np.einsum("l,slgo->sgo", base, per_pascal)
+        return _Table(nodes, constant, per_pascal, pressures)
+
+    def _moved_models(self) -> list[MachineModel]:
+        """The mechanism with each toleranced coordinate moved by +POINT_STEP and −POINT_STEP, in turn."""
+        if self._moved is None:
+            solver = self.model.solver
+            self._moved = []
+            for point, axis, _ in self.coordinates:
+                for sign in (1.0, -1.0):
+                    mech = moved_point(self.mech, point, axis, sign * POINT_STEP)
+                    self._moved.append(MachineModel(mech, Solver(
+                        mech, dead_centre_cond=solver.dead_centre_cond, consistency_tol=solver.consistency_tol,
+                        dead_centre_transmission_deg=solver.dead_centre_transmission_deg)))
+        return self._moved
+
+
+def _entry(mech: Mechanism, kind: str, name: str) -> object:
+    """The file's entry of the measured input ``name`` of ``kind`` (``limits.driven_by`` takes it)."""
+    if kind == "cylinders":
+        return name
+    return next(raw for a, raw in zip(mech.measurements.angles, mech.raw["measurements"].get("angles") or [])
+                if a.name == name)
+
+
+def moved_point(mech: Mechanism, point: str, axis: int, step: float) -> Mechanism:
+    """``mech`` with coordinate ``axis`` (0 = x, 1 = z) of ``point`` moved by ``step`` (m)."""
+    points = dict(mech.points)
+    moved = np.array(points[point], dtype=float)
+    moved[axis] += step
+    points[point] = moved
+    return replace(mech, points=points)
+
+
+def series_rows(table: "OutputTable", model: MachineModel, series: MachineSeries) -> np.ndarray:
+    """The outputs (N, n_out) of ``table`` at the poses of ``series`` (``model.solve_series``: as the live
+    node solves them, each from the one before; NaN where a pose failed)."""
+    batch, machine = series.batch, series.machine
+    names = model.solver.names
+    n = len(batch)
+    hinge_force = (np.stack([batch.hinge_force[h] for h, _, _ in names.hinges], axis=1) if names.hinges
+                   else np.zeros((n, 0, 2)))
+    cylinder_force = (np.stack([batch.cylinder_force[c] for c in names.cylinders], axis=1) if names.cylinders
+                      else np.zeros((n, 0)))
+    steer = (np.stack([machine.steerability[k] for k in STEERABILITY_KEYS], axis=1) if machine.steerability
+             else np.zeros((n, 0)))
+    capacity = (np.stack([machine.lift_capacity[k] for k in model.capacity_keys], axis=1) if machine.lift_capacity
+                else np.zeros((n, 0)))
+    rows = table.rows(hinge_force, cylinder_force, batch.implement_load, steer, capacity)
+    rows[batch.status >= Status.INPUT] = np.nan
+    return rows
