@@ -39,7 +39,7 @@ from .motion import MotionTracker
 from .inputs import DueRun, InputTracker, Refused
 from .road import RoadInput
 from .segment_series import INPUT_KINDS, SegmentSeries, input_columns, limit_values, segment_checks
-from .steps import NO_FINDINGS, Due, Pose, QuietPoses, Run, Segment, Step, Steps
+from .steps import NO_FINDINGS, Due, DueColumns, Pose, QuietPoses, Run, Segment, Step, Steps
 from .wording import failed_step, pose_findings
 
 __all__ = ["ASSEMBLY_LIMIT_M", "NO_FINDINGS", "Monitor", "Pose", "Run", "Segment", "Step", "Steps"]
@@ -204,6 +204,9 @@ class Monitor:
                 for due in self._accept_all(pending):
                     if isinstance(due, Step):
                         steps.append(due)
+                    elif isinstance(due, DueColumns):
+                        segment.add_columns(len(steps), due)
+                        steps.extend([None] * len(due))
                     else:
                         segment.add(len(steps), due)
                         steps.append(None)
@@ -243,10 +246,10 @@ class Monitor:
             if steps:
                 yield Run(Steps(steps, quiet), segments)
 
-    def _accept_all(self, items: Sequence[InputEvent | InputColumns]) -> list[Due | Step]:
+    def _accept_all(self, items: Sequence[InputEvent | InputColumns]) -> list[Due | DueColumns | Step]:
         """``_accept`` of each event of ``items`` in turn (an internal failure an ERROR Step, as in
         ``step``), the runs of events of one form taken as columns (``_accept_columns``)."""
-        found: list[Due | Step] = []
+        found: list[Due | DueColumns | Step] = []
         events: list[InputEvent] = []
         for item in [*items, None]:
             if isinstance(item, InputColumns) or item is None:
@@ -266,17 +269,18 @@ class Monitor:
                 events.append(item)
         return found
 
-    def _accept_columns(self, columns: InputColumns) -> list[Due | Step]:
+    def _accept_columns(self, columns: InputColumns) -> list[Due | DueColumns | Step]:
         """``_accept`` of each event of ``columns``, the runs the tracker accepts at once taken at once
         (``InputTracker.accept_run``: the same rules on arrays); each event it stops at taken alone, then
         the next run tried, on a window that grows while the runs are long and shrinks while they are
         short (after a run of none, a few events taken alone)."""
-        found: list[Due | Step] = []
+        found: list[Due | DueColumns | Step] = []
         i, window = 0, ACCEPT_BLOCK
         while i < columns.size:
             tried = columns.tail(i).head(window)
             run = self.tracker.accept_run(tried)
-            found += self._dues(tried, run)
+            if run.accepted:
+                found += self._dues(tried, run)
             i += run.accepted
             window = min(ACCEPT_BLOCK, max(ACCEPT_WINDOW_MIN, 2 * run.accepted))
             alone = 0 if run.accepted == tried.size else 1 if run.accepted else ACCEPT_WINDOW_MIN
@@ -292,13 +296,16 @@ class Monitor:
         except Exception as exc:  # noqa: BLE001 - as in step()
             return self._internal_error(event, exc)
 
-    def _dues(self, columns: InputColumns, run: DueRun) -> list[Due]:
-        """The due solves of the first ``run.accepted`` events of ``columns``, accepted at once (``_accept``'s)."""
+    def _dues(self, columns: InputColumns, run: DueRun) -> list[Due] | list[DueColumns]:
+        """The due solves of the first ``run.accepted`` events of ``columns``, accepted at once (``_accept``'s):
+        as columns, unless a Due carries more (the cylinders' motions with the error budget, an IMU's body)."""
+        stamps = columns.stamps_ns[:run.accepted]
+        if self.uncertainty is None and self.road is None:
+            return [DueColumns(stamps, columns.topics[:run.accepted], run.cylinders, run.angles, run.pressures)]
         kinds = [run.cylinders, run.angles, run.pressures]
         rows = [list(zip(*(column.tolist() for column in kind.values()))) or [()] * run.accepted for kind in kinds]
         dues = []
-        for stamp, topic, cylinders, angles, pressures in zip(columns.stamps_ns[:run.accepted].tolist(), columns.topics,
-                                                              *rows):
+        for stamp, topic, cylinders, angles, pressures in zip(stamps.tolist(), columns.topics, *rows):
             inputs = Inputs(cylinders=dict(zip(kinds[0], cylinders)), angles=dict(zip(kinds[1], angles)),
                             pressures=dict(zip(kinds[2], pressures)), rates={}, accelerations={})
             dues.append(Due(stamp, topic, inputs, self.motion.motions(inputs, stamp) if self.uncertainty is not None else None,
@@ -312,11 +319,11 @@ class Monitor:
         solved by the series whose checks found nothing, in a configuration that adds nothing to its Step
         (no error budget, IMU or weighing), is left None in ``steps`` and goes to ``quiet``: its Step is
         built when asked for (``Steps``)."""
-        indexed, series = segment.take()
-        if not indexed:
+        taken, series = segment.take()
+        if not len(taken):
             return
-        dues = [d for _, d in indexed]
         if series is None:   # kinetostatics (rates and accelerations): the general path
+            dues = taken.all()
             c = {kind: input_columns(dues, kind) for kind in INPUT_KINDS}
             batch = self.solver.solve_batch(cylinders=c["cylinders"], angles=c["angles"], pressures=c["pressures"],
                                             rates=c["rates"], accelerations=c["accelerations"])
@@ -327,9 +334,9 @@ class Monitor:
             values, plain = series.values, series.plain   # a row is the pose's where plain
         dynamic: np.ndarray | list[None] = [None] * len(batch)
         if self.road is not None:
-            balance = self.road.balance(np.array([due.stamp_ns for due in dues], dtype=np.int64),
-                                        batch.frame_load_points, batch.frame_load_forces, batch.implement_load,
-                                        batch.implement_cg[:, 0], [due.body for due in dues])
+            balance = self.road.balance(taken.stamps_ns, batch.frame_load_points, batch.frame_load_forces,
+                                        batch.implement_load, batch.implement_cg[:, 0],
+                                        [due.body for due in taken.all()])
             machine = MachineBatch(dict(zip(machine.steerability, balance.static.T)), machine.lift_capacity,
                                    machine.size)
             values = self._with_static(values, balance.static) if plain.any() else values
@@ -340,26 +347,25 @@ class Monitor:
                  else np.zeros(len(batch), bool))
         said = np.flatnonzero(~still)   # every pose with the error budget on
         results, machine_results = batch.results(said), machine.results(said)
-        budgets = self._budgets([dues[k] for k in said.tolist()], results, machine_results, batch.status[said])
+        said_dues = [taken.due(k) for k in said.tolist()]
+        budgets = self._budgets(said_dues, results, machine_results, batch.status[said])
         if self.uncertainty is not None:
             front, rear, margin, reserve = limit_values(machine, len(batch))
             checks = checks + interval_checks(front, rear, margin, reserve, LimitUncertainties(*(
                 np.array([getattr(LimitUncertainties.of(b), f) if b is not None else math.nan for b in budgets])
                 for f in LimitUncertainties._fields)))
-        for k, result, machine_result, budget in zip(said.tolist(), results, machine_results, budgets):
-            i, due = indexed[k]
-            status = int(batch.status[k])
+        for k, due, result, machine_result, budget in zip(said.tolist(), said_dues, results, machine_results, budgets):
+            i, status = int(taken.steps[k]), int(batch.status[k])
             pose = Pose(result, machine_result, values[k] if plain[k] else None, budget, dynamic[k])
             steps[i] = (self._pose_step(due, pose, int(checks[k])) if status < Status.INPUT
                         else failed_step(due, Status(status), batch.messages[k]))
         if self.weighing is not None:
-            self._weigh((steps[i], due) for i, due in indexed)
-        solved = Segment(np.array([i for i, _ in indexed]), np.array([d.stamp_ns for d in dues], dtype=np.int64),
-                         batch, machine, self.mechanism, self.config)
+            self._weigh((steps[i], due) for i, due in zip(taken.steps.tolist(), taken.all()))
+        solved = Segment(taken.steps, taken.stamps_ns, batch, machine, self.mechanism, self.config)
         segments.append(solved)
         if still.any():
             rows = np.flatnonzero(still)
-            quiet.append(QuietPoses(solved.steps[rows], rows, solved, values[rows], [dues[k] for k in rows.tolist()]))
+            quiet.append(QuietPoses(solved.steps[rows], rows, solved, values[rows], taken.due))
 
     # ---- the stages both paths share -------------------------------------------------------------
     def _accept(self, event: InputEvent) -> Due | Step:

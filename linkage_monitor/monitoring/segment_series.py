@@ -15,7 +15,7 @@ from linkage_monitor.mechanics import BatchResult, Status
 from linkage_monitor.mechanics.machine import MachineBatch, MachineModel, MachineSeries
 
 from .checks import CheckedValues, pose_checks
-from .steps import Due
+from .steps import Due, DueColumns
 
 INPUT_KINDS = ("cylinders", "angles", "pressures", "rates", "accelerations")   # the fields of ``Inputs``
 
@@ -25,18 +25,48 @@ def input_columns(dues: Sequence[Due], kind: str) -> dict[str, np.ndarray]:
     return {n: np.array([getattr(d.inputs, kind)[n] for d in dues]) for n in getattr(dues[0].inputs, kind)}
 
 
+class TakenDues:
+    """The dues of a segment ``SegmentSeries.take`` hands over, in order: ``steps`` (n,) their Steps'
+    places, ``stamps_ns`` (n,) their stamps, ``due`` the Due of one (a run accepted at once is held as
+    ``DueColumns``: its Due built when asked for)."""
+
+    def __init__(self, parts: list[tuple[list[int], list[Due]] | tuple[np.ndarray, DueColumns]]) -> None:
+        self._parts = [dues for _, dues in parts]
+        self.steps = (np.concatenate([np.asarray(steps, np.int64) for steps, _ in parts]) if parts
+                      else np.zeros(0, np.int64))
+        self.stamps_ns = (np.concatenate([dues.stamps_ns if isinstance(dues, DueColumns)
+                                          else np.array([d.stamp_ns for d in dues], np.int64) for dues in self._parts])
+                          if parts else np.zeros(0, np.int64))
+        self._ends = np.cumsum([len(dues) for dues in self._parts])
+
+    def __len__(self) -> int:
+        return len(self.steps)
+
+    def due(self, k: int) -> Due:
+        """The Due of the k-th due."""
+        part = int(np.searchsorted(self._ends, k, side="right"))
+        dues, k = self._parts[part], k - (int(self._ends[part - 1]) if part else 0)
+        return dues.due(k) if isinstance(dues, DueColumns) else dues[k]
+
+    def all(self) -> list[Due]:
+        """Every Due, in order."""
+        return [due for dues in self._parts for due in (map(dues.due, range(len(dues))) if isinstance(dues, DueColumns)
+                                                         else dues)]
+
+
 class SegmentSeries:
-    """The due poses of one configuration segment of ``Monitor.runs`` (``dues``: (step index, due)),
-    solved PART at a time in ``worker`` as they are accepted (``MachineModel.series``: each pose from the
-    one before, as ``solve_series`` solves them all at once), unless the configuration takes
-    kinetostatics (then ``take`` gives no series and ``Monitor._solve_segment`` solves them itself).
+    """The due poses of one configuration segment of ``Monitor.runs`` (``add``: a step's due; ``add_columns``:
+    a run's, as columns), solved PART at a time in ``worker`` as they are accepted (``MachineModel.series``:
+    each pose from the one before, as ``solve_series`` solves them all at once), unless the configuration
+    takes kinetostatics (then ``take`` gives no series and ``Monitor._solve_segment`` solves them itself).
     ``take`` hands over the dues so far; the next ones go on from the last pose solved. ``machine``
     is the segment's machine model, ``kinetostatics`` its configuration's."""
 
     PART = 256   # poses per part: the last part, solved after the last input, is short
 
     def __init__(self, machine: MachineModel, kinetostatics: bool, worker: ThreadPoolExecutor) -> None:
-        self.dues: list[tuple[int, Due]] = []
+        self._dues: list[tuple[list[int], list[Due]] | tuple[np.ndarray, DueColumns]] = []
+        self._count = 0   # dues added
         self._series = None if kinetostatics else machine.series()
         self._worker = worker
         self._parts: list[Future[None]] = []
@@ -44,31 +74,60 @@ class SegmentSeries:
 
     def add(self, step: int, due: Due) -> None:
         """The due solve of step ``step``."""
-        self.dues.append((step, due))
-        if len(self.dues) - self._sent >= self.PART:
+        last = self._dues[-1] if self._dues else None
+        if last is not None and isinstance(last[1], list):
+            last[0].append(step)
+            last[1].append(due)
+        else:
+            self._dues.append(([step], [due]))
+        self._added(1)
+
+    def add_columns(self, first_step: int, dues: DueColumns) -> None:
+        """The due solves of steps ``first_step``.. (one per due of ``dues``, in order)."""
+        self._dues.append((np.arange(first_step, first_step + len(dues)), dues))
+        self._added(len(dues))
+
+    def _added(self, n: int) -> None:
+        self._count += n
+        if self._count - self._sent >= self.PART:
             self._send()
 
-    def take(self) -> tuple[list[tuple[int, Due]], MachineSeries | None]:
+    def take(self) -> tuple[TakenDues, MachineSeries | None]:
         """The dues added since the last ``take`` and their ``MachineSeries`` (every part solved; None
         for a kinetostatics segment or no dues); the segment is left empty."""
-        dues = self.dues
-        if self._series is None or not dues:
-            self.dues = []
+        dues = TakenDues(self._dues)
+        if self._series is None or not len(dues):
+            self._dues, self._count = [], 0
             return dues, None
         self._send()
         for part in self._parts:
             part.result()   # raises what the part raised
-        self.dues, self._parts, self._sent = [], [], 0
+        self._dues, self._parts, self._sent, self._count = [], [], 0, 0
         return dues, self._series.finish()
 
     def _send(self) -> None:
         """Hand the dues not yet handed to the worker."""
-        if self._series is None or self._sent == len(self.dues):
+        if self._series is None or self._sent == self._count:
             return
-        dues = [d for _, d in self.dues[self._sent:]]
-        self._sent = len(self.dues)
-        self._parts.append(self._worker.submit(self._series.add, input_columns(dues, "cylinders"), input_columns(dues, "angles"),
-                                               input_columns(dues, "pressures")))
+        lo, self._sent = self._sent, self._count
+        parts = [dues for _, dues in self._dues]
+        self._parts.append(self._worker.submit(self._series.add, *(_inputs(parts, kind, lo, self._count)
+                                                                   for kind in ("cylinders", "angles", "pressures"))))
+
+
+def _inputs(parts: list[list[Due] | DueColumns], kind: str, lo: int, hi: int) -> dict[str, np.ndarray]:
+    """The inputs of ``kind`` (cylinders, angles or pressures) of dues lo..hi-1 of ``parts`` (in order) as
+    arrays (hi - lo,) by name."""
+    pieces: list[dict[str, np.ndarray]] = []
+    start = 0
+    for dues in parts:
+        end = start + len(dues)
+        a, b = max(lo, start) - start, min(hi, end) - start
+        if a < b:
+            pieces.append({n: c[a:b] for n, c in getattr(dues, kind).items()} if isinstance(dues, DueColumns)
+                          else input_columns(dues[a:b], kind))
+        start = end
+    return {n: np.concatenate([p[n] for p in pieces]) if len(pieces) > 1 else pieces[0][n] for n in pieces[0]}
 
 
 def limit_values(machine: MachineBatch, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Iterator, Sequence, overload
+from typing import Callable, Iterator, Sequence, overload
 
 import numpy as np
 
@@ -126,29 +126,27 @@ class Segment:
 class QuietPoses:
     """Solved poses of one ``Segment`` whose checks found nothing, their Steps not built (``Steps``):
     ``index`` their places among the Steps, ``rows`` their rows of the segment's arrays, ``values`` their
-    value rows (``mechanics.programs.ValueRow``, one per pose), ``dues`` what was solved (one per pose).
+    value rows (``mechanics.programs.ValueRow``, one per pose), ``dues`` what was solved (by row).
     Such a pose's Step has no finding, no error budget, no dynamic steerability and no weighing."""
 
     index: np.ndarray
     rows: np.ndarray
     segment: Segment
     values: np.ndarray
-    dues: list[Due]
+    dues: Callable[[int], Due]   # the Due of a row of the segment
 
     def within(self, lo: int, hi: int) -> QuietPoses:
         """Those of places lo..hi-1, their places counted from lo."""
         taken = (self.index >= lo) & (self.index < hi)
-        return QuietPoses(self.index[taken] - lo, self.rows[taken], self.segment, self.values[taken],
-                          [self.dues[k] for k in np.flatnonzero(taken).tolist()])
+        return QuietPoses(self.index[taken] - lo, self.rows[taken], self.segment, self.values[taken], self.dues)
 
     def steps(self, which: np.ndarray) -> list[Step]:
         """The Steps of poses ``which`` (positions in these arrays), as ``Monitor`` builds a solved pose's."""
         batch, machine = self.segment.batch, self.segment.machine
         rows = self.rows[which]
         return [Step(due.stamp_ns, due.trigger, (), Pose(result, machine_result, values), due.inputs)
-                for due, result, machine_result, values in zip([self.dues[k] for k in which.tolist()],
-                                                               batch.results(rows), machine.results(rows),
-                                                               self.values[which])]
+                for due, result, machine_result, values in zip(map(self.dues, rows.tolist()), batch.results(rows),
+                                                               machine.results(rows), self.values[which])]
 
 
 class Steps(Sequence[Step]):
@@ -249,3 +247,27 @@ class Due:
     motions: dict[str, Motion] | None = None   # each measured cylinder's motion since the due before (uncertainty)
     body: BodyAcceleration | None = None       # the tractor body's acceleration in use (an IMU configured)
 
+
+
+@dataclass(frozen=True)
+class DueColumns:
+    """Accepted input events whose solves are due, as columns (``InputTracker.accept_run``'s): their
+    stamps (n,) ns, triggers (input topics) and inputs by name (cylinders m, angles rad, pressures Pa
+    gauge; (n,) arrays each). For a configuration whose Due carries nothing else (no cylinder motions,
+    no IMU body): ``due`` is the Due of one of them, as the live path builds it."""
+
+    stamps_ns: np.ndarray
+    triggers: list[str]
+    cylinders: dict[str, np.ndarray]
+    angles: dict[str, np.ndarray]
+    pressures: dict[str, np.ndarray]
+
+    def __len__(self) -> int:
+        return len(self.stamps_ns)
+
+    def due(self, k: int) -> Due:
+        """The Due of event k."""
+        return Due(int(self.stamps_ns[k]), self.triggers[k], Inputs(
+            cylinders={n: float(c[k]) for n, c in self.cylinders.items()},
+            angles={n: float(c[k]) for n, c in self.angles.items()},
+            pressures={n: float(c[k]) for n, c in self.pressures.items()}, rates={}, accelerations={}))
