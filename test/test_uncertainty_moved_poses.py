@@ -1,5 +1,5 @@
 """The error budget's moved poses, solved in one compiled call each from the one before
-(``UncertaintyModel.budget``, ``Solver.solve_moved``), against the per-source oracle
+(``UncertaintyModel.budget`` without its stroke tables, ``Solver.solve_moved``), against the per-source oracle
 (test/oracles/per_source_budget.py: one ``MachineModel.solve`` per moved pose from the pose itself):
 the same contributions but for Newton's convergence tolerance, at poses of every preset; and the
 same where the compiled call does not take the inputs (rates given: each moved pose by
@@ -43,7 +43,7 @@ def _without_mass(um, budget):
 @pytest.mark.parametrize("preset", preset_names())
 def test_moved_poses_in_one_call_agree_with_one_solve_each(preset) -> None:
     poses = sample_poses(preset, 3, np.random.default_rng(7))
-    um = UncertaintyModel(poses.model)
+    um = UncertaintyModel(poses.model, tabulate=False)
     for motion in (Motion.STANDING, Motion.LIFTING):
         for inputs, pose in poses.poses:
             budget = _without_mass(um, um.budget(inputs, pose.result, pose.machine, motion))
@@ -53,7 +53,7 @@ def test_moved_poses_in_one_call_agree_with_one_solve_each(preset) -> None:
 
 def test_inputs_the_compiled_call_does_not_take() -> None:
     poses = sample_poses("belarus_1221", 2, np.random.default_rng(8))
-    um = UncertaintyModel(poses.model)
+    um = UncertaintyModel(poses.model, tabulate=False)
     for inputs, _ in poses.poses:
         moving = replace(inputs, rates={name: 0.01 for name in inputs.cylinders})
         pose = poses.model.solve(moving)

@@ -100,6 +100,16 @@ class Budget:
     uniform: np.ndarray
     sign: np.ndarray
 
+    @classmethod
+    def summarised(cls, outputs: tuple[Output, ...], sources: tuple[Source, ...], values: np.ndarray,
+                   contributions: np.ndarray, motions: Mapping[str, Motion], index: Mapping[str, int],
+                   uniform: np.ndarray, sign: np.ndarray, u: np.ndarray, k: np.ndarray) -> "Budget":
+        """A budget whose ``u`` and ``k`` are computed already (``kernels.tabulated_budget``: as the
+        properties below compute them)."""
+        budget = cls(outputs, sources, values, contributions, motions, index, uniform, sign)
+        budget.__dict__.update(u=u, k=k)   # the cached properties' values
+        return budget
+
     @cached_property
     def u(self) -> np.ndarray:
         """Standard uncertainty (n_out,) of every output: NaN (unbounded) where a contribution is NaN or

@@ -11,7 +11,7 @@ a uniform term alone, 0.95·√3 = 1.645; a mix lies between.
 k is read from a table in two numbers of the budget: the uniform terms' share of u², w = Σ c_j² / u²,
 and their effective count n = (Σ c_j²)² / Σ c_j⁴ (1 for one uniform term or one dominant one; the
 count for equal ones), the terms taken as n equal uniforms beside a normal of variance (1 − w)·u².
-The table (``_table``) is exact for that model: P(|N + S| ≤ t) with S the Irwin–Hall sum of n
+The table (``factor_table``) is exact for that model: P(|N + S| ≤ t) with S the Irwin–Hall sum of n
 uniforms, from its density on a fine grid, solved for t by bisection, once per process. Between
 its rows k is interpolated bilinearly in w and 1/n (n → ∞: the normal's 1.96).
 test/test_coverage_factor.py holds k to a Monte Carlo of the declared distributions within 0.5 %
@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from functools import cache
+from typing import NamedTuple
 
 import numpy as np
 from scipy.special import ndtr
@@ -78,14 +79,23 @@ def exact_factor(share: float, count: int) -> float:
     return 0.5 * (low + high)
 
 
+class FactorTable(NamedTuple):
+    """k (len(shares), len(inverse_counts)) at each uniform share w (``shares``) and inverse count 1/n
+    (``inverse_counts``; 1/n = 0: the normal), as ``kernels.coverage_factors`` takes them."""
+
+    factors: np.ndarray
+    shares: np.ndarray
+    inverse_counts: np.ndarray
+
+
 @cache
-def _table() -> np.ndarray:
-    """k (len(_SHARES), len(_INVERSE_COUNTS)) at each share w and inverse count 1/n (1/n = 0: the normal)."""
+def factor_table() -> FactorTable:
+    """The coverage factors' table (``FactorTable``), computed once per process."""
     table = np.empty((_SHARES.size, _INVERSE_COUNTS.size))
     for i, share in enumerate(_SHARES):
         for j, inverse in enumerate(_INVERSE_COUNTS):
             table[i, j] = NORMAL_FACTOR if inverse == 0.0 else exact_factor(float(share), round(1.0 / inverse))
-    return table
+    return FactorTable(table, _SHARES, _INVERSE_COUNTS)
 
 
 def coverage_factors(contributions: np.ndarray, uniform: np.ndarray, sign: np.ndarray) -> np.ndarray:
@@ -101,4 +111,4 @@ def coverage_factors(contributions: np.ndarray, uniform: np.ndarray, sign: np.nd
     is above 2.5 % (a verdict on either bound errs on the safe side). With no source of known sign
     it is the 95 % quantile of |error| / u. The rows in one compiled call (``kernels.coverage_factors``)."""
     return kernels.coverage_factors(np.ascontiguousarray(contributions, dtype=np.float64), np.asarray(uniform, np.bool_),
-                                    np.asarray(sign, np.float64), _table(), _SHARES, _INVERSE_COUNTS, NORMAL_FACTOR)
+                                    np.asarray(sign, np.float64), *factor_table(), NORMAL_FACTOR)

@@ -24,6 +24,9 @@ the same compiled solve as the pose (``Solver.solve_moved``; a moved pose it doe
   change over ±2 u is a large share of its interval (``NONLINEAR_SHARE``) has no first-order
   interval: its u is NaN (unbounded).
 What moves for a set of input names is worked out once (``_Plan``).
+On a linkage of one degree of freedom the derivatives come from a table over the stroke, each node
+from these moved poses, interpolated per pose, the rest of the budget in one compiled call
+(``budget_table``, ``kernels.tabulated_budget``); the moved poses serve what the table does not.
 u_y² = Σ_s (∂y/∂s · u_s)² (the sources independent); the share of s is (∂y/∂s · u_s)² / u_y².
 The 95 % interval is y ± k·u_y, k from the shape of the budget (``coverage_factor``: 1.96 for normal
 sources, down to 1.645 where one uniform source, a seal's friction or a quantization step, dominates).
@@ -38,8 +41,10 @@ from typing import Mapping, NamedTuple
 
 import numpy as np
 
+from . import kernels
 from .budget import FRICTION_SIGN, Budget, Output, Source
-from .coverage_factor import NORMAL_FACTOR
+from .budget_table import RawRows, StrokeTable, one_dof
+from .coverage_factor import NORMAL_FACTOR, factor_table
 from .error_sources import ErrorSources, Motion
 from .errors import LinkageError
 from .geometry_budget import GeometryBudget
@@ -48,6 +53,7 @@ from .live_path import InputMoves
 from .machine import STEERABILITY_KEYS, MachineModel, MachineResult
 from .model import Mechanism
 from .overrides import apply_overrides
+from .programs import fields
 from .reduced import LOAD_AMPLIFICATION_WARN
 from .results import Result
 from .solver import Solver
@@ -87,10 +93,29 @@ class OutputTable:
         self.outputs: tuple[Output, ...] = tuple(outputs)
         self.index = {o.name: k for k, o in enumerate(self.outputs)}   # output name -> its column
         self.n_hinges, self.n_cylinders = len(hinges), len(cylinders)
-        self._steer_columns = [STEERABILITY_KEYS.index(k) for k in ("front_axle_load", "rear_axle_load", "ratio",
-                                                                     "margin")]
-        self.unit_reference = model.mech.tractor is not None and model.mech.tractor.steerability_reference == "unit"
-        self.tractor_weight = model.mech.tractor.mass * model.mech.gravity if model.mech.tractor is not None else 1.0
+        # the steerability row's columns of the axle loads, the ratio and the margin (none without them)
+        self.steer_columns = np.array([STEERABILITY_KEYS.index(k) for k in ("front_axle_load", "rear_axle_load",
+                                                                             "ratio", "margin")]
+                                      if self.steerability else [], dtype=np.int64)
+        tractor = model.mech.tractor
+        h, c = self.n_hinges, self.n_cylinders
+        load = 3 * h + c
+        steer = load + 1
+        capacity = load + 1 + 4 * self.steerability
+        cg = capacity + self.capacity_points.index("implement_cg") if "implement_cg" in self.capacity_points else -1
+        self.layout = kernels.OutputLayout(
+            fx=0, fz=h, magnitude=2 * h, n_hinges=h, load=load, steer=self.steerability, front=steer,
+            rear=steer + 1, ratio=steer + 2, margin=steer + 3,
+            unit_reference=tractor is not None and tractor.steerability_reference == "unit",
+            tractor_weight=tractor.mass * model.mech.gravity if tractor is not None else 1.0,
+            capacity_cg=cg, reserve=len(self.outputs) - 1 if cg >= 0 else -1)
+        # the outputs not linear in the loads (``kernels.chain_rule`` gives their derivatives)
+        self.nonlinear = np.zeros(len(self.outputs), dtype=bool)
+        self.nonlinear[2 * h:3 * h] = True
+        if self.steerability:
+            self.nonlinear[[steer + 2, steer + 3]] = True
+        if cg >= 0:
+            self.nonlinear[-1] = True
 
     def values(self, result: Result, machine: MachineResult) -> np.ndarray:
         """The outputs of one solved pose, a row (n_out,) in the order of ``outputs``."""
@@ -101,55 +126,33 @@ class OutputTable:
     def rows(self, hinge_force: np.ndarray, cylinder_force: np.ndarray, implement_load: np.ndarray,
              steerability: np.ndarray, capacity: np.ndarray) -> np.ndarray:
         """The outputs of N poses (N, n_out): hinge forces (N, H, 2) N, cylinder forces (N, C) N,
-        implement loads (N,) N, steerability rows (N, STEERABILITY_KEYS) and capacity rows (N, P + 1)."""
-        parts = [hinge_force[:, :, 0], hinge_force[:, :, 1], np.hypot(hinge_force[:, :, 0], hinge_force[:, :, 1]),
-                 cylinder_force, implement_load[:, None]]
-        if self.steerability:
-            parts.append(steerability[:, self._steer_columns])
-        if self.capacity_points or capacity.shape[1]:
-            parts.append(capacity)
-        return np.concatenate(parts, axis=1)
+        implement loads (N,) N, steerability rows (N, STEERABILITY_KEYS) and capacity rows (N, P + 1)
+        (``kernels.output_rows``)."""
+        out = np.empty((len(implement_load), len(self.outputs)))
+        kernels.output_rows(np.ascontiguousarray(hinge_force), np.ascontiguousarray(cylinder_force),
+                            np.asarray(implement_load, dtype=float), steerability, capacity, self.steer_columns, out)
+        return out
 
 
 class _LinearisedOutputs:
     """The derivative of every output with respect to a load (pressure, friction, implement mass)
     from two solves at the same pose: exact for the outputs linear in the loads, the chain rule
-    for the others (``derivative``)."""
+    for the others (``kernels.chain_rule``)."""
 
     def __init__(self, table: OutputTable) -> None:
-        h, c = table.n_hinges, table.n_cylinders
-        self.fx, self.fz, self.magnitude = slice(0, h), slice(h, 2 * h), slice(2 * h, 3 * h)
-        self.load = 3 * h + c
-        self.table = table
-        steer = self.load + 1
-        self.front, self.rear, self.ratio, self.margin = steer, steer + 1, steer + 2, steer + 3
-        capacity = self.load + 1 + 4 * table.steerability
-        self.capacity_cg = (capacity + table.capacity_points.index("implement_cg")
-                            if "implement_cg" in table.capacity_points else None)
-        self.reserve = len(table.outputs) - 1
+        self.layout = table.layout
 
     def derivative(self, y0: np.ndarray, y1: np.ndarray, step: float) -> np.ndarray:
         """∂y/∂x (n_out,) from y0 = y(x) and y1 = y(x + step) at one pose; of several loads at once with
         y1 (L, n_out), a row each: (L, n_out)."""
-        with np.errstate(invalid="ignore", divide="ignore"):   # an infinite reserve (no load) has no derivative
+        with np.errstate(invalid="ignore"):   # an infinite reserve (no load) has no derivative
             return self.chain(y0, (y1 - y0) / step)
 
     def chain(self, y0: np.ndarray, d: np.ndarray) -> np.ndarray:
         """``d`` (n_out,) or (R, n_out), derivatives whose outputs linear in the loads are right, with the
-        others (hinge magnitude, steerability ratio and margin, lift reserve) by the chain rule at ``y0``."""
-        with np.errstate(invalid="ignore", divide="ignore"):   # an infinite reserve (no load) has no derivative
-            fx, fz, magnitude = y0[self.fx], y0[self.fz], y0[self.magnitude]
-            d[..., self.magnitude] = np.where(magnitude > 0.0,
-                                              (fx * d[..., self.fx] + fz * d[..., self.fz]) / magnitude,
-                                              np.hypot(d[..., self.fx], d[..., self.fz]))
-            if self.table.steerability:
-                front, rear = y0[self.front], y0[self.rear]
-                d_front, d_rear = d[..., self.front], d[..., self.rear]
-                d[..., self.ratio] = ((d_front - y0[self.ratio] * (d_front + d_rear)) / (front + rear)
-                                      if self.table.unit_reference else d_front / self.table.tractor_weight)
-                d[..., self.margin] = d[..., self.ratio]
-            if self.capacity_cg is not None:
-                d[..., self.reserve] = (d[..., self.capacity_cg] - y0[self.reserve] * d[..., self.load]) / y0[self.load]
+        others (hinge magnitude, steerability ratio and margin, lift reserve) by the chain rule at ``y0``
+        (in place; ``kernels.chain_rule``)."""
+        kernels.chain_rule(np.atleast_2d(d), y0, self.layout)
         return d
 
 
@@ -175,17 +178,57 @@ class _Move(NamedTuple):
     step: float
 
 
+class _Friction(NamedTuple):
+    """A force-measured cylinder's seal friction at a pose: its pressure ``sensor`` (through which it
+    enters), its standard uncertainty ``u`` (N) and the ``motion`` whose band it took."""
+
+    cylinder: str
+    sensor: str
+    u: float
+    motion: Motion
+
+
+class _Columns(NamedTuple):
+    """The sources of one budget as columns: ``sources``, the derivative row each takes (``rows``), its
+    u in its input's unit (``scales``), its shape (``uniform``, ``sign``: ``Budget``'s) and the
+    motions of the frictions taken."""
+
+    sources: tuple[Source, ...]
+    rows: np.ndarray
+    scales: np.ndarray
+    uniform: np.ndarray
+    sign: np.ndarray
+    motions: dict[str, Motion]
+
+
+class _Fast(NamedTuple):
+    """What a budget from the stroke's table takes of its ``_Plan``: the compiled call's ``program``
+    (``kernels.BudgetProgram``), its columns' ``scales``, ``sign`` and ``uniform`` with every measured
+    cylinder's friction (those set per pose, at ``friction_at``), the implement mass's source (``mass``,
+    empty without)."""
+
+    program: kernels.BudgetProgram
+    scales: np.ndarray
+    sign: np.ndarray
+    uniform: np.ndarray
+    friction_at: tuple[int, ...]
+    mass: tuple[Source, ...]
+
+
 @dataclass(frozen=True)
 class _Plan:
     """What the budget of a pose with one set of input names solves, worked out once for the set:
     ``moves`` a row each (as ``inputs_moved``; None when a name is not the solver's: each moved pose
     is then solved on its own), the derivatives they give, a row each of (P + L, n_out): P lengths
     and angles (central differences of rows ``up`` and ``down`` over ``spans`` (P, 1), twice their
-    steps; ``reach`` (P, 1) each input's combined standard uncertainty) then L pressure sensors (rows ``loads``, step LOAD_STEP_PRESSURE), ``derivative`` by input name; the
-    sources of the measured inputs (``sources``, each from its input's derivative ``which``; their
-    ``scales`` u and ``uniform`` shapes) and the
-    sensor each cylinder's seal friction enters by (``friction_sensors``: None for one whose force is
-    not measured) with its N per Pa (``per_pascal``)."""
+    steps; ``reach`` (P, 1) each input's combined standard uncertainty) then L pressure sensors (moved
+    rows ``loads``, step LOAD_STEP_PRESSURE; derivative rows ``load_rows``), then with ``mass`` (the
+    implement mass a declared source) the implement mass's row; ``derivative`` the row by input
+    name; the sources of the measured inputs (``sources``, each from its input's derivative
+    ``which``; their ``scales`` u and ``uniform`` shapes) and the sensor each cylinder's seal friction
+    enters by (``friction_sensors``: None for one whose force is not measured) with its N per Pa
+    (``per_pascal``); on a one-DOF linkage the stroke's table (``stroke``, ``budget_table``) and the
+    columns its budgets take with every measured cylinder's friction (``fast``)."""
 
     moves: tuple[_Move, ...]
     inputs_moved: InputMoves | None
@@ -194,6 +237,7 @@ class _Plan:
     spans: np.ndarray
     reach: np.ndarray
     loads: slice
+    load_rows: slice
     derivative: Mapping[str, int]
     sources: tuple[Source, ...]
     which: tuple[int, ...]
@@ -201,14 +245,19 @@ class _Plan:
     uniform: tuple[bool, ...]
     friction_sensors: Mapping[str, str | None]
     per_pascal: Mapping[str, float]
+    mass: bool
+    stroke: StrokeTable | None = None
+    fast: _Fast | None = None
 
 
 class UncertaintyModel:
     """The error budget of the poses of one ``MachineModel`` under the declared ``sources`` (default: the
-    mechanism's own, ``Mechanism.error_sources``)."""
+    mechanism's own, ``Mechanism.error_sources``); ``tabulate`` False: every budget from its moved poses,
+    none from a stroke's table (``budget_table``)."""
 
-    def __init__(self, model: MachineModel, sources: ErrorSources | None = None) -> None:
+    def __init__(self, model: MachineModel, sources: ErrorSources | None = None, tabulate: bool = True) -> None:
         self.model, self.mech = model, model.mech
+        self._tabulate = tabulate
         self.sources = sources if sources is not None else model.mech.error_sources
         self.table = OutputTable(model)
         self._linear = _LinearisedOutputs(self.table)
@@ -225,50 +274,123 @@ class UncertaintyModel:
                motion: Motion | Mapping[str, Motion] = Motion.STANDING) -> Budget:
         """The error budget of the solved pose (``result``, ``machine``: ``self.model``'s answer to
         ``inputs``), each seal friction's band by ``motion``: one for every cylinder, or per cylinder
-        name (a cylinder not named: standing)."""
+        name (a cylinder not named: standing). From the stroke's table where it applies
+        (``budget_table``), else from the pose's moved poses."""
         motions = ({c.name: motion for c in self.mech.cylinders} if isinstance(motion, Motion)
                    else {c.name: motion.get(c.name, Motion.STANDING) for c in self.mech.cylinders})
         plan = self._plan(inputs)
+        if plan.stroke is not None and not result.load_amplification > LOAD_AMPLIFICATION_WARN:
+            budget = self._tabulated(plan, inputs, result, machine, motions)
+            if budget is not None:
+                return budget
         y0 = self.table.values(result, machine)
-        moved = self._moved_outputs(inputs, result, plan.moves, plan.inputs_moved)
-        with np.errstate(invalid="ignore"):   # an infinite reserve (no load) has no derivative
-            per_pose = (moved[plan.up] - moved[plan.down]) / plan.spans
-        derivatives = np.concatenate([per_pose, self._linear.derivative(y0, moved[plan.loads], LOAD_STEP_PRESSURE)])
-        sources, which, scales = list(plan.sources), list(plan.which), list(plan.scales)
-        uniform, sign = list(plan.uniform), [0.0] * len(sources)
-        used = {}
-        forces = result.cylinders
-        for cylinder, sensor in plan.friction_sensors.items():
-            u = self.sources.seal_friction(cylinder).standard_uncertainty(forces[cylinder].force, motions[cylinder])
-            if sensor is None or u <= 0.0:
-                continue
-            used[cylinder] = motions[cylinder]
-            sources.append(Source(f"{cylinder} seal friction", cylinder, "friction", u, "N"))
-            which.append(plan.derivative[sensor])
-            scales.append(u / plan.per_pascal[sensor])
-            uniform.append(True)
-            sign.append(FRICTION_SIGN[motions[cylinder]])
-        contributions = derivatives[which].T * np.array(scales)
-        if self.geometry.sources:   # the point coordinates' tolerances, from their table (geometry_budget)
-            sources += self.geometry.sources
-            uniform += [False] * len(self.geometry.sources)
-            sign += [0.0] * len(self.geometry.sources)
-            per_point = self._linear.chain(y0, self.geometry.derivatives(inputs))
-            contributions = np.column_stack([contributions, per_point.T * self.geometry.scales])
-        if self.sources.implement_mass > 0.0 and self.mech.implement is not None:
-            sources.append(Source("implement mass", "implement", "mass", self.sources.implement_mass, "kg"))
-            uniform.append(False)
-            sign.append(0.0)
-            contributions = np.column_stack([contributions,
-                                             self._mass_derivative(inputs, y0) * self.sources.implement_mass])
+        moved, derivatives = self.raw_rows(inputs, result, y0, plan)
+        kernels.chain_rule(derivatives[plan.load_rows.start:], y0, self.table.layout)   # the loads' and the mass's rows
+        columns = self._columns(plan, self._frictions(plan, result, motions))
+        columns, contributions = self._with_geometry(plan, columns, derivatives[columns.rows].T * columns.scales, y0,
+                                                     inputs)
         if result.load_amplification > LOAD_AMPLIFICATION_WARN:   # a weak inference: does the first order hold?
             with np.errstate(invalid="ignore"):   # the second-order change over ±2 u of each length and angle
                 curvature = (moved[plan.up] + moved[plan.down] - 2.0 * y0) / (plan.spans / 2.0) ** 2
                 second = np.sum(2.0 * np.abs(curvature) * plan.reach**2, axis=0)
                 linear = NONLINEAR_SHARE * NORMAL_FACTOR * np.sqrt(np.sum(contributions**2, axis=1))
             contributions[second > linear] = math.nan   # not over the interval: unbounded
-        return Budget(self.table.outputs, tuple(sources), y0, contributions, used, self.table.index,
-                      np.array(uniform, dtype=bool), np.array(sign))
+        return Budget(self.table.outputs, columns.sources, y0, contributions, columns.motions, self.table.index,
+                      columns.uniform, columns.sign)
+
+    def raw_rows(self, inputs: Inputs, result: Result, y0: np.ndarray, plan: _Plan) -> tuple[np.ndarray, np.ndarray]:
+        """The moved poses' outputs (R, n_out) of the pose ``result`` of ``inputs`` (outputs ``y0``) and
+        the derivatives they give, a row per source input (``_Plan``: the lengths' and angles' central
+        differences, then per pressure sensor and for the implement mass (y(x + Δ) − y(x)) / Δ, the
+        columns not linear in the loads as they come: ``kernels.chain_rule`` gives them)."""
+        moved = self._moved_outputs(inputs, result, plan.moves, plan.inputs_moved)
+        with np.errstate(invalid="ignore"):   # an infinite reserve (no load) has no derivative
+            parts = [(moved[plan.up] - moved[plan.down]) / plan.spans, (moved[plan.loads] - y0) / LOAD_STEP_PRESSURE]
+            if plan.mass:
+                parts.append(((self._heavier_outputs(inputs) - y0) / LOAD_STEP_MASS)[None])
+        return moved, np.concatenate(parts)
+
+    def _tabulated(self, plan: _Plan, inputs: Inputs, result: Result, machine: MachineResult,
+                   motions: Mapping[str, Motion]) -> Budget | None:
+        """The budget of the pose from the stroke's table (``budget_table``, ``kernels.tabulated_budget``);
+        None where the table does not hold it, or a measured cylinder's seal friction is 0."""
+        stroke, fast = plan.stroke, plan.fast
+        assert stroke is not None and fast is not None
+        theta = stroke.theta(result)
+        node = stroke.node(theta, result) if math.isfinite(theta) else -1
+        frictions = self._frictions(plan, result, motions) if node >= 0 else []
+        if len(frictions) != len(fast.friction_at):
+            return None
+        scales, sign = fast.scales.copy(), fast.sign.copy()
+        sources, motions = list(plan.sources), {}
+        for at, f in zip(fast.friction_at, frictions):
+            scales[at], sign[at] = f.u / plan.per_pascal[f.sensor], FRICTION_SIGN[f.motion]
+            sources.append(Source(f"{f.cylinder} seal friction", f.cylinder, "friction", f.u, "N"))
+            motions[f.cylinder] = f.motion
+        sources += fast.mass
+        n_out = len(self.table.outputs)
+        y0, u, k = np.empty(n_out), np.empty(n_out), np.empty(n_out)
+        contributions = np.empty((n_out, len(sources)))
+        kernels.tabulated_budget(fast.program, node, theta, result.hinge_force, result.cylinder_values,
+                                 result.implement_load, machine.steerability_row, machine.capacity_row, scales, sign,
+                                 y0, contributions, u, k)
+        if self.geometry.sources:   # the point coordinates' columns join: u and k of them all, as Budget has them
+            columns, contributions = self._with_geometry(plan, _Columns(tuple(sources), np.zeros(0, dtype=np.int64),
+                                                                        scales, fast.uniform, sign, motions),
+                                                         contributions, y0, inputs)
+            return Budget(self.table.outputs, columns.sources, y0, contributions, motions, self.table.index,
+                          columns.uniform, columns.sign)
+        return Budget.summarised(self.table.outputs, tuple(sources), y0, contributions, motions, self.table.index,
+                                 fast.uniform, sign, u, k)
+
+    def _with_geometry(self, plan: _Plan, columns: _Columns, contributions: np.ndarray, y0: np.ndarray,
+                       inputs: Inputs) -> tuple[_Columns, np.ndarray]:
+        """``columns`` and their ``contributions`` (n_out, n_src) with the toleranced point coordinates'
+        (``geometry_budget``, their linear outputs' derivatives from its table, the others by the chain
+        rule) joined before the implement mass's; as they are without point tolerances."""
+        geometry = self.geometry
+        if not geometry.sources:
+            return columns, contributions
+        at, g = len(columns.sources) - plan.mass, len(geometry.sources)
+        per_point = self._linear.chain(y0, geometry.derivatives(inputs))
+        return (_Columns(columns.sources[:at] + geometry.sources + columns.sources[at:], columns.rows,
+                         np.insert(columns.scales, at, geometry.scales), np.insert(columns.uniform, at, [False] * g),
+                         np.insert(columns.sign, at, [0.0] * g), columns.motions),
+                np.insert(contributions, [at] * g, per_point.T * geometry.scales, axis=1))
+
+    def _frictions(self, plan: _Plan, result: Result, motions: Mapping[str, Motion]) -> list[_Friction]:
+        """The seal frictions of the pose: each force-measured cylinder's whose band is not 0."""
+        found = []
+        forces = result.cylinder_values
+        for cylinder, sensor in plan.friction_sensors.items():
+            if sensor is None:
+                continue
+            motion = motions[cylinder]
+            u = self.sources.seal_friction(cylinder).standard_uncertainty(
+                float(forces[self.model.solver.cylinder_index[cylinder], 1]), motion)
+            if u > 0.0:
+                found.append(_Friction(cylinder, sensor, u, motion))
+        return found
+
+    def _columns(self, plan: _Plan, frictions: list[_Friction]) -> _Columns:
+        """The sources of a budget as its columns: the inputs' (``plan.sources``), the seal frictions,
+        the implement mass."""
+        sources, rows, scales = list(plan.sources), list(plan.which), list(plan.scales)
+        uniform, sign = list(plan.uniform), [0.0] * len(sources)
+        for f in frictions:
+            sources.append(Source(f"{f.cylinder} seal friction", f.cylinder, "friction", f.u, "N"))
+            rows.append(plan.derivative[f.sensor])
+            scales.append(f.u / plan.per_pascal[f.sensor])
+            uniform.append(True)
+            sign.append(FRICTION_SIGN[f.motion])
+        if plan.mass:
+            sources.append(Source("implement mass", "implement", "mass", self.sources.implement_mass, "kg"))
+            rows.append(plan.load_rows.stop)
+            scales.append(self.sources.implement_mass)
+            uniform.append(False)
+            sign.append(0.0)
+        return _Columns(tuple(sources), np.array(rows, dtype=np.int64), np.array(scales), np.array(uniform, dtype=bool),
+                        np.array(sign), {f.cylinder: f.motion for f in frictions})
 
     def _plan(self, inputs: Inputs) -> _Plan:
         """The ``_Plan`` of the input names of ``inputs`` (in their order), built once for them."""
@@ -306,15 +428,54 @@ class UncertaintyModel:
                 for part, u in parts[name].items():
                     sources.append(Source(f"{name} {part}", name, part, u, units[kind]))
                     which.append(derivative[name])
-        return _Plan(tuple(moves), self._inputs_moved(moves), slice(0, n_pose, 2), slice(1, n_pose, 2),
+        plan = _Plan(tuple(moves), self._inputs_moved(moves), slice(0, n_pose, 2), slice(1, n_pose, 2),
                      np.array([2.0 * move.step for move in moves[:n_pose:2]]).reshape(-1, 1),
                      np.array([self.sources.sensor(move.name, move.kind).total
                                for move in moves[:n_pose:2]]).reshape(-1, 1), slice(n_pose, None),
+                     slice(n_pose // 2, n_pose // 2 + len(loads)),
                      derivative,
                      tuple(sources), tuple(which), tuple(s.u for s in sources), tuple(s.uniform for s in sources),
                      friction_sensors,
                      {sensor: force_per_pressure(self.mech, sensor)
-                      for sensor in friction_sensors.values() if sensor is not None})
+                      for sensor in friction_sensors.values() if sensor is not None},
+                     self.sources.implement_mass > 0.0 and self.mech.implement is not None)
+        return self._with_stroke(plan, pressures) if self._tabulate else plan
+
+    def _with_stroke(self, plan: _Plan, pressures: tuple[str, ...]) -> _Plan:
+        """``plan`` with its stroke's table (``budget_table``) where one applies: a one-DOF linkage, every
+        input of the compiled path given."""
+        solver = self.model.solver
+        if plan.inputs_moved is None or not one_dof(self.model) or not plan.sources:
+            return plan
+        measured = [(c.name, plan.friction_sensors[c.name]) for c in self.mech.cylinders
+                    if plan.friction_sensors[c.name] is not None]
+        level_sensors = [sensor for _, sensor in measured if sensor is not None]
+        reference = self.mech.reference_inputs.get("pressures", {})
+        n_rows = plan.load_rows.stop + plan.mass
+        stroke = StrokeTable(self.model, {name: float(reference.get(name, 0.0)) for name in pressures}, level_sensors,
+                             n_rows, len(self.table.outputs), self._node_rows(plan))
+        every = self._columns(plan, [_Friction(c, sensor, 1.0, Motion.STANDING) for c, sensor in measured
+                                     if sensor is not None])
+        columns = kernels.SourceColumns(rows=every.rows, uniform=every.uniform,
+                                        cylinders=np.array([solver.cylinder_index[c] for c, _ in measured],
+                                                           dtype=np.int64),
+                                        steer_columns=self.table.steer_columns)
+        program = kernels.budget_program(fields(stroke.table), fields(columns), fields(self.table.layout),
+                                         *factor_table(), NORMAL_FACTOR)
+        return replace(plan, stroke=stroke, fast=_Fast(
+            program, every.scales, every.sign, every.uniform,
+            tuple(range(len(plan.sources), len(plan.sources) + len(level_sensors))), every.sources[len(every.sources) - plan.mass:]))
+
+    def _node_rows(self, plan: _Plan) -> RawRows:
+        """The rows of a table node (``budget_table.RawRows``): ``raw_rows`` at the node's pose, the
+        columns not linear in the loads 0 (the chain rule gives them per pose); None where a moved pose
+        fails (NaN where the pose's own output is finite)."""
+        def rows(inputs: Inputs, result: Result, machine: MachineResult) -> np.ndarray | None:
+            y0 = self.table.values(result, machine)
+            _, raw = self.raw_rows(inputs, result, y0, plan)
+            raw[:, self.table.nonlinear] = 0.0
+            return raw if np.isfinite(raw[:, np.isfinite(y0)]).all() else None
+        return rows
 
     def _inputs_moved(self, moves: list[_Move]) -> InputMoves | None:
         """``moves`` as ``Solver.solve_moved`` takes them; None when a name is not the solver's."""
@@ -379,8 +540,8 @@ class UncertaintyModel:
         with np.errstate(invalid="ignore"):   # an infinite reserve (no load) has no derivative
             return (up - down) / (2.0 * step)
 
-    def _mass_derivative(self, inputs: Inputs, y0: np.ndarray) -> np.ndarray:
-        """∂y/∂m (n_out,) per kg of implement mass: the same inputs solved with the implement heavier."""
+    def _heavier_outputs(self, inputs: Inputs) -> np.ndarray:
+        """The outputs (n_out,) of the same inputs solved with the implement LOAD_STEP_MASS heavier."""
         if self._heavier is None:
             assert self.mech.implement is not None
             heavier = apply_overrides(self.mech, {"implement.mass": self.mech.implement.mass + LOAD_STEP_MASS})
@@ -388,7 +549,7 @@ class UncertaintyModel:
             self._heavier = MachineModel(heavier, Solver(
                 heavier, dead_centre_cond=solver.dead_centre_cond, consistency_tol=solver.consistency_tol,
                 dead_centre_transmission_deg=solver.dead_centre_transmission_deg))
-        return self._linear.derivative(y0, self._solved(self._heavier, inputs, None), LOAD_STEP_MASS)
+        return self._solved(self._heavier, inputs, None)
 
     def _solved(self, model: MachineModel, inputs: Inputs, previous: Result | None) -> np.ndarray:
         """The outputs of ``inputs`` solved by ``model`` from ``previous``; NaN where the pose fails."""

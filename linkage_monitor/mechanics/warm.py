@@ -25,6 +25,7 @@ from .limits import input_limits
 from .results import Status
 from .inputs import Inputs
 from .solver import Solver
+from .uncertainty import UncertaintyModel
 
 
 def compiled_kernels() -> int:
@@ -38,7 +39,8 @@ def compiled_kernels() -> int:
 
 def warm_up() -> float:
     """Solve every preset once per path (single pose warm-started, small and large batches, with
-    rates, lift capacity, a recorded series) and sweep its input limits; returns the seconds it took."""
+    rates, lift capacity, a recorded series, the error budget) and sweep its input limits; returns the
+    seconds it took."""
     started = time.perf_counter()
     allowed = kernels.threads_allowed()
     kernels.allow_threads(True)   # compile the thread-pool drivers too
@@ -51,6 +53,7 @@ def warm_up() -> float:
         result = solver.solve(Inputs(**ref))
         solved = model.solve(Inputs(**ref), previous=result)
         model.value_rows([solved.result, result], [solved.machine, model.evaluate(result)])
+        UncertaintyModel(model).budget(Inputs(**ref), solved.result, solved.machine)   # from a stroke's table or moved poses
         assert result.largest_force >= 0.0
         for n_pose in (2, kernels.PARALLEL_MIN):
             arrays: dict[str, Any] = {k: {n: np.full(n_pose, v) for n, v in group.items()} for k, group in ref.items()}

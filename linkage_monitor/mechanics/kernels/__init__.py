@@ -16,7 +16,8 @@ The modules, each one job: ``threads`` (where a batch runs), ``linalg`` (small d
 algebra), ``closure`` (positions, Φ and ∂Φ/∂q), ``dyads`` (the pose along the chain of dyads),
 ``assembly`` (Newton, the branch, a batch's kinematics), ``equilibrium`` (the general statics),
 ``reduced`` (the statics along the chain, transmission), ``capacity`` (lift capacity),
-``steerability`` (axle loads), ``coverage`` (an error budget's coverage factors), ``rows`` (a pose's published numbers), ``live`` (the live pose
+``steerability`` (axle loads), ``coverage`` (an error budget's coverage factors), ``budget`` (an error
+budget's chain rule and its tabulated pose), ``rows`` (a pose's published numbers), ``live`` (the live pose
 in one call). The names other modules use are importable from the package.
 """
 
@@ -29,6 +30,8 @@ ensure_writable()    # and where it can keep them
 
 from .assembly import (assembled, assembled_batch, condition, loop_signs, newton,  # noqa: E402
                        newton_batch, solve_poses)
+from .budget import (BudgetProgram, OutputLayout, PoseTable, SourceColumns, budget_program, chain_rule,  # noqa: E402
+                     output_rows, tabulated_budget)
 from .capacity import lift_capacity  # noqa: E402
 from .coverage import coverage_factors  # noqa: E402
 from .closure import positions, positions_batch, residual_jacobian, residual_jacobian_batch  # noqa: E402
@@ -44,12 +47,12 @@ from .steerability import (N_STEERABILITY, STEERABILITY_COLUMNS, STEERABILITY_PA
                            steerability_pose, steerability_rows)
 from .threads import PARALLEL_MIN, PARALLEL_PARTS, allow_threads, threads_allowed  # noqa: E402
 
-__all__ = ["BatchOutputs", "NO_MACHINE", "N_STEERABILITY", "PARALLEL_MIN", "PARALLEL_PARTS", "STEERABILITY_COLUMNS",
-           "STEERABILITY_PARAMETERS", "allow_threads",
-           "assembled", "assembled_batch", "batch_outputs", "chain_fit", "chain_pose", "closed_step", "condition", "coverage_factors", "det_sign",
+__all__ = ["BatchOutputs", "BudgetProgram", "NO_MACHINE", "N_STEERABILITY", "OutputLayout", "PARALLEL_MIN", "PARALLEL_PARTS",
+           "PoseTable", "STEERABILITY_COLUMNS", "STEERABILITY_PARAMETERS", "SourceColumns", "allow_threads",
+           "assembled", "assembled_batch", "batch_outputs", "budget_program", "chain_fit", "chain_rule", "chain_pose", "closed_step", "condition", "coverage_factors", "det_sign",
            "equilibrium_matrix", "factor_and_condition", "frame_loads", "gram", "largest_force", "lift_capacity",
            "live_buffer", "live_programs", "live_rows", "live_series", "loop_signs", "lu_factor", "lu_solve",
-           "measured_force", "measured_forces", "newton", "newton_batch", "pack_row", "pack_rows", "positions",
+           "measured_force", "measured_forces", "newton", "newton_batch", "output_rows", "pack_row", "pack_rows", "positions",
            "positions_batch", "residual_jacobian", "residual_jacobian_batch", "smallest_sine", "smallest_sines",
            "solve_linear", "solve_poses", "solve_reduced_statics", "solve_statics", "steerability_pose",
-           "steerability_rows", "step_transmission", "threads_allowed", "transmission_batch", "transmission_pose"]
+           "steerability_rows", "step_transmission", "tabulated_budget", "threads_allowed", "transmission_batch", "transmission_pose"]
