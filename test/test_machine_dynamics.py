@@ -18,12 +18,24 @@ from hypothesis import strategies as st
 
 from linkage_monitor.mechanics import Solver, apply_overrides, load_preset
 from linkage_monitor.mechanics.capacity import stroke_mechanism
-from linkage_monitor.mechanics.dynamics import (BodyAcceleration, PitchAcceleration, RestLoad, imu_body_acceleration,
-                                                implement_at_rest, road_balance)
+from linkage_monitor.mechanics.dynamics import (BOUNCE_FULL, BodyAcceleration, ImuBody, RestLoad, carried_axle_loads,
+                                                dynamic_balance, imu_body_acceleration, implement_at_rest,
+                                                ratio_reference, static_at_rest)
 from linkage_monitor.mechanics.kernels import STEERABILITY_COLUMNS
-from linkage_monitor.mechanics.machine import MachineModel
+from linkage_monitor.mechanics.machine import MachineModel, machine_parameters
 
 STROKE = (0.515, 0.715)  # m, Popov 2009 Table 1's range of S
+
+
+def _road_balance(tractor, g, batch, body, measured=True):
+    """The static rows at rest and the dynamic values of ``batch``'s poses, each with the body's
+    acceleration of its own instant (``mechanics.dynamics``' parts, as ``monitoring.road`` joins them)."""
+    load, x6 = batch.implement_load, batch.implement_cg[:, 0]
+    implement = implement_at_rest(load, body.at(x6), g, load_measured=measured)
+    static = static_at_rest(machine_parameters(tractor, g), batch.frame_load_points, batch.frame_load_forces, load, x6, implement.rest)
+    front, total = carried_axle_loads(tractor, static, load, implement.rest, x6)
+    inertia = np.zeros_like(load) if measured else implement.inertia
+    return static, dynamic_balance(tractor, g, front, total, ratio_reference(tractor, g, static), inertia, x6, body)
 
 
 def _carried(implement_mass: float, load_factor: float, length: float):
@@ -48,10 +60,8 @@ def test_dynamic_axle_loads_balance_the_unit_with_its_inertia(implement_mass, ve
     model, batch = _carried(implement_mass, 1.0 + a6 / rest_model.mech.gravity, length)
     mech, t = model.mech, model.mech.tractor
     g, L, x_tr = mech.gravity, t.wheelbase, float(t.cg[0])
-    implement = implement_at_rest(batch.implement_load, body.at(batch.implement_cg[:, 0]), g, load_measured=True)
-    found = road_balance(t, g, batch.frame_load_points, batch.frame_load_forces, batch.implement_load,
-                         batch.implement_cg[:, 0], body, implement)
-    front, rear = found.dynamic[0, 0], found.dynamic[0, 1]
+    found_static, found_dynamic = _road_balance(t, g, batch, body)
+    front, rear = found_dynamic[0, 0], found_dynamic[0, 1]
     bodies = ((t.mass, x_tr), (t.front_ballast.mass, t.front_ballast.x), (implement_mass, x6))
     forces = sum(m * (g + vertical + pitch * x) for m, x in bodies)
     moments = sum(m * (g + vertical + pitch * x) * x for m, x in bodies) + t.mass * x_tr * (L - x_tr) * pitch
@@ -61,55 +71,68 @@ def test_dynamic_axle_loads_balance_the_unit_with_its_inertia(implement_mass, ve
     # the static balance is the unit at rest, whatever the bounce: the pose solved with the weight alone
     static = rest_model.evaluate_batch(rest).steerability
     for j, key in enumerate(STEERABILITY_COLUMNS):
-        np.testing.assert_allclose(found.static[0, j], static[key][0], rtol=1e-9, atol=1e-6, err_msg=key)
+        np.testing.assert_allclose(found_static[0, j], static[key][0], rtol=1e-9, atol=1e-6, err_msg=key)
     # the dynamic ratio over the weight at rest, its margin against ratio_min
-    np.testing.assert_allclose(found.dynamic[0, 2], front / static["total_weight"][0], rtol=1e-12)
-    np.testing.assert_allclose(found.dynamic[0, 3], found.dynamic[0, 2] - t.ratio_min, rtol=1e-12)
+    np.testing.assert_allclose(found_dynamic[0, 2], front / static["total_weight"][0], rtol=1e-12)
+    np.testing.assert_allclose(found_dynamic[0, 3], found_dynamic[0, 2] - t.ratio_min, rtol=1e-12)
 
 
 @pytest.mark.parametrize("vertical", [np.nan, -5.0])
 def test_without_an_acceleration_the_static_rows_are_as_without_an_imu(vertical):
     """No IMU reading (NaN), or the implement falling faster than g/2 (its load says too little of its
-    weight): the static rows as without an IMU, the dynamic values NaN."""
+    weight): the static rows as without an IMU; the dynamic values NaN without a reading, and with the
+    falling implement those of the measured load (the pressures carry its inertia, whatever it is)."""
     model, batch = _carried(1200.0, 1.3, 0.6)
     body = BodyAcceleration(np.array([vertical]), np.array([0.0]))
-    implement = implement_at_rest(batch.implement_load, body.at(batch.implement_cg[:, 0]), 9.80665, load_measured=True)
-    found = road_balance(model.mech.tractor, model.mech.gravity, batch.frame_load_points, batch.frame_load_forces,
-                         batch.implement_load, batch.implement_cg[:, 0], body, implement)
+    found_static, found_dynamic = _road_balance(model.mech.tractor, model.mech.gravity, batch, body)
     today = model.evaluate_batch(batch).steerability
-    np.testing.assert_array_equal(found.static[0], [today[k][0] for k in STEERABILITY_COLUMNS])
-    assert np.isnan(found.dynamic).all()
+    np.testing.assert_array_equal(found_static[0], [today[k][0] for k in STEERABILITY_COLUMNS])
+    assert np.isnan(found_dynamic).all() == np.isnan(vertical)
 
 
-def test_pitch_acceleration_and_imu_mounting_of_a_known_motion():
-    """β(t) = B·sin(ωt): α = −B·ω²·sin(ωt); the gyro reads ω_y = −dβ/dt (REP 103: nose up turns −y).
-    The least-squares slope over 50 ms at 400 Hz lags by 25 ms (half its window): compared with α
-    there, to the window's curvature error (a least-squares slope of a sine over ±h falls short by
-    about (ω·h)²/10: 1.5 % of α's amplitude here, h = 25 ms)."""
-    rate_hz, b, w = 400.0, 0.02, 2.0 * np.pi * 2.5
-    t = np.arange(0.0, 1.0, 1.0 / rate_hz)
-    stamps = np.round(t * 1e9).astype(np.int64)
-    gyro_y = -b * w * np.cos(w * t)
-    found = PitchAcceleration(0.05).series(stamps, gyro_y)
-    lagged = -b * w**2 * np.sin(w * (t - 0.025))
-    settled = t >= 0.05
-    np.testing.assert_allclose(found[settled], lagged[settled], atol=0.02 * b * w**2)
-    assert np.isnan(found[0])
+def test_the_body_s_acceleration_of_a_known_motion_at_the_pitch_window_s_centre():
+    """β(t) = B·sin(ωt): α = −B·ω²·sin(ωt); the gyro reads ω_y = −dβ/dt (REP 103: nose up turns −y);
+    the body heaves a_B(t) = A·cos(ωt) at B, and an IMU at x_i reads f_z = g + a_B + α·x_i. The
+    least-squares slope over 75 ms at 400 Hz is the derivative at the window's centre, to its
+    curvature error (a least-squares slope of a sine over ±h falls short by about (ω·h)²/10: 3.5 %
+    of α's amplitude here, h = 37.5 ms); the body's acceleration is given at the centre sample's
+    stamp, a_B recovered there to that error times x_i."""
+    rate_hz, b, w, heave, x_i = 400.0, 0.02, 2.0 * np.pi * 2.5, 1.5, 1.2
+    imu = ImuBody(x_i)
+    seen = []
+    for k in range(400):
+        t = k / rate_hz
+        alpha = -b * w**2 * np.sin(w * t)
+        body = imu.add(round(t * 1e9), 9.80665 + heave * np.cos(w * t) + alpha * x_i, -b * w * np.cos(w * t))
+        if body is not None:
+            seen.append(body)
+    assert len(seen) >= 370   # from 0.8 of the window's span on
+    for body in seen:
+        t = body.stamp_ns * 1e-9
+        assert body.acceleration.pitch == pytest.approx(-b * w**2 * np.sin(w * t), abs=0.04 * b * w**2)
+        assert body.acceleration.vertical == pytest.approx(heave * np.cos(w * t), abs=0.04 * b * w**2 * x_i)
+    assert seen[-1].stamp_ns == round((399 - 15) / rate_hz * 1e9)   # 15 samples (37.5 ms) before the newest
+    # the bounce: the RMS of f_z − g over the last 0.3 s
+    assert seen[-1].bounce == pytest.approx(np.sqrt(np.mean((heave * np.cos(w * np.arange(280, 400) / rate_hz)
+                                                             - b * w**2 * np.sin(w * np.arange(280, 400) / rate_hz)
+                                                             * x_i) ** 2)), rel=0.02)
     # an IMU at x_i reads f_z = g + a_B + α·x_i: the body's acceleration at B is recovered
     body = imu_body_acceleration(9.80665 + 0.7 + 2.0 * 1.5, 2.0, 1.5)
     assert body.vertical == pytest.approx(0.7) and body.pitch == 2.0
 
 
-def test_the_weight_at_rest_is_an_exponential_average_over_its_time_constant():
-    """Closed form: a step from 1000 N to 2000 N at t = 0 reaches 2000 − 1000·exp(−t/τ); a NaN (an
-    implement falling faster than g/2) changes nothing and is answered with the value before."""
-    rest = RestLoad(0.1)
+@pytest.mark.parametrize("bounce, tau", [(2.0 * BOUNCE_FULL, 0.5), (0.5 * BOUNCE_FULL, 0.125), (0.0, 0.0)])
+def test_the_weight_at_rest_is_averaged_over_the_bounce_s_time_constant(bounce, tau):
+    """Closed form: a step from 1000 N to 2000 N at t = 0 reaches 2000 − 1000·exp(−t/τ), τ = 0.5 s ·
+    min(1, (bounce/BOUNCE_FULL)²): averaged over 0.5 s on a bouncing body, followed at once on a quiet
+    one; a NaN (an implement falling faster than g/2) changes nothing and is answered with the value before."""
+    rest = RestLoad(0.5)
     stamps = np.arange(0, 30) * 10_000_000   # 100 Hz
     values = np.where(stamps > 0, 2000.0, 1000.0)
     values[5] = np.nan
-    found = rest.series(stamps, values)
+    found = np.array([rest.add(int(s), float(v), bounce) for s, v in zip(stamps, values)])
     t = stamps * 1e-9
-    expected = 2000.0 - 1000.0 * np.exp(-t / 0.1)
+    expected = 2000.0 - 1000.0 * np.exp(-t / tau) if tau else np.where(t > 0, 2000.0, 1000.0)
     keep = np.arange(30) != 5
     np.testing.assert_allclose(found[keep], expected[keep], rtol=1e-12)
     assert found[5] == found[4]

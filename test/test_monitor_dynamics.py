@@ -16,6 +16,7 @@ import pytest
 
 from linkage_monitor.mechanics import load_preset
 from linkage_monitor.mechanics.constants import STANDARD_GRAVITY
+from linkage_monitor.mechanics.dynamics import PITCH_WINDOW
 from linkage_monitor.monitoring.config import MonitorConfig, Topics
 from linkage_monitor.monitoring.core import Monitor
 from linkage_monitor.monitoring.events import ImuEvent, JointStateEvent
@@ -31,15 +32,19 @@ def _config(mech, **changes) -> MonitorConfig:
     return replace(MonitorConfig(mechanism=mech.name, topics=Topics(imu="/imu"), staleness_limit_s=0.5), **changes)
 
 
-def _events(mech, heave: float, frame: str = "imu_link") -> list:
-    """20 IMU messages of a body heaving with ``heave`` m/s² (no pitch), then the reference pose's JointState."""
-    events: list = [ImuEvent("/imu", frame, STANDARD_GRAVITY + heave, 0.0, START + k * IMU_RATE_NS,
-                             START + k * IMU_RATE_NS) for k in range(20)]
+def _events(mech, heave: float, frame: str = "imu_link", count: int = 40) -> list:
+    """``count`` IMU messages of a body heaving with ``heave`` m/s² (a float, or a function of the sample
+    index; no pitch), each followed by the reference pose's JointState of its stamp."""
     inputs = mech.reference_inputs
     names = [*inputs["angles"], *inputs["cylinders"]]
     positions = [*inputs["angles"].values(), *inputs["cylinders"].values()]
-    stamp = START + 20 * IMU_RATE_NS
-    return events + [JointStateEvent("joint_states", names, positions, [], stamp, stamp)]
+    events: list = []
+    for k in range(count):
+        stamp = START + k * IMU_RATE_NS
+        a = heave(k) if callable(heave) else heave
+        events += [ImuEvent("/imu", frame, STANDARD_GRAVITY + a, 0.0, stamp, stamp),
+                   JointStateEvent("joint_states", names, positions, [], stamp, stamp)]
+    return events
 
 
 def _static(mech, config) -> dict:
@@ -55,7 +60,7 @@ def test_a_heave_scales_the_axle_loads_and_the_static_ones_stay(heave):
     rest = _static(mech, config)
     events = _events(mech, heave)
     for steps in (step_by_step(mech, config, events), Monitor(mech, config).run(events).steps):
-        assert all(s.pose is None and not s.findings for s in steps[:-1])   # an IMU message solves nothing
+        assert all(s.pose is None and not s.findings for s in list(steps)[0::2])   # an IMU message solves nothing
         pose = steps[-1].pose
         assert pose.machine.steerability == rest   # without pressures the load carries no inertia: as without an IMU
         front, rear, ratio, margin = pose.dynamic.tolist()
@@ -64,6 +69,24 @@ def test_a_heave_scales_the_axle_loads_and_the_static_ones_stay(heave):
         assert rear == pytest.approx(rest["rear_axle_load"] * scale, rel=1e-9)
         assert ratio == pytest.approx(front / rest["total_weight"], rel=1e-12)
         assert margin == pytest.approx(ratio - rest["ratio_min"], rel=1e-12)
+
+
+def test_the_dynamic_values_are_those_of_the_solve_at_the_pitch_window_s_centre():
+    """The body's acceleration is known half the pitch window late (the gyro's rate differentiated over
+    75 ms, centred): a heave stepping from 0 to 2 m/s² at IMU sample 40 reaches the dynamic values
+    of the solve at sample k − 15 (37.5 ms at 400 Hz), the solves at once and the samples before
+    that, each scaling the axle loads at rest by (g + a)/g (module docstring's oracle)."""
+    mech = load_preset("belarus_1221")
+    config = _config(mech)
+    rest = _static(mech, config)
+    heave = lambda k: 2.0 if k >= 40 else 0.0   # noqa: E731
+    events = _events(mech, heave, count=80)
+    lag = round(PITCH_WINDOW / 2 * 1e9 / IMU_RATE_NS)
+    for steps in (step_by_step(mech, config, events), Monitor(mech, config).run(events).steps):
+        for k in range(40, 80):
+            front = steps[2 * k + 1].pose.dynamic[0]
+            scale = (STANDARD_GRAVITY + heave(k - lag)) / STANDARD_GRAVITY
+            assert front == pytest.approx(rest["front_axle_load"] * scale, rel=1e-9), k
 
 
 def test_the_dynamic_margin_below_zero_while_the_static_one_clears_it_is_a_warning():
@@ -111,7 +134,7 @@ def test_an_implausible_imu_reading_is_refused_and_the_solve_is_as_without_an_im
               "gyro in deg/s": {"rate_y": np.degrees(0.1)}}[fault]
     events = [replace(e, **change) if isinstance(e, ImuEvent) else e for e in events]
     for steps in (step_by_step(mech, config, events), Monitor(mech, config).run(events).steps):
-        refused = [s for s in steps[:-1]]
+        refused = list(steps)[0::2]
         assert all(s.findings and s.findings[0].code is Code.OUT_OF_RANGE and hint in s.message for s in refused)
         pose = steps[-1].pose
         assert np.isnan(pose.dynamic).all() and pose.machine.steerability == _static(mech, config)

@@ -8,21 +8,29 @@ acceleration (rad/s², nose up +). From an IMU mounted at x_i: a_i = f_z − g (
 0.05 rad of pitch the error is under 0.13 % of g), α = −dω_y/dt (nose up turns −y), and
 a_B = a_i − α·x_i.
 
-**Pitch acceleration: the gyro's rate differentiated** (one IMU gives it; two accelerometers a
-known distance apart would give it without differencing a noisy rate, but need a second sensor):
-a causal least-squares slope of ω_y over the samples of the last ``PITCH_WINDOW`` seconds, whose
-noise is σ_ω·√(12/(n·(n²−1)))·rate for n samples and whose delay is half the window
-(``PitchAcceleration``).
+**Pitch acceleration: the gyro's rate differentiated, centred** (one IMU gives it; two
+accelerometers a known distance apart would give it without differencing a noisy rate, but need a
+second sensor): the least-squares slope of ω_y over the samples of the last ``PITCH_WINDOW``
+seconds is the derivative at the window's centre, to its curvature error, with noise
+σ_ω·√(12/(n·(n²−1)))·rate for n samples. The road's pitch acceleration is broadband (on the
+simulator's road up to 16 Hz, where a tyre follows the profile): assigned to the newest sample a
+slope is 37.5 ms late and its error is as large as the signal, so ``ImuBody`` gives the body's
+acceleration **at the window's centre**, paired with that sample's specific force: known 37.5 ms
+late, and the monitor gives the dynamic values of the solve at that stamp
+(``monitoring.road``; bench/bench_dynamics.py).
 
 **Static balance at rest** (Popov 2009, ``kernels.steerability_pose``, as without an IMU): the
 pressures measure the implement's load P = m_6·(g + a_6), its weight and its inertia together; the
-weight at rest P·g/(g + a_6) (``implement_at_rest``), smoothed over ``REST_TIME_CONSTANT`` from
-solve to solve (``RestLoad``: what the correction leaves of a bump, its pitch acceleration late and
-noisy, is faster), replaces P: the difference ΔP is an upward force at the implement's cg on the
-frame (by the linkage's equilibrium the same change of the frame loads' resultant), so that the
-static axle loads, ratio, margin, ballast advice and largest implement mass are those of the
-unit at rest and do not follow the bumps. A load not measured (no pressures: the implement's
-configured weight) is the weight at rest already.
+weight at rest P·g/(g + a_6) (``implement_at_rest``; P and a_6 of one instant) replaces P: the
+difference ΔP is an upward force at the implement's cg on the frame (by the linkage's equilibrium
+the same change of the frame loads' resultant), so that the static axle loads, ratio, margin,
+ballast advice and largest implement mass are those of the unit at rest and do not follow the
+bumps. The weight at rest is averaged (``RestLoad``) over a time constant that grows with the
+body's bounce (the RMS of the IMU's vertical acceleration over ``BOUNCE_WINDOW``): on a bouncing
+body the implement is carried and its weight does not change, and what the correction leaves of
+a bump (the pitch acceleration's error at the implement's lever) averages out; on a quiet body
+the weight changes when the ground takes or gives up the implement and is followed at once. A
+load not measured (no pressures: the implement's configured weight) is the weight at rest already.
 
 **Dynamic balance** (d'Alembert: each body's mass times its acceleration applied, reversed, at its
 cg, and its pitch inertia times α; then the moment balance about B of the static case): the
@@ -47,13 +55,15 @@ import numpy as np
 
 from . import kernels
 from .constants import STANDARD_GRAVITY
-from .machine import machine_parameters
 from .model import Tractor
 
-PITCH_WINDOW = 0.05   # s: the gyro's rate differentiated over the samples of the last 50 ms (bench/bench_dynamics.py)
+PITCH_WINDOW = 0.075   # s: the gyro's rate differentiated over 75 ms, centred (bench/bench_dynamics.py)
 FULL_SPAN = 0.8   # share of PITCH_WINDOW the gyro's samples must span before a pitch acceleration is given
+REBASE_S = 10.0   # s: the running sums' time origin moved on after this (their rounding stays ~1e-12 of the window's)
+BOUNCE_WINDOW = 0.3   # s: the IMU's vertical acceleration RMS over 0.3 s says how much the body bounces
 FALLING = 0.5   # × g: an implement accelerating down faster than this is not weighed at rest (implement_at_rest)
-REST_TIME_CONSTANT = 0.1   # s: the implement's weight at rest smoothed over 0.1 s (bench/bench_dynamics.py)
+REST_TIME_CONSTANT = 0.5   # s: the weight at rest averaged over up to 0.5 s while the body bounces (RestLoad)
+BOUNCE_FULL = 1.0   # m/s²: from this RMS of the body's vertical acceleration on, the full REST_TIME_CONSTANT
 DYNAMIC_KEYS = ("dynamic_front_axle_load", "dynamic_rear_axle_load", "dynamic_ratio", "dynamic_margin")
 DYNAMIC_FRONT, DYNAMIC_MARGIN = DYNAMIC_KEYS.index("dynamic_front_axle_load"), DYNAMIC_KEYS.index("dynamic_margin")
 _STEER = {k: j for j, k in enumerate(kernels.STEERABILITY_COLUMNS)}
@@ -71,39 +81,86 @@ class BodyAcceleration(NamedTuple):
         return self.vertical + self.pitch * x
 
 
-class PitchAcceleration:
-    """The pitch's angular acceleration (rad/s², nose up +) from the gyro's ω_y (rad/s, REP 103):
-    the least-squares slope of −ω_y over the samples of the last ``window`` s (causal; NaN until the
-    samples span ``FULL_SPAN`` of it: a slope over a few samples is mostly the gyro's noise)."""
+class BodyAt(NamedTuple):
+    """The body's acceleration at the IMU sample of header stamp ``stamp_ns`` (ns), and ``bounce``: the
+    RMS of the IMU's vertical acceleration (m/s², gravity excluded) over the ``BOUNCE_WINDOW`` before
+    the newest sample."""
 
-    def __init__(self, window: float = PITCH_WINDOW) -> None:
+    stamp_ns: int
+    acceleration: BodyAcceleration
+    bounce: float
+
+
+class _Sample(NamedTuple):
+    """One IMU sample: header stamp (ns), −ω_y (rad/s, nose up +), f_z (m/s²)."""
+
+    stamp_ns: int
+    nose_up_rate: float
+    specific_force_z: float
+
+
+class ImuBody:
+    """The body's acceleration from an IMU at x = ``mount_x`` (m) on it, sample by sample (REP 103 body
+    axes): the pitch acceleration is the least-squares slope of −ω_y over the samples of the last
+    ``window`` s, which is the derivative at the window's centre; it is paired there with the sample
+    of that time (its f_z and stamp), so that the body's acceleration is given ``window``/2 late
+    and without the lag a slope assigned to its newest sample has (module docstring). Running
+    sums: O(1) per sample. None until the samples span ``FULL_SPAN`` of the window."""
+
+    def __init__(self, mount_x: float, window: float = PITCH_WINDOW, gravity: float = STANDARD_GRAVITY) -> None:
+        self.mount_x, self.gravity = mount_x, gravity
         self.window_ns = int(round(window * 1e9))
-        self._samples: deque[tuple[int, float]] = deque()
+        self._samples: deque[_Sample] = deque()
+        self._squares: deque[tuple[int, float]] = deque()   # (stamp ns, (f_z − g)²) over BOUNCE_WINDOW
+        self._square_sum = 0.0
+        self._origin = 0
+        self._sums = [0.0] * 5   # Σ1, Σt, Σw, Σt², Σt·w; t in s from _origin
 
-    def add(self, stamp_ns: int, rate_y: float) -> float:
-        """One gyro sample (stamp ns, ω_y rad/s); the pitch acceleration at it (rad/s²)."""
+    def _count(self, sample: _Sample, sign: float) -> None:
+        t, w = (sample.stamp_ns - self._origin) * 1e-9, sample.nose_up_rate
+        sums = self._sums
+        sums[0] += sign
+        sums[1] += sign * t
+        sums[2] += sign * w
+        sums[3] += sign * t * t
+        sums[4] += sign * t * w
+
+    def add(self, stamp_ns: int, specific_force_z: float, rate_y: float) -> BodyAt | None:
+        """One IMU sample (header stamp ns, f_z m/s², ω_y rad/s): the body's acceleration at the
+        window's centre sample, or None (a stamp going back starts again)."""
         samples = self._samples
-        if samples and stamp_ns <= samples[-1][0]:   # a stamp going back: start again
+        if samples and stamp_ns <= samples[-1].stamp_ns:
             samples.clear()
-        samples.append((stamp_ns, -rate_y))
-        while samples[0][0] < stamp_ns - self.window_ns:
-            samples.popleft()
-        if len(samples) < 2 or stamp_ns - samples[0][0] < FULL_SPAN * self.window_ns:
-            return math.nan
-        t = np.array([s[0] for s in samples], dtype=float) * 1e-9
-        w = np.array([s[1] for s in samples])
-        t -= t.mean()
-        return float(np.dot(t, w - w.mean()) / np.dot(t, t))
-
-    def series(self, stamps_ns: np.ndarray, rate_y: np.ndarray) -> np.ndarray:
-        """``add`` of each sample in turn (arrays (N,)): (N,) rad/s²."""
-        return np.array([self.add(int(s), float(r)) for s, r in zip(stamps_ns.tolist(), rate_y.tolist())])
+            self._squares.clear()
+            self._square_sum = 0.0
+        samples.append(_Sample(stamp_ns, -rate_y, specific_force_z))
+        if len(samples) == 1 or (stamp_ns - self._origin) * 1e-9 > REBASE_S:   # the sums again from a new origin
+            self._origin, self._sums = samples[0].stamp_ns, [0.0] * 5
+            for sample in samples:
+                self._count(sample, 1.0)
+        else:
+            self._count(samples[-1], 1.0)
+        while samples[0].stamp_ns < stamp_ns - self.window_ns:
+            self._count(samples.popleft(), -1.0)
+        vertical = specific_force_z - self.gravity
+        self._squares.append((stamp_ns, vertical * vertical))
+        self._square_sum += vertical * vertical
+        while self._squares[0][0] < stamp_ns - BOUNCE_WINDOW * 1e9:
+            self._square_sum -= self._squares.popleft()[1]
+        if len(samples) < 3 or stamp_ns - samples[0].stamp_ns < FULL_SPAN * self.window_ns:
+            return None
+        n, st, sw, stt, stw = self._sums
+        pitch = (stw - st * sw / n) / (stt - st * st / n)
+        centre = samples[len(samples) // 2]
+        bounce = math.sqrt(max(self._square_sum, 0.0) / len(self._squares))
+        return BodyAt(centre.stamp_ns, imu_body_acceleration(centre.specific_force_z, pitch, self.mount_x,
+                                                             self.gravity), bounce)
 
 
 def imu_body_acceleration(specific_force_z: float | np.ndarray, pitch_acceleration: float | np.ndarray,
                           mount_x: float, gravity: float = STANDARD_GRAVITY) -> BodyAcceleration:
     """The body's acceleration from an IMU at x = ``mount_x`` (m): its specific force along the body's
-    z (m/s², +g at rest) and the pitch acceleration (rad/s², ``PitchAcceleration``)."""
+    z (m/s², +g at rest) and the pitch acceleration (rad/s², ``ImuBody``)."""
     return BodyAcceleration(specific_force_z - gravity - pitch_acceleration * mount_x, pitch_acceleration)
 
 
@@ -128,30 +185,29 @@ def implement_at_rest(implement_load: np.ndarray, implement_acceleration: np.nda
 
 
 class RestLoad:
-    """The implement's weight at rest smoothed from solve to solve: an exponential average over
-    ``time_constant`` s of the header stamps (the first value taken as it is; a NaN, an implement
-    falling faster than ``FALLING``·g, leaves it as it was and is answered with it).
-    What the IMU's correction leaves of a bump (its pitch acceleration comes late and noisy) is
-    faster than that; a load that truly changes (the ground taking the implement) is followed
-    ``time_constant`` late."""
+    """The implement's weight at rest averaged from IMU sample to IMU sample: an exponential average
+    whose time constant follows the body's bounce, ``time_constant``·min(1, (bounce/``BOUNCE_FULL``)²)
+    s of the samples' stamps. A bouncing body's weight at rest does not change (the implement is
+    carried; what the correction leaves of a bump, the pitch acceleration's error at the implement's
+    lever, averages out over a few bumps); a quiet body's does when the ground takes or gives up the
+    implement, and is followed at once. The first value is taken as it is; a NaN (an implement
+    falling faster than ``FALLING``·g) leaves it as it was and is answered with it."""
 
     def __init__(self, time_constant: float = REST_TIME_CONSTANT) -> None:
         self.time_constant = time_constant
         self._last: tuple[int, float] | None = None
 
-    def add(self, stamp_ns: int, rest: float) -> float:
-        """The smoothed weight at rest (N) after a solve at ``stamp_ns`` with weight at rest ``rest`` (N)."""
+    def add(self, stamp_ns: int, rest: float, bounce: float) -> float:
+        """The averaged weight at rest (N) after a sample at ``stamp_ns`` whose weight at rest is ``rest``
+        (N) with the body bouncing ``bounce`` (m/s² RMS)."""
         last = self._last
         if not math.isfinite(rest):
             return last[1] if last is not None else math.nan
-        if last is not None and stamp_ns > last[0]:
-            rest = last[1] + (1.0 - math.exp(-(stamp_ns - last[0]) * 1e-9 / self.time_constant)) * (rest - last[1])
+        tau = self.time_constant * min(1.0, (bounce / BOUNCE_FULL) ** 2)
+        if last is not None and stamp_ns > last[0] and tau > 0.0:
+            rest = last[1] + (1.0 - math.exp(-(stamp_ns - last[0]) * 1e-9 / tau)) * (rest - last[1])
         self._last = (stamp_ns, rest)
         return rest
-
-    def series(self, stamps_ns: np.ndarray, rest: np.ndarray) -> np.ndarray:
-        """``add`` of each solve in turn (arrays (N,)): (N,) N."""
-        return np.array([self.add(int(s), float(r)) for s, r in zip(stamps_ns.tolist(), rest.tolist())])
 
 
 class RoadBalance(NamedTuple):
@@ -162,34 +218,50 @@ class RoadBalance(NamedTuple):
     dynamic: np.ndarray
 
 
-def road_balance(tractor: Tractor, gravity: float, frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
-                 implement_load: np.ndarray, implement_x: np.ndarray, body: BodyAcceleration,
-                 implement: ImplementAtRest) -> RoadBalance:
-    """The static balance at rest and the dynamic one of N poses (module docstring): the linkage's
-    forces on the frame (points / forces (N, K, 2), m / N), the implement load (N,) N at its cg's x
-    (N,) m, the body's accelerations (arrays (N,)) and the implement's weight at rest and inertia
-    (``implement_at_rest``, smoothed or not). Where they are NaN (no IMU reading) the static rows
-    are those without an IMU and the dynamic values NaN."""
-    params = machine_parameters(tractor, gravity)
+def static_at_rest(params: np.ndarray, frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
+                   implement_load: np.ndarray, implement_x: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """The steerability rows of N poses at rest (N, len(STEERABILITY_COLUMNS)): the machine's parameters
+    (``machine.machine_parameters``), the linkage's forces on the frame (points / forces (N, K, 2),
+    m / N), the implement load (N,) N at its cg's x (N,) m and its weight at rest (N,) N, whose
+    difference ΔP is taken off where the load acts (module docstring). Where ``rest`` is NaN (no
+    IMU reading) the rows are those without an IMU."""
     load, x6 = np.asarray(implement_load, dtype=float), np.asarray(implement_x, dtype=float)
-    rest = np.where(np.isfinite(implement.rest), implement.rest, load)
-    points = np.concatenate([frame_load_points, np.stack([x6, np.zeros_like(x6)], axis=1)[:, None, :]], axis=1)
-    lift = np.stack([np.zeros_like(x6), load - rest], axis=1)[:, None, :]   # ΔP taken off where P acts
-    static = kernels.steerability_rows(np.ascontiguousarray(points, dtype=float),
-                                       np.ascontiguousarray(np.concatenate([frame_load_forces, lift], axis=1),
-                                                            dtype=float),
-                                       np.ascontiguousarray(rest), np.ascontiguousarray(x6), params)
+    rest = np.where(np.isfinite(rest), rest, load)
+    n, k = frame_load_points.shape[:2]
+    points, forces = np.zeros((n, k + 1, 2)), np.zeros((n, k + 1, 2))
+    points[:, :k], forces[:, :k] = frame_load_points, frame_load_forces
+    points[:, k, 0], forces[:, k, 1] = x6, load - rest   # ΔP taken off where P acts
+    return kernels.steerability_rows(points, forces, rest, np.ascontiguousarray(x6), params)
+def carried_axle_loads(tractor: Tractor, static: np.ndarray, implement_load: np.ndarray, rest: np.ndarray,
+                       implement_x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The front axle load and the total (N,) N with the implement's load as the linkage carries it,
+    from the rows at rest ``static`` (``static_at_rest``): ΔP = load − rest put back at its x."""
+    lift = np.asarray(implement_load, dtype=float) - np.where(np.isfinite(rest), rest, implement_load)
+    return (static[:, _STEER["front_axle_load"]] + lift * np.asarray(implement_x) / tractor.wheelbase,
+            static[:, _STEER["total_weight"]] + lift)
+
+
+def dynamic_balance(tractor: Tractor, gravity: float, front: np.ndarray, total: np.ndarray, reference: np.ndarray,
+                    implement_inertia: np.ndarray, implement_x: np.ndarray, body: BodyAcceleration) -> np.ndarray:
+    """The dynamic values (N, len(DYNAMIC_KEYS)) of N poses (module docstring): their front axle load and
+    total (N,) N with the implement's load as the linkage carries it (``carried_axle_loads``), the
+    weight the ratio is taken over (N,) N, the implement's d'Alembert force not in that load (N,) N
+    (m_6·a_6 for a configured load, 0 for a measured one) at its cg's x (N,) m, and the body's
+    acceleration (arrays (N,)); NaN where it is."""
     L, x_tr, m_tr = tractor.wheelbase, float(tractor.cg[0]), tractor.mass
     ballast = tractor.front_ballast
     m_cw, x_cw = (ballast.mass, ballast.x) if ballast is not None else (0.0, L)
-    pitch = np.asarray(body.pitch, dtype=float)
-    tractor_parts = ((m_tr, x_tr), (m_cw, x_cw))
-    moment = (implement.inertia * x6 + sum(m * body.at(x) * x for m, x in tractor_parts)
-              + m_tr * x_tr * (L - x_tr) * pitch)   # J·α, J = m·a·b
-    heave = implement.inertia + sum(m * body.at(x) for m, x in tractor_parts)
-    front = static[:, _STEER["front_axle_load"]] + moment / L
-    total = static[:, _STEER["total_weight"]] + heave
-    reference = static[:, _STEER["total_weight"]] if tractor.steerability_reference == "unit" else m_tr * gravity
+    vertical, pitch = np.asarray(body.vertical, dtype=float), np.asarray(body.pitch, dtype=float)
+    # Σ m_k·a(x_k)·x_k + J·α and Σ m_k·a(x_k) over the tractor and the ballast, a(x) = a_B + α·x, J = m·a·b
+    mass, first = m_tr + m_cw, m_tr * x_tr + m_cw * x_cw
+    second = m_tr * x_tr * x_tr + m_cw * x_cw * x_cw + m_tr * x_tr * (L - x_tr)
+    front = front + (implement_inertia * implement_x + first * vertical + second * pitch) / L
+    heave = implement_inertia + mass * vertical + first * pitch
     ratio = front / reference
-    dynamic = np.stack([front, total - front, ratio, ratio - tractor.ratio_min], axis=1)
-    return RoadBalance(static, dynamic)
+    return np.stack([front, total + heave - front, ratio, ratio - tractor.ratio_min], axis=1)
+
+
+def ratio_reference(tractor: Tractor, gravity: float, static: np.ndarray) -> np.ndarray:
+    """The weight (N,) N the dynamic ratio is taken over: the unit's at rest or the empty tractor's (as ``ratio``)."""
+    total = static[:, _STEER["total_weight"]]
+    return total if tractor.steerability_reference == "unit" else np.full_like(total, tractor.mass * gravity)

@@ -126,7 +126,8 @@ class Monitor:
             if weighing is not None and step is not None and step.pose is not None:
                 result = step.pose.result
                 weighing.observe(step.stamp_ns, result,
-                                 float(due.body.at(result.implement_cg[0])) if due.body is not None else None)
+                                 float(due.body.acceleration.at(result.implement_cg[0])) if due.body is not None
+                                 else None)
                 step.weighing = weighing.state()
                 finding = weighing.finding()
                 if finding is not None:

@@ -5,25 +5,29 @@ An ``ImuEvent`` (``sensor_msgs/Imu`` on ``MonitorConfig.topics.imu``) is accepte
 frame the configured ``imu_frame`` (its axes the body's, REP 103: the monitor does no transform),
 its values finite, its stamp near the clock and not older than the one before — or refused whole
 with a finding; it solves nothing. Each solve takes the body's acceleration of the newest IMU
-message (``mechanics.dynamics``: the specific force along z, the gyro's rate differentiated), if
-that is not older than the staleness limit: the pose's static steerability is then that of the unit
-at rest (the implement's inertia taken out of the measured load) and its dynamic one is computed;
-without it, the static one is as without an IMU and the dynamic one NaN. Units SI (m/s², rad/s,
+message (``mechanics.dynamics.ImuBody``: the specific force along z and the gyro's rate
+differentiated, both at the centre of the pitch window, 37.5 ms before the newest message), if that
+message is not older than the staleness limit: the pose's static steerability is then that of the
+unit at rest (the implement's inertia taken out of the measured load) and it carries the dynamic
+values of the solve at the body's stamp; without it, the static one is as without an IMU and the
+dynamic one NaN. Units SI (m/s², rad/s,
 rad/s², N); frame x forward, z up, origin at the rear wheels' ground contact.
 """
 
 from __future__ import annotations
 
 import math
+from bisect import bisect_left, bisect_right
 from typing import Sequence
 
 import numpy as np
 
 from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.mechanics.constants import STANDARD_GRAVITY
-from linkage_monitor.mechanics.dynamics import (DYNAMIC_KEYS, BodyAcceleration, ImplementAtRest, PitchAcceleration,
-                                                RestLoad, RoadBalance, imu_body_acceleration, implement_at_rest,
-                                                road_balance)
+from linkage_monitor.mechanics.machine import machine_parameters
+from linkage_monitor.mechanics.dynamics import (DYNAMIC_KEYS, PITCH_WINDOW, BodyAcceleration, BodyAt, ImuBody,
+                                                RestLoad, RoadBalance, carried_axle_loads, dynamic_balance,
+                                                implement_at_rest, ratio_reference, static_at_rest)
 
 from .config import MonitorConfig
 from .events import ImuEvent
@@ -38,22 +42,78 @@ NO_DYNAMIC = np.full(len(DYNAMIC_KEYS), math.nan)   # the dynamic values of a po
 # refused: it would take the implement's weight at rest (P·g/(g + a)) anywhere.
 SPECIFIC_FORCE_Z_RANGE = (0.2 * STANDARD_GRAVITY, 1.8 * STANDARD_GRAVITY)   # m/s²
 PITCH_RATE_MAX = 2.0   # rad/s
+PRUNE_AT = 1024   # solves forgotten before the history's lists are cut
+
+
+class _History:
+    """The recent solves, by header stamp (ns, non-decreasing): the implement load (N) at its cg's x (m),
+    and, once their rows at rest are known, the front axle load and total with the load as the linkage
+    carries it and the weight the dynamic ratio is taken over (N; ``mechanics.dynamics``)."""
+
+    def __init__(self) -> None:
+        self.stamps: list[int] = []
+        self.load: list[float] = []
+        self.x: list[float] = []
+        self.front: list[float] = []
+        self.total: list[float] = []
+        self.reference: list[float] = []
+        self.start = 0
+
+    def extend(self, stamps: np.ndarray, load: np.ndarray, x: np.ndarray) -> None:
+        if self.stamps and stamps.size and int(stamps[0]) < self.stamps[-1]:   # a stamp going back: start again
+            self.__init__()   # type: ignore[misc]
+        nan = [math.nan] * stamps.size
+        self.stamps += stamps.tolist()
+        self.load += load.tolist()
+        self.x += x.tolist()
+        self.front += nan
+        self.total += nan
+        self.reference += nan
+
+    def fill(self, count: int, front: np.ndarray, total: np.ndarray, reference: np.ndarray) -> None:
+        """The last ``count`` solves' carried axle loads and reference weight."""
+        end = len(self.stamps)
+        self.front[end - count:], self.total[end - count:], self.reference[end - count:] = (
+            front.tolist(), total.tolist(), reference.tolist())
+
+    def nearest(self, stamp_ns: int, tolerance_ns: float) -> int:
+        """The index of the solve nearest ``stamp_ns`` (of equal stamps the last), −1 if none is within the tolerance."""
+        at = bisect_right(self.stamps, stamp_ns, lo=self.start)
+        candidates = [k for k in (at - 1, at) if self.start <= k < len(self.stamps)]
+        if not candidates:
+            return -1
+        best = min(candidates, key=lambda k: (abs(self.stamps[k] - stamp_ns), -k))
+        return best if abs(self.stamps[best] - stamp_ns) <= tolerance_ns else -1
+
+    def prune(self, keep_ns: float) -> None:
+        """Forget the solves more than ``keep_ns`` before the newest."""
+        if not self.stamps:
+            return
+        self.start = bisect_left(self.stamps, self.stamps[-1] - keep_ns, lo=self.start)
+        if self.start > PRUNE_AT:
+            for name in ("stamps", "load", "x", "front", "total", "reference"):
+                setattr(self, name, getattr(self, name)[self.start:])
+            self.start = 0
 
 
 class RoadInput:
-    """The newest body acceleration from the IMU of ``config`` on ``mechanism``'s tractor; ``load_measured``:
+    """The body's acceleration from the IMU of ``config`` on ``mechanism``'s tractor; ``load_measured``:
     the implement load comes from pressures (it carries the implement's inertia)."""
 
     def __init__(self, mechanism: Mechanism, config: MonitorConfig, load_measured: bool) -> None:
         self.mechanism, self.config, self.load_measured = mechanism, config, load_measured
-        self._pitch, self._rest = PitchAcceleration(), RestLoad()
-        self._body: BodyAcceleration | None = None
+        self._imu, self._rest = ImuBody(config.imu_x, gravity=mechanism.gravity), RestLoad()
+        assert mechanism.tractor is not None   # RoadInput is built for a mechanism with a tractor block only
+        self._params = machine_parameters(mechanism.tractor, mechanism.gravity)
+        self._history = _History()
+        self._rest_at: tuple[int, float] = (-1, math.nan)   # the weight at rest of the newest body's stamp
+        self._body: BodyAt | None = None
         self._stamp_ns = 0
 
     def carry_over(self, previous: RoadInput) -> None:
         """Keep ``previous``'s readings (a reconfiguration with the same IMU)."""
-        self._pitch, self._rest = previous._pitch, previous._rest
-        self._body, self._stamp_ns = previous._body, previous._stamp_ns
+        self._imu, self._rest, self._history = previous._imu, previous._rest, previous._history
+        self._rest_at, self._body, self._stamp_ns = previous._rest_at, previous._body, previous._stamp_ns
 
     def accept(self, event: ImuEvent) -> None:
         """Take an IMU message (its stamp checked against the clock by ``InputTracker.check_stamp``), or
@@ -77,34 +137,63 @@ class RoadInput:
         if event.stamp_ns < self._stamp_ns:
             raise Refused(Finding(Code.OUT_OF_ORDER, f"{what}: stamped {fmt((self._stamp_ns - event.stamp_ns) / 1e6)} "
                                   "ms before the one in use: not applied"))
-        pitch = self._pitch.add(event.stamp_ns, event.rate_y)
-        self._body = imu_body_acceleration(event.specific_force_z, pitch, cfg.imu_x)
+        body = self._imu.add(event.stamp_ns, event.specific_force_z, event.rate_y)
+        if body is not None:
+            self._body = body
         self._stamp_ns = event.stamp_ns
 
-    def body_at(self, stamp_ns: int) -> BodyAcceleration | None:
-        """The body's acceleration for a solve at ``stamp_ns``: the newest, unless it is older than the
-        staleness limit (or none yet)."""
+    def body_at(self, stamp_ns: int) -> BodyAt | None:
+        """The body's acceleration for a solve at ``stamp_ns``: the newest (half the pitch window before the
+        newest IMU message), unless that message is older than the staleness limit (or none yet)."""
         if self._body is None or abs(stamp_ns - self._stamp_ns) > self.config.staleness_limit_s * NS:
             return None
         return self._body
 
     def balance(self, stamps_ns: np.ndarray, frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
                 implement_load: np.ndarray, implement_x: np.ndarray,
-                bodies: Sequence[BodyAcceleration | None]) -> RoadBalance:
-        """``mechanics.dynamics.road_balance`` of N solved poses in input order (their stamps (N,) ns, the
-        other arrays as it takes them), each with its body acceleration (None: no IMU reading in use;
-        NaN then); a measured load's weight at rest smoothed from pose to pose (``RestLoad``; held while
-        the implement falls faster than ``mechanics.dynamics.FALLING``·g)."""
-        vertical = np.array([b.vertical if b is not None else math.nan for b in bodies], dtype=float)
-        pitch = np.array([b.pitch if b is not None else math.nan for b in bodies], dtype=float)
-        body = BodyAcceleration(vertical, pitch)
+                bodies: Sequence[BodyAt | None]) -> RoadBalance:
+        """The static rows at rest and the dynamic values of N solved poses in input order (their stamps (N,)
+        ns, the other arrays as ``mechanics.dynamics.static_at_rest`` takes them), each with its body
+        acceleration (None: no IMU reading in use; the rows then as without an IMU, the dynamic values
+        NaN). The body's acceleration is known half the pitch window late: a measured load's weight
+        at rest is that of the solve at the body's stamp (its inertia taken out there), averaged
+        over the bounce (``RestLoad``); a pose's dynamic values are **those of the solve at its body's
+        stamp** (``PITCH_WINDOW``/2 = 37.5 ms before the newest IMU message), NaN without a solve
+        within the staleness limit of it."""
         mech = self.mechanism
         assert mech.tractor is not None   # RoadInput is built for a mechanism with a tractor block only
-        load = np.asarray(implement_load, dtype=float)
-        implement = implement_at_rest(load, np.asarray(body.at(implement_x)), mech.gravity, self.load_measured)
-        if self.load_measured:
-            rest = self._rest.series(stamps_ns, implement.rest)
-            rest[~np.isfinite(vertical)] = math.nan   # no IMU reading: as without an IMU
-            implement = ImplementAtRest(rest, load - rest)
-        return road_balance(mech.tractor, mech.gravity, frame_load_points, frame_load_forces, load, implement_x, body,
-                            implement)
+        g, history, tolerance = mech.gravity, self._history, self.config.staleness_limit_s * NS
+        load, x6 = np.asarray(implement_load, dtype=float), np.asarray(implement_x, dtype=float)
+        history.extend(np.asarray(stamps_ns, dtype=np.int64), load, x6)
+        found = [history.nearest(b.stamp_ns, tolerance) if b is not None else -1 for b in bodies]
+        rest = np.full(load.size, math.nan)
+        for k, (body, j) in enumerate(zip(bodies, found)):
+            if body is None:
+                continue
+            if not self.load_measured:
+                rest[k] = load[k]
+                continue
+            if body.stamp_ns != self._rest_at[0] and j >= 0:
+                at_rest = implement_at_rest(np.array([history.load[j]]),
+                                            np.array([body.acceleration.at(history.x[j])]), g, True).rest[0]
+                self._rest_at = (body.stamp_ns, self._rest.add(body.stamp_ns, float(at_rest), body.bounce))
+            rest[k] = self._rest_at[1]   # the last average while no solve is at the body's stamp
+        static = static_at_rest(self._params, frame_load_points, frame_load_forces, load, x6, rest)
+        history.fill(load.size, *carried_axle_loads(mech.tractor, static, load, rest, x6),
+                     ratio_reference(mech.tractor, g, static))
+        dynamic = np.full((load.size, len(DYNAMIC_KEYS)), math.nan)
+        rows = [(k, j, b.acceleration) for k, (j, b) in enumerate(zip(found, bodies)) if j >= 0 and b is not None]
+        if rows:
+            at = np.array([k for k, _, _ in rows])
+            acceleration = BodyAcceleration(np.array([a.vertical for _, _, a in rows], dtype=float),
+                                            np.array([a.pitch for _, _, a in rows], dtype=float))
+            x = np.array([history.x[j] for _, j, _ in rows])
+            inertia = (np.zeros(at.size) if self.load_measured
+                       else implement_at_rest(np.array([history.load[j] for _, j, _ in rows]),
+                                              np.asarray(acceleration.at(x)), g, False).inertia)
+            dynamic[at] = dynamic_balance(mech.tractor, g, np.array([history.front[j] for _, j, _ in rows]),
+                                          np.array([history.total[j] for _, j, _ in rows]),
+                                          np.array([history.reference[j] for _, j, _ in rows]), inertia, x,
+                                          acceleration)
+        history.prune(tolerance + PITCH_WINDOW * NS)
+        return RoadBalance(static, dynamic)

@@ -15,7 +15,7 @@ from typing import Callable, Iterator, Sequence, overload
 import numpy as np
 
 from linkage_monitor.mechanics import BatchResult, Inputs, Mechanism, Result
-from linkage_monitor.mechanics.dynamics import DYNAMIC_FRONT, DYNAMIC_MARGIN, BodyAcceleration
+from linkage_monitor.mechanics.dynamics import DYNAMIC_FRONT, DYNAMIC_MARGIN, BodyAt
 from linkage_monitor.mechanics.error_sources import Motion
 from linkage_monitor.mechanics.machine import MachineBatch, MachineResult
 from linkage_monitor.mechanics.budget import Budget
@@ -245,7 +245,7 @@ class Due:
     trigger: str
     inputs: Inputs
     motions: dict[str, Motion] | None = None   # each measured cylinder's motion since the due before (uncertainty)
-    body: BodyAcceleration | None = None       # the tractor body's acceleration in use (an IMU configured)
+    body: BodyAt | None = None   # the tractor body's acceleration in use (an IMU configured), and its stamp
 
 
 
