@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Mapping
+from typing import Mapping, NamedTuple
 
 import numpy as np
 
@@ -31,8 +31,7 @@ class Output:
     unit: str
 
 
-@dataclass(frozen=True)
-class Source:
+class Source(NamedTuple):
     """One declared error source at a pose: ``name`` (``lift_cap_pressure bias``, ``lift_cylinder seal
     friction``, ``implement mass``, ``P03 x position``), the ``input`` it belongs to (a measurement, a
     cylinder, ``implement`` or a point), its ``part`` (``bias``, ``noise``, ``resolution``, ``friction``,

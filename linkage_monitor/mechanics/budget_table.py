@@ -99,8 +99,11 @@ class StrokeTable:
         ``result``, the pose at ``theta``, where they are not yet), −1 where the cell is not tabulated."""
         table = self.table
         j = math.floor((theta - table.origin) / table.step)
-        if not 0 <= j < len(self._state) - 1:
+        state = self._state
+        if not 0 <= j < len(state) - 1:
             return -1
+        if state[j] == state[j + 1] == _FILLED:
+            return j
         for at in (j, j + 1):
             if self._state[at] == _EMPTY:
                 self._state[at] = _FILLED if self._fill(at, result) else _FAILED

@@ -45,7 +45,7 @@ from . import kernels
 from .budget import FRICTION_SIGN, Budget, Output, Source
 from .budget_table import RawRows, StrokeTable, one_dof
 from .coverage_factor import NORMAL_FACTOR, factor_table
-from .error_sources import ErrorSources, Motion
+from .error_sources import ErrorSources, Motion, SealFriction
 from .errors import LinkageError
 from .geometry_budget import GeometryBudget
 from .inputs import Inputs
@@ -227,7 +227,8 @@ class _Plan:
     name; the sources of the measured inputs (``sources``, each from its input's derivative
     ``which``; their ``scales`` u and ``uniform`` shapes) and the sensor each cylinder's seal friction
     enters by (``friction_sensors``: None for one whose force is not measured) with its N per Pa
-    (``per_pascal``); on a one-DOF linkage the stroke's table (``stroke``, ``budget_table``) and the
+    (``per_pascal``), and per force-measured cylinder (``seals``) its name, sensor, row of the cylinder
+    values and seal friction; on a one-DOF linkage the stroke's table (``stroke``, ``budget_table``) and the
     columns its budgets take with every measured cylinder's friction (``fast``)."""
 
     moves: tuple[_Move, ...]
@@ -245,6 +246,7 @@ class _Plan:
     uniform: tuple[bool, ...]
     friction_sensors: Mapping[str, str | None]
     per_pascal: Mapping[str, float]
+    seals: tuple[tuple[str, str, int, SealFriction], ...]
     mass: bool
     stroke: StrokeTable | None = None
     fast: _Fast | None = None
@@ -276,17 +278,15 @@ class UncertaintyModel:
         ``inputs``), each seal friction's band by ``motion``: one for every cylinder, or per cylinder
         name (a cylinder not named: standing). From the stroke's table where it applies
         (``budget_table``), else from the pose's moved poses."""
-        motions = ({c.name: motion for c in self.mech.cylinders} if isinstance(motion, Motion)
-                   else {c.name: motion.get(c.name, Motion.STANDING) for c in self.mech.cylinders})
         plan = self._plan(inputs)
         if plan.stroke is not None and not result.load_amplification > LOAD_AMPLIFICATION_WARN:
-            budget = self._tabulated(plan, inputs, result, machine, motions)
+            budget = self._tabulated(plan, inputs, result, machine, motion)
             if budget is not None:
                 return budget
         y0 = self.table.values(result, machine)
         moved, derivatives = self.raw_rows(inputs, result, y0, plan)
         kernels.chain_rule(derivatives[plan.load_rows.start:], y0, self.table.layout)   # the loads' and the mass's rows
-        columns = self._columns(plan, self._frictions(plan, result, motions))
+        columns = self._columns(plan, self._frictions(plan, result, motion))
         columns, contributions = self._with_geometry(plan, columns, derivatives[columns.rows].T * columns.scales, y0,
                                                      inputs)
         if result.load_amplification > LOAD_AMPLIFICATION_WARN:   # a weak inference: does the first order hold?
@@ -311,14 +311,14 @@ class UncertaintyModel:
         return moved, np.concatenate(parts)
 
     def _tabulated(self, plan: _Plan, inputs: Inputs, result: Result, machine: MachineResult,
-                   motions: Mapping[str, Motion]) -> Budget | None:
+                   motion: Motion | Mapping[str, Motion]) -> Budget | None:
         """The budget of the pose from the stroke's table (``budget_table``, ``kernels.tabulated_budget``);
         None where the table does not hold it, or a measured cylinder's seal friction is 0."""
         stroke, fast = plan.stroke, plan.fast
         assert stroke is not None and fast is not None
         theta = stroke.theta(result)
         node = stroke.node(theta, result) if math.isfinite(theta) else -1
-        frictions = self._frictions(plan, result, motions) if node >= 0 else []
+        frictions = self._frictions(plan, result, motion) if node >= 0 else []
         if len(frictions) != len(fast.friction_at):
             return None
         scales, sign = fast.scales.copy(), fast.sign.copy()
@@ -358,18 +358,16 @@ class UncertaintyModel:
                          np.insert(columns.sign, at, [0.0] * g), columns.motions),
                 np.insert(contributions, [at] * g, per_point.T * geometry.scales, axis=1))
 
-    def _frictions(self, plan: _Plan, result: Result, motions: Mapping[str, Motion]) -> list[_Friction]:
-        """The seal frictions of the pose: each force-measured cylinder's whose band is not 0."""
+    def _frictions(self, plan: _Plan, result: Result, motion: Motion | Mapping[str, Motion]) -> list[_Friction]:
+        """The seal frictions of the pose: each force-measured cylinder's whose band is not 0, by its
+        ``motion`` (one for every cylinder, or per cylinder name: a cylinder not named stands)."""
         found = []
         forces = result.cylinder_values
-        for cylinder, sensor in plan.friction_sensors.items():
-            if sensor is None:
-                continue
-            motion = motions[cylinder]
-            u = self.sources.seal_friction(cylinder).standard_uncertainty(
-                float(forces[self.model.solver.cylinder_index[cylinder], 1]), motion)
+        for cylinder, sensor, row, seal in plan.seals:
+            moving = motion if isinstance(motion, Motion) else motion.get(cylinder, Motion.STANDING)
+            u = seal.standard_uncertainty(float(forces[row, 1]), moving)
             if u > 0.0:
-                found.append(_Friction(cylinder, sensor, u, motion))
+                found.append(_Friction(cylinder, sensor, u, moving))
         return found
 
     def _columns(self, plan: _Plan, frictions: list[_Friction]) -> _Columns:
@@ -438,6 +436,8 @@ class UncertaintyModel:
                      friction_sensors,
                      {sensor: force_per_pressure(self.mech, sensor)
                       for sensor in friction_sensors.values() if sensor is not None},
+                     tuple((c, sensor, self.model.solver.cylinder_index[c], self.sources.seal_friction(c))
+                           for c, sensor in friction_sensors.items() if sensor is not None),
                      self.sources.implement_mass > 0.0 and self.mech.implement is not None)
         return self._with_stroke(plan, pressures) if self._tabulate else plan
 

@@ -431,7 +431,7 @@ class Monitor:
                                                result.residual, result.largest_force, *limits,
                                                result.load_amplification,
                                                dynamic[DYNAMIC_MARGIN] if dynamic is not None else math.nan)))
-        budget = self._budgets([due], [result], [machine], [Status.OK])[0]
+        budget = self._budget(due, result, machine) if self.uncertainty is not None else None
         if budget is not None:
             checks += int(interval_checks(*limits, LimitUncertainties.of(budget)))
         return self._pose_step(due, Pose(result, machine, values, budget, dynamic), checks)
@@ -446,11 +446,16 @@ class Monitor:
                  status: Sequence[int] | np.ndarray) -> list[Budget | None]:
         """The error budget of each solved pose (None for a failed one, or when the configuration does
         not ask for them), each cylinder's seal friction by its motion since the due before."""
-        uncertainty = self.uncertainty
-        if uncertainty is None:
+        if self.uncertainty is None:
             return [None] * len(dues)
-        return [uncertainty.budget(due.inputs, result, machine, due.motions or {}) if code < Status.INPUT else None
+        return [self._budget(due, result, machine) if code < Status.INPUT else None
                 for due, result, machine, code in zip(dues, results, machines, status)]
+
+    def _budget(self, due: Due, result: Result, machine: MachineResult) -> Budget:
+        """The error budget of one solved pose (with ``MonitorConfig.uncertainty``), each cylinder's seal
+        friction by its motion since the due before."""
+        assert self.uncertainty is not None
+        return self.uncertainty.budget(due.inputs, result, machine, due.motions or {})
 
     def _pose_step(self, due: Due, pose: Pose, checks: int) -> Step:
         """The Step of a solved pose whose failed checks are ``checks`` (``Check`` bits)."""
