@@ -20,7 +20,8 @@ refused (``MechanismFileError``). Units SI (m, Pa, N); frame x forward, z up.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import copy
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -34,6 +35,7 @@ from .limits import driven_by, input_limits
 from .machine import STEERABILITY_KEYS, MachineModel, MachineSeries
 from .model import Mechanism
 from .results import Status, angle_readings
+from .schema import mechanism_from_dict
 from .solver import Solver
 
 if TYPE_CHECKING:
@@ -75,10 +77,10 @@ class GeometryBudget:
 
     def _driving_input(self) -> tuple[str, str]:
         """The measured input that drives the linkage alone, and its kind (``cylinders``, ``angles``)."""
-        kin = self.model.solver.kin
-        name = kin.input_names[0]
+        name = self.model.solver.kin.input_names[0]
         kind = "cylinders" if name in self.mech.measurements.cylinders else "angles"
-        if driven_by(self.mech, kind, _entry(self.mech, kind, name)) is None or input_limits(self.mech)[name].source != "geometry":
+        if driven_by(self.mech, kind, _entry(self.mech, kind, name)) is None or \
+                input_limits(self.mech)[name].source != "geometry":
             raise MechanismFileError(self.mech.file, "error_sources.points", (
                 f"point tolerances are propagated on a linkage one measured input drives (one degree of freedom); "
                 f"'{name}' alone does not fix this one's pose"))
@@ -113,17 +115,9 @@ class GeometryBudget:
         driving input over its assemblable range, the others as the file's linkage reads them."""
         limit = input_limits(self.mech)[self.driving]
         grid = np.linspace(limit.lo, limit.hi, STROKE_NODES)
-        solver = driven_by(self.mech, self.kind, _entry(self.mech, self.kind, self.driving))
-        assert solver is not None
-        batch = (solver.solve_batch(cylinders={self.driving: grid}) if self.kind == "cylinders"
-                 else solver.solve_batch(angles={self.driving: grid}))
-        angles = angle_readings(self.mech, batch)
-        inputs = {"cylinders": {c: batch.cylinder_length[c] for c in self.mech.measurements.cylinders},
-                  "angles": {a.name: angles[a.name] for a in self.mech.measurements.angles}}
-        inputs[self.kind][self.driving] = grid
+        ok, inputs = readings_along(self.mech, self.kind, self.driving, grid)
         # the nodes the monitor's solver takes too (on its assembly branch, no dead centre)
-        ok = (batch.status < Status.INPUT) & (self.model.solver.solve_batch(inputs["cylinders"], inputs["angles"],
-                                                                            reach=False).status < Status.INPUT)
+        ok &= self.model.solver.solve_batch(inputs["cylinders"], inputs["angles"], reach=False).status < Status.INPUT
         reference = self.mech.reference_inputs.get(self.kind, {}).get(self.driving, 0.5 * (limit.lo + limit.hi))
         span = interval_around(grid, ok, reference)   # one assembly branch, without a gap to interpolate across
         keep = (grid >= span[0]) & (grid <= span[1]) if span is not None else ok
@@ -166,6 +160,22 @@ class GeometryBudget:
         return self._moved
 
 
+def readings_along(mech: Mechanism, kind: str, name: str, values: np.ndarray
+                   ) -> tuple[np.ndarray, dict[str, dict[str, np.ndarray]]]:
+    """The measured lengths and angles of ``mech``'s linkage (by kind and name, (N,), m or rad) with its
+    input ``name`` of ``kind`` (``cylinders``, ``angles``), which drives it alone, at ``values`` (N,),
+    and where they solve (N,) bool (``limits.driven_by``'s solver, batched)."""
+    solver = driven_by(mech, kind, _entry(mech, kind, name))
+    assert solver is not None
+    batch = (solver.solve_batch(cylinders={name: values}) if kind == "cylinders"
+             else solver.solve_batch(angles={name: values}))
+    angles = angle_readings(mech, batch)
+    inputs = {"cylinders": {c: batch.cylinder_length[c] for c in mech.measurements.cylinders},
+              "angles": {a.name: angles[a.name] for a in mech.measurements.angles}}
+    inputs[kind][name] = np.asarray(values, dtype=float)
+    return batch.status < Status.INPUT, inputs
+
+
 def _entry(mech: Mechanism, kind: str, name: str) -> object:
     """The file's entry of the measured input ``name`` of ``kind`` (``limits.driven_by`` takes it)."""
     if kind == "cylinders":
@@ -175,12 +185,13 @@ def _entry(mech: Mechanism, kind: str, name: str) -> object:
 
 
 def moved_point(mech: Mechanism, point: str, axis: int, step: float) -> Mechanism:
-    """``mech`` with coordinate ``axis`` (0 = x, 1 = z) of ``point`` moved by ``step`` (m)."""
-    points = dict(mech.points)
-    moved = np.array(points[point], dtype=float)
+    """``mech`` with coordinate ``axis`` (0 = x, 1 = z) of ``point`` moved by ``step`` (m), read again from
+    its description (what names the point moves with it: an implement's cg, a body's)."""
+    raw = copy.deepcopy(dict(mech.raw))
+    moved = [float(v) for v in mech.points[point]]
     moved[axis] += step
-    points[point] = moved
-    return replace(mech, points=points)
+    raw["points"][point] = moved
+    return mechanism_from_dict(raw, file=mech.file)
 
 
 def series_rows(table: "OutputTable", model: MachineModel, series: MachineSeries) -> np.ndarray:

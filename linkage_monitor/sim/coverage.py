@@ -2,14 +2,14 @@
 
 Each run takes a stretch of a simulated stream of a mechanism (``sim.telemetry``), draws the sensors'
 errors from the declared sources (``sim.sensor_errors``: biases and the seals' level once per run,
-noise per sample) and feeds a fresh ``Monitor`` (``MonitorConfig.uncertainty``) the erroneous readings
-only, one JointState and the pressures per sample. The truth of each sample is the same mechanics
-solved from the true inputs (the pressures of the true loads, the true lengths and angles). Tallied
-per output kind (``KIND_GROUPS``): the share of steps whose 95 % interval (value ± k·u) holds the
-true value, the mean 95 % half-width (k·u, ``Budget.half_width``) over the RMS of the actual error
-(sharpness), and per
-machine-level limit the steps the monitor passed (no finding about that limit) whose true value is
-beyond it (wrong with OK). Units SI (N, -).
+noise per sample; where points have tolerances, the true linkage once per run: ``sim.true_geometry``)
+and feeds a fresh ``Monitor`` (``MonitorConfig.uncertainty``) the erroneous readings only, one
+JointState and the pressures per sample. The truth of each sample is the same mechanics (with the
+run's true points) solved from the true inputs (the pressures of the true loads, the true lengths and
+angles). Tallied per output kind (``KIND_GROUPS``): the share of steps whose 95 % interval (value ±
+k·u) holds the true value, the mean 95 % half-width (k·u, ``Budget.half_width``) over the RMS of the
+actual error (sharpness), and per machine-level limit the steps the monitor passed (no finding about
+that limit) whose true value is beyond it (wrong with OK). Units SI (N, -).
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from linkage_monitor.monitoring.core import Monitor, Step
 from linkage_monitor.monitoring.findings import Code
 
 from .sensor_errors import SensorErrorSimulator, TrueInputs
+from .true_geometry import draw_geometry, read_on
 from .telemetry import SimulatedStream, simulate
 
 # output kind (mechanics.budget.Output.kind) -> the group it is tallied in
@@ -164,12 +165,20 @@ def true_inputs(stream: SimulatedStream, start: int, steps: int) -> TrueInputs:
 
 def run_once(mech: Mechanism, simulator: SensorErrorSimulator, truth: TrueInputs, stamps_ns: np.ndarray,
              rng: np.random.Generator, tally: CoverageTally) -> None:
-    """One run: draw its errors, feed a fresh monitor the readings sample by sample, tally each step."""
-    readings = simulator.readings(truth, simulator.draw(rng), rng)
-    topics = {f"/pressure/{name}": name for name in readings["pressures"]}
+    """One run: draw its errors (the sensors', the seals' and, where declared, the points': the true
+    linkage, ``true_geometry``), feed a fresh monitor the readings sample by sample, tally each step
+    against the truth."""
+    topics = {f"/pressure/{name}": name for name in truth.values.get("pressures", {})}
     monitor = Monitor(mech, MonitorConfig(mechanism=mech.name, pressure_topics=topics, pressure_absolute=False,
                                           staleness_limit_s=3600.0, stamp_tolerance_s=1e9, uncertainty=True))
     assert monitor.uncertainty is not None
+    errors = simulator.draw(rng)
+    geometry = draw_geometry(mech, simulator.sources, rng, monitor.machine.solver)
+    truth_model = monitor.machine
+    if geometry is not None:
+        truth = read_on(geometry, truth, monitor.uncertainty.geometry.driving, monitor.uncertainty.geometry.kind)
+        truth_model = geometry.model
+    readings = simulator.readings(truth, errors, rng)
     table = monitor.uncertainty.table
     kinds, names = [o.kind for o in table.outputs], [o.name for o in table.outputs]
     joint_readings = {**readings["angles"], **readings["cylinders"]}   # one JointState: angles, then lengths
@@ -183,7 +192,7 @@ def run_once(mech: Mechanism, simulator: SensorErrorSimulator, truth: TrueInputs
         step = monitor.on_joint_state(joints, joint_values[i].tolist(), [], stamp, stamp)
         tally.steps += 1
         try:
-            pose = monitor.machine.solve(truth.at(i), previous)
+            pose = truth_model.solve(truth.at(i), previous)
         except LinkageError:
             tally.untrue += 1
             previous = None
