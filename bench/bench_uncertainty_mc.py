@@ -8,12 +8,18 @@ Goal: every output within 10 % of the Monte Carlo one at 200 poses of each prese
 samples each; printed: the worst ratio u_first_order / u_monte_carlo per preset (and which output,
 where), the share of samples the monitor refused (they leave the spread), the time per budget.
 
+With the presets' sources and, on the linkages one measured input drives (belarus_1221, drill_coulter,
+ttz1080_base_change), point tolerances of ``--point-tolerance`` (default 1 mm) drawn over
+``--geometries`` linkages.
+
     .venv/bin/python bench/bench_uncertainty_mc.py [--poses 200] [--samples 10000] [--seed 51] [--preset NAME]
+        [--point-tolerance 0.001] [--geometries 1000]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -25,24 +31,43 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "test"))
 from linkage_monitor.mechanics import preset_names  # noqa: E402
 from linkage_monitor.mechanics.error_sources import Motion  # noqa: E402
+from linkage_monitor.mechanics.geometry_budget import driving_input  # noqa: E402
 from linkage_monitor.mechanics.uncertainty import UncertaintyModel  # noqa: E402
-from oracles.monte_carlo import NEGLIGIBLE, REFUSED_SHARE, comparable, monte_carlo, sample_poses  # noqa: E402
+from oracles.monte_carlo import (NEGLIGIBLE, REFUSED_SHARE, comparable, geometry_pool, monte_carlo,  # noqa: E402
+                                 sample_poses)
 
 GOAL = 0.10   # |u_first_order / u_monte_carlo − 1|
+# The presets declare no point tolerance (error_sources.DEFAULT_POINT_TOLERANCE): the bench declares this one
+# (m, 1 sigma, each coordinate of every point) on those one measured input drives, to hold the tabulated
+# geometry derivatives (geometry_budget) to the spread over drawn linkages; GEOMETRIES of them per preset,
+# each sample solved by one in turn (the spread of the geometry's share then within about 1/√(2·GEOMETRIES)).
+POINT_TOLERANCE = 1.0e-3
+GEOMETRIES = 1000
 FLOOR = 1e-9  # an output whose Monte Carlo u is below FLOOR·max(1, |value|) has nothing to compare
 
 
-def study(preset: str, poses: int, samples: int, rng: np.random.Generator) -> bool:
-    """The study of one preset, printed; True when every compared output is within GOAL."""
+def study(preset: str, poses: int, samples: int, rng: np.random.Generator, point_tolerance: float = 0.0,
+          geometries: int = 0) -> bool:
+    """The study of one preset, printed; True when every compared output is within GOAL. With
+    ``point_tolerance`` (m, 1 sigma, every point) on a linkage one measured input drives, the points are
+    drawn too: ``geometries`` models of the linkage with its points drawn, the samples shared among them."""
     sampled = sample_poses(preset, poses, rng)
-    um = UncertaintyModel(sampled.model)
+    sources = sampled.mechanism.error_sources
+    if point_tolerance > 0.0 and driving_input(sampled.mechanism, sampled.model.solver) is not None:
+        sources = dataclasses.replace(sources, point_tolerance=point_tolerance)
+    um = UncertaintyModel(sampled.model, sources)
+    t0 = time.perf_counter()
+    pool = geometry_pool(um, geometries, rng)
+    if pool:
+        print(f"{preset}: points drawn with {point_tolerance * 1e3:g} mm (1 sigma) per coordinate, {len(pool)} "
+              f"linkages built in {time.perf_counter() - t0:.0f} s", flush=True)
     worst, negligible = Worst(), Worst()
     failed, truncated, budget_time = 0, 0, 0.0
     for k, (inputs, pose) in enumerate(sampled.poses):
         t0 = time.perf_counter()
         budget = um.budget(inputs, pose.result, pose.machine, Motion.STANDING)
         budget_time += time.perf_counter() - t0
-        mc = monte_carlo(um, inputs, budget, samples, rng)
+        mc = monte_carlo(um, inputs, budget, samples, rng, pool)
         failed += mc.failed
         if mc.truncated:
             truncated += 1
@@ -90,10 +115,14 @@ def main() -> int:
     parser.add_argument("--samples", type=int, default=10_000)
     parser.add_argument("--seed", type=int, default=51)
     parser.add_argument("--preset", action="append", default=[], help="only this preset (repeatable; default: all)")
+    parser.add_argument("--point-tolerance", type=float, default=POINT_TOLERANCE,
+                        help="m, 1 sigma per point coordinate, on the presets one measured input drives (0: none)")
+    parser.add_argument("--geometries", type=int, default=GEOMETRIES, help="linkages drawn per preset (point tolerances)")
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
     print(f"first order vs Monte Carlo: {args.poses} poses per preset, {args.samples} samples each, standing")
-    results = [study(preset, args.poses, args.samples, rng) for preset in args.preset or preset_names()]
+    results = [study(preset, args.poses, args.samples, rng, args.point_tolerance, args.geometries)
+               for preset in args.preset or preset_names()]
     return 0 if all(results) else 1
 
 

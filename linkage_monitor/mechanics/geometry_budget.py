@@ -45,6 +45,7 @@ POINT_STEP = 1.0e-4    # m: the central difference's step of a point coordinate 
 PRESSURE_STEP = 1.0e6  # Pa: the pressure step of the affine part (any step: the outputs are affine in it)
 STROKE_NODES = 513     # the table's nodes over the driving input's range (linear interpolation: test_geometry_budget)
 AXES = ("x", "z")
+TABLES_KEPT = 8        # the mechanisms whose tables this process keeps (the last used), for a monitor built again
 
 
 @dataclass(frozen=True)
@@ -58,10 +59,16 @@ class _Table:
     pressures: tuple[str, ...]
 
 
+# (description, coordinates and their order, the solver's settings) -> the tables by given pressures
+_KEPT: dict[tuple, dict[tuple[str, ...], _Table]] = {}
+
+
 class GeometryBudget:
     """The geometry part of the budgets of ``model``'s poses under ``sources``, for ``table``'s outputs:
     ``sources`` (a Source per toleranced point coordinate, ``{point} {axis} position``, m, normal) and
-    ``derivatives`` per pose. Empty (no sources) when no point has a tolerance."""
+    ``derivatives`` per pose. Empty (no sources) when no point has a tolerance. The tables are kept for the
+    TABLES_KEPT mechanisms last used in the process: a monitor built again for the same mechanism (a
+    replay's, the coverage study's runs) does not build them again."""
 
     def __init__(self, model: MachineModel, sources: ErrorSources, table: "OutputTable") -> None:
         self.model, self.mech, self.table = model, model.mech, table
@@ -71,26 +78,33 @@ class GeometryBudget:
         self.scales = np.array([u for _, _, u in self.coordinates])
         self._tables: dict[tuple[str, ...], _Table] = {}
         self._moved: list[MachineModel] | None = None
-        self.driving = ""
+        self.driving, self.kind = "", ""
         if self.coordinates:
+            solver = model.solver
+            key = (model.mech.description_key, tuple(self.coordinates), solver.dead_centre_cond,
+                   solver.consistency_tol, solver.dead_centre_transmission_deg)
+            self._tables = _KEPT.pop(key, self._tables)   # the last used last
+            _KEPT[key] = self._tables
+            while len(_KEPT) > TABLES_KEPT:
+                del _KEPT[next(iter(_KEPT))]
             self.driving, self.kind = self._driving_input()
+            # the table of every pressure sensor given, built now: not on a live step (~1 s for belarus_1221)
+            self._table(tuple(sorted(p.name for p in self.mech.measurements.pressures)))
 
     def _driving_input(self) -> tuple[str, str]:
         """The measured input that drives the linkage alone, and its kind (``cylinders``, ``angles``)."""
-        name = self.model.solver.kin.input_names[0]
-        kind = "cylinders" if name in self.mech.measurements.cylinders else "angles"
-        if driven_by(self.mech, kind, _entry(self.mech, kind, name)) is None or \
-                input_limits(self.mech)[name].source != "geometry":
+        driving = driving_input(self.mech, self.model.solver)
+        if driving is None:
             raise MechanismFileError(self.mech.file, "error_sources.points", (
                 f"point tolerances are propagated on a linkage one measured input drives (one degree of freedom); "
-                f"'{name}' alone does not fix this one's pose"))
-        return name, kind
+                f"'{self.model.solver.kin.input_names[0]}' alone does not fix this one's pose"))
+        return driving
 
     def derivatives(self, inputs: Inputs) -> np.ndarray:
         """∂y/∂g (G, n_out) per m of each toleranced coordinate at the pose of ``inputs`` (its driving input
         and pressures), the linear outputs' exact to the interpolation (the others: the chain rule's to
         apply); NaN outside the table's range."""
-        table = self._table(tuple(inputs.pressures))
+        table = self._table(tuple(sorted(inputs.pressures)))
         s = getattr(inputs, self.kind)[self.driving]
         nodes = table.nodes
         k = int(np.searchsorted(nodes, s)) - 1
@@ -104,7 +118,7 @@ class GeometryBudget:
         return d
 
     def _table(self, pressures: tuple[str, ...]) -> _Table:
-        """The table of these given pressures, built once for them."""
+        """The table of these given pressures (sorted by name), built once for them."""
         table = self._tables.get(pressures)
         if table is None:
             table = self._tables[pressures] = self._build(pressures)
@@ -158,6 +172,24 @@ class GeometryBudget:
                         mech, dead_centre_cond=solver.dead_centre_cond, consistency_tol=solver.consistency_tol,
                         dead_centre_transmission_deg=solver.dead_centre_transmission_deg)))
         return self._moved
+
+
+def driving_input(mech: Mechanism, solver: Solver) -> tuple[str, str] | None:
+    """The name and kind (``cylinders``, ``angles``) of the measured input that drives ``mech``'s linkage
+    alone (the first ``solver`` takes), None when it does not fix the pose alone (more than one DOF)."""
+    name = solver.kin.input_names[0]
+    kind = "cylinders" if name in mech.measurements.cylinders else "angles"
+    if driven_by(mech, kind, _entry(mech, kind, name)) is None or input_limits(mech)[name].source != "geometry":
+        return None
+    return name, kind
+
+
+def with_point_tolerance(mech: Mechanism, tolerance: float) -> Mechanism:
+    """``mech`` whose file declares ``tolerance`` (m, 1 sigma) for every coordinate of the points it does
+    not list (``error_sources.point_tolerance``)."""
+    raw = copy.deepcopy(dict(mech.raw))
+    raw["error_sources"] = {**(raw.get("error_sources") or {}), "point_tolerance": tolerance}
+    return mechanism_from_dict(raw, file=mech.file)
 
 
 def readings_along(mech: Mechanism, kind: str, name: str, values: np.ndarray

@@ -16,12 +16,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from linkage_monitor.mechanics import LinkageError, Mechanism, Solver, load_preset
-from linkage_monitor.mechanics.machine import STEERABILITY_KEYS, MachineModel, MachinePose
+from linkage_monitor.mechanics.geometry_budget import series_rows
+from linkage_monitor.mechanics.machine import MachineModel, MachinePose
 from linkage_monitor.mechanics.inputs import Inputs
 from linkage_monitor.mechanics.budget import Budget
 from linkage_monitor.mechanics.uncertainty import UncertaintyModel, force_per_pressure
 from linkage_monitor.monitoring.core import ASSEMBLY_LIMIT_M
 from linkage_monitor.sim.telemetry import simulate
+from linkage_monitor.sim.true_geometry import draw_geometry
 
 SCENARIO = {"ksu1_mower_adapter": "field_copy", "drill_coulter": "relief"}   # the simulator's; the others: "lift"
 # below this share of max(1, |value|) the Monte Carlo u is negligible: an output at its extremum along the
@@ -49,9 +51,22 @@ class MonteCarlo:
         return self.failed > REFUSED_SHARE * self.samples
 
 
-def monte_carlo(um: UncertaintyModel, inputs: Inputs, budget: Budget, samples: int, rng: np.random.Generator
-                ) -> MonteCarlo:
-    """Draw the sources of ``budget`` (the first-order budget of ``inputs``) ``samples`` times, solve."""
+def geometry_pool(um: UncertaintyModel, size: int, rng: np.random.Generator) -> list[MachineModel]:
+    """``size`` models of ``um``'s mechanism with its points drawn from their tolerances (``sim.true_geometry``),
+    each solved as the monitor's is: a sample takes one of them (empty without point tolerances)."""
+    pool = []
+    for _ in range(size if um.geometry.sources else 0):
+        drawn = draw_geometry(um.mech, um.sources, rng, um.model.solver)
+        assert drawn is not None
+        pool.append(drawn.model)
+    return pool
+
+
+def monte_carlo(um: UncertaintyModel, inputs: Inputs, budget: Budget, samples: int, rng: np.random.Generator,
+                pool: list[MachineModel] | None = None) -> MonteCarlo:
+    """Draw the sources of ``budget`` (the first-order budget of ``inputs``) ``samples`` times, solve; the
+    point coordinates (where the budget has them) by the models of ``pool`` (``geometry_pool``), sample i
+    solved by model i mod len(pool), the readings held as the sensors read them."""
     readings = {kind: {name: np.full(samples, float(v)) for name, v in getattr(inputs, kind).items()}
                 for kind in ("cylinders", "angles", "pressures")}
     kind_of = {name: kind for kind, group in readings.items() for name in group}
@@ -64,21 +79,20 @@ def monte_carlo(um: UncertaintyModel, inputs: Inputs, budget: Budget, samples: i
             readings["pressures"][sensor] += draw / force_per_pressure(um.mech, sensor)
         elif source.part == "mass":
             raise ValueError("the Monte Carlo oracle does not draw the implement mass")
+        elif source.part == "position":
+            continue   # drawn by the pool's models
         else:
             readings[kind_of[source.input]][source.input] += draw
-    series = um.model.solve_series(readings["cylinders"], readings["angles"], readings["pressures"])
-    batch, machine = series.batch, series.machine
-    names = um.model.solver.names
-    hinge_force = (np.stack([batch.hinge_force[h] for h, _, _ in names.hinges], axis=1) if names.hinges
-                   else np.zeros((samples, 0, 2)))
-    cylinder_force = (np.stack([batch.cylinder_force[c] for c in names.cylinders], axis=1) if names.cylinders
-                      else np.zeros((samples, 0)))
-    steer = (np.stack([machine.steerability[k] for k in STEERABILITY_KEYS], axis=1) if machine.steerability
-             else np.zeros((samples, 0)))
-    capacity = (np.stack([machine.lift_capacity[k] for k in um.model.capacity_keys], axis=1) if machine.lift_capacity
-                else np.zeros((samples, 0)))
-    rows = um.table.rows(hinge_force, cylinder_force, batch.implement_load, steer, capacity)
-    solved = batch.status < 2
+    if any(source.part == "position" for source in budget.sources):
+        assert pool, "point tolerances need a geometry_pool"
+    models = pool if pool and any(source.part == "position" for source in budget.sources) else [um.model]
+    rows = np.empty((samples, len(um.table.outputs)))
+    for k, model in enumerate(models):
+        part = slice(k, samples, len(models))
+        series = model.solve_series(*({name: v[part] for name, v in readings[kind].items()}
+                                      for kind in ("cylinders", "angles", "pressures")))
+        rows[part] = series_rows(um.table, model, series)
+    solved = np.isfinite(rows).any(axis=1)
     return MonteCarlo(np.std(rows[solved], axis=0, ddof=1), samples, int(np.count_nonzero(~solved)))
 
 
