@@ -25,7 +25,6 @@ from functools import cache
 from typing import NamedTuple
 
 import numpy as np
-from scipy.special import ndtr
 
 from . import kernels
 
@@ -65,6 +64,8 @@ def exact_factor(share: float, count: int) -> float:
             low, high = _cumulative_irwin_hall(count, ends)
             return float(high - low)
     else:
+        from scipy.special import ndtr   # here: the monitor without error budgets never needs it (~0.1 s to import)
+
         x = (np.arange(_GRID) + 0.5) / _GRID * count   # midpoints over [0, count]
         weight = _irwin_hall(count, x) * (count / _GRID)
         weight /= weight.sum()
