@@ -38,7 +38,7 @@ from .input_columns import InputColumns
 from .motion import MotionTracker
 from .inputs import DueRun, InputTracker, Refused
 from .road import RoadInput
-from .segment_series import INPUT_KINDS, SegmentSeries, input_columns, limit_values, segment_checks
+from .segment_series import INPUT_KINDS, Cut, SegmentSeries, input_columns, limit_values, segment_checks
 from .steps import NO_FINDINGS, Due, DueColumns, Pose, QuietPoses, Run, Segment, Step, Steps
 from .wording import failed_step, pose_findings
 
@@ -190,11 +190,12 @@ class Monitor:
         ``piece_steps``, after every ``piece_steps`` Steps of a configuration segment (its series solved on
         across the pieces, each pose from the one before, as ``run`` solves it). A piece's segments
         index its own ``steps``. While the caller holds a piece the monitor is in that piece's
-        configuration (the next event is read after): what the caller lets go of a piece is freed,
-        so that a recording read piece by piece takes memory flat in its length."""
+        configuration: the events of the next piece of the same configuration may have been read and
+        accepted (without the weighing, a piece is handed over once the next is read, its series solved
+        in the worker meanwhile), no further. What the caller lets go of a piece is freed, so that a
+        recording read piece by piece takes memory flat in its length."""
         steps: list[Step | None] = []   # None: not solved yet, or a quiet pose (``QuietPoses``)
-        segments: list[Segment] = []
-        quiet: list[QuietPoses] = []
+        held: tuple[Cut, list[Step | None]] | None = None   # a piece cut, handed over after the next is read
         with ThreadPoolExecutor(max_workers=1, thread_name_prefix="series") as worker:
             segment = SegmentSeries(self.machine, self.config.kinetostatics, worker)
             pending: list[InputEvent | InputColumns] = []   # read, not yet accepted: ACCEPT_BLOCK at a time
@@ -217,10 +218,13 @@ class Monitor:
             for event in events:
                 if isinstance(event, ConfigEvent):
                     accept_pending()
-                    self._solve_segment(segment, steps, segments, quiet)
+                    if held is not None:
+                        yield self._piece(*held)
+                        held = None
+                    cut = segment.cut()
                     if steps:
-                        yield Run(Steps(steps, quiet), segments)
-                        steps, segments, quiet = [], [], []
+                        yield self._piece(cut, steps)
+                        steps = []
                     self.reconfigure(event.config)
                     segment = SegmentSeries(self.machine, self.config.kinetostatics, worker)
                     continue
@@ -236,16 +240,30 @@ class Monitor:
                     full = limit is not None and len(steps) + size >= limit
                     if full or size >= ACCEPT_BLOCK:
                         accept_pending()
-                    if full:
-                        self._solve_segment(segment, steps, segments, quiet)
-                        yield Run(Steps(steps, quiet), segments)
-                        steps, segments, quiet = [], [], []
+                    if not full:
+                        continue
+                    cut, cut_steps, steps = segment.cut(), steps, []
+                    if self.weighing is not None:   # the estimate after this piece applies to the next
+                        yield self._piece(cut, cut_steps)
                         if self._use_estimate():   # a new estimate: the next poses solved with it
                             segment = SegmentSeries(self.machine, self.config.kinetostatics, worker)
+                        continue
+                    if held is not None:
+                        yield self._piece(*held)
+                    held = (cut, cut_steps)
             accept_pending()
-            self._solve_segment(segment, steps, segments, quiet)
+            if held is not None:
+                yield self._piece(*held)
+            cut = segment.cut()
             if steps:
-                yield Run(Steps(steps, quiet), segments)
+                yield self._piece(cut, steps)
+
+    def _piece(self, cut: Cut, steps: list[Step | None]) -> Run:
+        """The piece of ``steps`` (None where a due of ``cut`` is), its dues solved and checked."""
+        segments: list[Segment] = []
+        quiet: list[QuietPoses] = []
+        self._solve_segment(cut, steps, segments, quiet)
+        return Run(Steps(steps, quiet), segments)
 
     def _accept_all(self, items: Sequence[InputEvent | InputColumns]) -> list[Due | DueColumns | Step]:
         """``_accept`` of each event of ``items`` in turn (an internal failure an ERROR Step, as in
@@ -313,14 +331,14 @@ class Monitor:
                             self.road.body_at(stamp) if self.road is not None else None))
         return dues
 
-    def _solve_segment(self, segment: SegmentSeries, steps: list[Step | None], segments: list[Segment],
+    def _solve_segment(self, cut: Cut, steps: list[Step | None], segments: list[Segment],
                        quiet: list[QuietPoses]) -> None:
-        """The Steps of the dues ``segment`` holds (solved, checked, put in their places in ``steps``)
-        and their ``Segment``; the segment is left empty, its series going on from its last pose. A pose
+        """The Steps of the dues of ``cut`` (solved, checked, put in their places in ``steps``) and their
+        ``Segment``, in the configuration they were accepted in (the monitor's until the next one). A pose
         solved by the series whose checks found nothing, in a configuration that adds nothing to its Step
         (no error budget, IMU or weighing), is left None in ``steps`` and goes to ``quiet``: its Step is
         built when asked for (``Steps``)."""
-        taken, series = segment.take()
+        taken, series = cut.dues, cut.series()
         if not len(taken):
             return
         if series is None:   # kinetostatics (rates and accelerations): the general path

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from concurrent.futures import Future, ThreadPoolExecutor
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
@@ -26,7 +26,7 @@ def input_columns(dues: Sequence[Due], kind: str) -> dict[str, np.ndarray]:
 
 
 class TakenDues:
-    """The dues of a segment ``SegmentSeries.take`` hands over, in order: ``steps`` (n,) their Steps'
+    """The dues of a segment ``SegmentSeries.cut`` hands over, in order: ``steps`` (n,) their Steps'
     places, ``stamps_ns`` (n,) their stamps, ``due`` the Due of one (a run accepted at once is held as
     ``DueColumns``: its Due built when asked for)."""
 
@@ -54,12 +54,27 @@ class TakenDues:
                                                          else dues)]
 
 
+class Cut(NamedTuple):
+    """The dues of a segment up to a cut (``SegmentSeries.cut``), their parts being solved and the series
+    finished in the worker: ``series`` waits for them."""
+
+    dues: TakenDues
+    parts: list[Future[None]]
+    finished: Future[MachineSeries] | None   # None: a kinetostatics segment, or no dues
+
+    def series(self) -> MachineSeries | None:
+        """The dues' ``MachineSeries`` (every part solved; None for a kinetostatics segment or no dues)."""
+        for part in self.parts:
+            part.result()   # raises what the part raised
+        return self.finished.result() if self.finished is not None else None
+
+
 class SegmentSeries:
     """The due poses of one configuration segment of ``Monitor.runs`` (``add``: a step's due; ``add_columns``:
     a run's, as columns), solved PART at a time in ``worker`` as they are accepted (``MachineModel.series``:
     each pose from the one before, as ``solve_series`` solves them all at once), unless the configuration
-    takes kinetostatics (then ``take`` gives no series and ``Monitor._solve_segment`` solves them itself).
-    ``take`` hands over the dues so far; the next ones go on from the last pose solved. ``machine``
+    takes kinetostatics (then ``cut`` gives no series and ``Monitor._solve_segment`` solves them itself).
+    ``cut`` hands over the dues so far; the next ones go on from the last pose solved. ``machine``
     is the segment's machine model, ``kinetostatics`` its configuration's."""
 
     PART = 256   # poses per part: the last part, solved after the last input, is short
@@ -92,18 +107,18 @@ class SegmentSeries:
         if self._count - self._sent >= self.PART:
             self._send()
 
-    def take(self) -> tuple[TakenDues, MachineSeries | None]:
-        """The dues added since the last ``take`` and their ``MachineSeries`` (every part solved; None
-        for a kinetostatics segment or no dues); the segment is left empty."""
+    def cut(self) -> Cut:
+        """The dues added since the last ``cut``, their series finished by the worker after their parts
+        (it takes its tasks in order), while the caller reads on; the segment is left empty, its next
+        dues going on from the last pose of these."""
         dues = TakenDues(self._dues)
         if self._series is None or not len(dues):
             self._dues, self._count = [], 0
-            return dues, None
+            return Cut(dues, [], None)
         self._send()
-        for part in self._parts:
-            part.result()   # raises what the part raised
+        cut = Cut(dues, self._parts, self._worker.submit(self._series.finish))
         self._dues, self._parts, self._sent, self._count = [], [], 0, 0
-        return dues, self._series.finish()
+        return cut
 
     def _send(self) -> None:
         """Hand the dues not yet handed to the worker."""
