@@ -1,6 +1,7 @@
 """The live node under load, against a no-op rclpy relay (bench/node_load.py) measured in the same run.
 
 Usage: .venv/bin/python bench/bench_node.py [--quick] [--repeats R] [--soak-minutes M] [--no-soak] [--imu]
+       [--uncertainty]
 
 Paired: the relay and the node run side by side (namespaces /relay and /monitor), and every rate
 step is measured R times for each, alternating which goes first, so that both see the same
@@ -15,7 +16,8 @@ one FluidPressure first, staleness limit 1 h, so every JointState triggers one s
 - CPU: the target process's user+system CPU time over the step / messages it handled.
 With ``--imu`` the node also takes a sensor_msgs/Imu (``imu_topic``) before every JointState, at
 the same rate (the relays are sent it too and do not subscribe): the steerability's dynamic fields
-computed on every solve (docs/dynamics.md).
+computed on every solve (docs/dynamics.md). With ``--uncertainty`` the node carries every pose's error
+budget and judges the bounds on their intervals (the node parameter ``uncertainty``, docs/accuracy.md).
 The highest sustained rate (zero loss and a latency that does not grow over the step), and ratios node / relay, are printed. Then the node's RSS
 while it is fed 1 kHz for --soak-minutes (default 1; more than it can solve: it drops, the point
 is whether memory grows). The node records its bag (default parameters) to a temporary directory.
@@ -227,6 +229,7 @@ def main() -> None:
     parser.add_argument("--soak-minutes", type=float, default=1.0, help="minutes at 1 kHz for the RSS check")
     parser.add_argument("--no-soak", action="store_true")
     parser.add_argument("--imu", action="store_true", help="an Imu before every JointState (the node's imu_topic)")
+    parser.add_argument("--uncertainty", action="store_true", help="the node's error budget on (parameter uncertainty)")
     args = parser.parse_args()
     isolate_ros_domain()
     rates = [50.0, 100.0, 200.0, 400.0] if args.quick else [50.0, 100.0, 150.0, 200.0, 250.0, 300.0, 400.0, 600.0,
@@ -241,7 +244,8 @@ def main() -> None:
             procs.append(start_relay("/floor", work / "floor.log", "--outputs", "--record-dir", str(work / "floor")))
             procs.append(start_monitor("/monitor", {"mechanism": "belarus_1221", "sensor_qos": "reliable",
                                                     "staleness_limit": 3600.0, "record_dir": str(work / "bags"),
-                                                    **({"imu_topic": "imu"} if args.imu else {})},
+                                                    **({"imu_topic": "imu"} if args.imu else {}),
+                                                    **({"uncertainty": True} if args.uncertainty else {})},
                                        work / "node.log"))
             drivers = {name: Driver(ns, args.imu) for name, ns in (("relay", "/relay"), ("floor", "/floor"),
                                                                      ("node", "/monitor"))}

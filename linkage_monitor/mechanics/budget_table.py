@@ -30,7 +30,6 @@ import numpy as np
 from . import kernels
 from .calibration import drive_mechanism
 from .inputs import Inputs
-from .kernels.budget import PoseTable
 from .machine import MachineModel, MachineResult
 from .reduced import LOAD_AMPLIFICATION_WARN
 from .results import Result
@@ -40,7 +39,6 @@ from .solver import Solver
 TABLE_STEP = {"cylinders": 1.0e-3, "angles": 2.0e-3}   # m, rad: the nodes' spacing along the first input
 TABLE_REACH = {"cylinders": 0.6, "angles": math.pi}    # a length's share of its reference value; an angle's rad
 LEVEL_PRESSURE_STEP = 1.0e6   # Pa: a measured cylinder's second load level, on its pressure sensor
-_EMPTY, _FILLED, _FAILED = 0, 1, 2   # a node's state
 
 # (inputs, result, machine) of a solved pose -> its rows (rows, n_out): the derivatives with respect to
 # each source input, the columns not linear in the loads 0 (``UncertaintyModel.raw_rows``; NaN in an
@@ -68,46 +66,43 @@ class StrokeTable:
         self.n_cylinders = kin.cyl_att.shape[1]
         self._first_kind = "cylinders" if self.n_cylinders else "angles"
         self._row = 2 * kin.hinge_att.shape[1]   # Φ's row of the first input
-        reference = self._reference = model.mech.reference_inputs[self._first_kind][self.names[0]]
-        # the first input: a cylinder's row of Result.cylinder_values, else (−1) an angle sensor's bodies and offset
-        self._cylinder = model.solver.cylinder_index[self.names[0]] if self.n_cylinders else -1
-        self._angle_bodies = (int(kin.angle_bodies[0, 0]), int(kin.angle_bodies[1, 0])) if not self.n_cylinders else (-1, -1)
-        self._angle_offset = float(kin.angle_reference[0]) if not self.n_cylinders else 0.0
+        reference = model.mech.reference_inputs[self._first_kind][self.names[0]]
         reach = TABLE_REACH[self._first_kind] * (reference if self.n_cylinders else 1.0)
         step = TABLE_STEP[self._first_kind]
         count = int(2 * reach / step) + 1
         self._pressures, self._level_sensors = pressures, level_sensors
         self._cylinders = [model.solver.cylinder_index[model.solver.sensors[s].cylinder] for s in level_sensors]
         levels = 1 + len(level_sensors)
-        self.table = PoseTable(origin=reference - reach, step=step, raw=np.zeros((count, levels, n_rows, n_out)),
-                               forces=np.zeros((count, levels, len(level_sensors))))
-        self._state = bytearray(count)
+        angle = self.n_cylinders == 0   # the first input an angle sensor: θ its reading of its bodies
+        self.table = kernels.PoseTable(
+            origin=reference - reach, step=step, raw=np.zeros((count, levels, n_rows, n_out)),
+            forces=np.zeros((count, levels, len(level_sensors))), state=np.full(count, kernels.NODE_EMPTY, np.uint8),
+            cylinder=-1 if angle else model.solver.cylinder_index[self.names[0]],
+            angle_first=int(kin.angle_bodies[0, 0]) if angle else -1,
+            angle_second=int(kin.angle_bodies[1, 0]) if angle else -1,
+            angle_offset=float(kin.angle_reference[0]) if angle else 0.0, reference=float(reference))
         self._drive: Solver | None = None
 
     def theta(self, result: Result) -> float:
-        """The pose's coordinate: the solved value of its first input (m or rad): the cylinder's length,
-        or the angle sensor's reading of its bodies' rotations (the one nearest the reference reading)."""
-        if self._cylinder >= 0:
-            return float(result.cylinder_values[self._cylinder, 0])
-        first, second = self._angle_bodies
-        turned = ((result.body_q[second, 2] if second >= 0 else 0.0) - (result.body_q[first, 2] if first >= 0 else 0.0)
-                  + self._angle_offset)
-        return self._reference + (turned - self._reference + math.pi) % (2.0 * math.pi) - math.pi
+        """The pose's coordinate: the solved value of its first input (m or rad; ``kernels.pose_coordinate``)."""
+        return float(kernels.pose_coordinate(self.table, result.cylinder_values, result.body_q))
 
     def node(self, theta: float, result: Result) -> int:
-        """The node at or below ``theta`` whose cell is filled (both its nodes solved; filled now from
-        ``result``, the pose at ``theta``, where they are not yet), −1 where the cell is not tabulated."""
+        """The node at or below ``theta`` whose cell is filled (``fill``ed now from ``result``, the pose at
+        ``theta``, where it is not yet), −1 where the cell is not tabulated."""
         table = self.table
         j = math.floor((theta - table.origin) / table.step)
-        state = self._state
-        if not 0 <= j < len(state) - 1:
+        if not 0 <= j < len(table.state) - 1:
             return -1
-        if state[j] == state[j + 1] == _FILLED:
-            return j
+        self.fill(j, result)
+        return j if table.state[j] == table.state[j + 1] == kernels.NODE_FILLED else -1
+
+    def fill(self, j: int, result: Result) -> None:
+        """Nodes j and j + 1 computed where they are not yet, from ``result`` (a pose between them)."""
+        state = self.table.state
         for at in (j, j + 1):
-            if self._state[at] == _EMPTY:
-                self._state[at] = _FILLED if self._fill(at, result) else _FAILED
-        return j if self._state[j] == self._state[j + 1] == _FILLED else -1
+            if state[at] == kernels.NODE_EMPTY:
+                state[at] = kernels.NODE_FILLED if self._fill(at, result) else kernels.NODE_FAILED
 
     def _fill(self, j: int, result: Result) -> bool:
         """Node j's rows and forces from its poses (continued from ``result``); False where one fails."""

@@ -203,16 +203,19 @@ class _Columns(NamedTuple):
 
 class _Fast(NamedTuple):
     """What a budget from the stroke's table takes of its ``_Plan``: the compiled call's ``program``
-    (``kernels.BudgetProgram``), its columns' ``scales``, ``sign`` and ``uniform`` with every measured
-    cylinder's friction (those set per pose, at ``friction_at``), the implement mass's source (``mass``,
-    empty without)."""
+    (``kernels.BudgetProgram``), its columns' shapes (``uniform``) with every measured cylinder's
+    friction (``cylinders``, in the columns' order), the implement mass's source (``mass``, empty
+    without)."""
 
     program: kernels.BudgetProgram
-    scales: np.ndarray
-    sign: np.ndarray
     uniform: np.ndarray
-    friction_at: tuple[int, ...]
+    cylinders: tuple[str, ...]
     mass: tuple[Source, ...]
+
+
+# a cylinder's motion as kernels.tabulated_budget takes it
+_MOTION_CODES = {Motion.STANDING: kernels.MOTION_STANDING, Motion.LIFTING: kernels.MOTION_LIFTING,
+                 Motion.LOWERING: kernels.MOTION_LOWERING}
 
 
 @dataclass(frozen=True)
@@ -316,27 +319,25 @@ class UncertaintyModel:
         None where the table does not hold it, or a measured cylinder's seal friction is 0."""
         stroke, fast = plan.stroke, plan.fast
         assert stroke is not None and fast is not None
-        theta = stroke.theta(result)
-        node = stroke.node(theta, result) if math.isfinite(theta) else -1
-        frictions = self._frictions(plan, result, motion) if node >= 0 else []
-        if len(frictions) != len(fast.friction_at):
+        moving = [motion if isinstance(motion, Motion) else motion.get(c, Motion.STANDING) for c in fast.cylinders]
+        n_out, n_src = len(self.table.outputs), len(fast.uniform)
+        y0, u, k, sign = np.empty(n_out), np.empty(n_out), np.empty(n_out), np.empty(n_src)
+        contributions, friction_u = np.empty((n_out, n_src)), np.empty(len(moving))
+        args = (fast.program, result.hinge_force, result.cylinder_values, result.body_q, result.implement_load,
+                machine.steerability_row, machine.capacity_row, np.array([_MOTION_CODES[m] for m in moving], np.int64),
+                y0, contributions, u, k, sign, friction_u)
+        node = kernels.tabulated_budget(*args)
+        if node <= -2:   # a node next to the pose not computed yet
+            stroke.fill(-2 - node, result)
+            node = kernels.tabulated_budget(*args)
+        if node < 0:
             return None
-        scales, sign = fast.scales.copy(), fast.sign.copy()
-        sources, motions = list(plan.sources), {}
-        for at, f in zip(fast.friction_at, frictions):
-            scales[at], sign[at] = f.u / plan.per_pascal[f.sensor], FRICTION_SIGN[f.motion]
-            sources.append(Source(f"{f.cylinder} seal friction", f.cylinder, "friction", f.u, "N"))
-            motions[f.cylinder] = f.motion
-        sources += fast.mass
-        n_out = len(self.table.outputs)
-        y0, u, k = np.empty(n_out), np.empty(n_out), np.empty(n_out)
-        contributions = np.empty((n_out, len(sources)))
-        kernels.tabulated_budget(fast.program, node, theta, result.hinge_force, result.cylinder_values,
-                                 result.implement_load, machine.steerability_row, machine.capacity_row, scales, sign,
-                                 y0, contributions, u, k)
+        sources = [*plan.sources, *(Source(f"{c} seal friction", c, "friction", f, "N")
+                                    for c, f in zip(fast.cylinders, friction_u.tolist())), *fast.mass]
+        motions = dict(zip(fast.cylinders, moving))
         if self.geometry.sources:   # the point coordinates' columns join: u and k of them all, as Budget has them
             columns, contributions = self._with_geometry(plan, _Columns(tuple(sources), np.zeros(0, dtype=np.int64),
-                                                                        scales, fast.uniform, sign, motions),
+                                                                        np.zeros(n_src), fast.uniform, sign, motions),
                                                          contributions, y0, inputs)
             return Budget(self.table.outputs, columns.sources, y0, contributions, motions, self.table.index,
                           columns.uniform, columns.sign)
@@ -447,24 +448,27 @@ class UncertaintyModel:
         solver = self.model.solver
         if plan.inputs_moved is None or not one_dof(self.model) or not plan.sources:
             return plan
-        measured = [(c.name, plan.friction_sensors[c.name]) for c in self.mech.cylinders
-                    if plan.friction_sensors[c.name] is not None]
-        level_sensors = [sensor for _, sensor in measured if sensor is not None]
+        measured = [(c, sensor) for c, sensor in plan.friction_sensors.items() if sensor is not None]
+        level_sensors = [sensor for _, sensor in measured]
         reference = self.mech.reference_inputs.get("pressures", {})
         n_rows = plan.load_rows.stop + plan.mass
         stroke = StrokeTable(self.model, {name: float(reference.get(name, 0.0)) for name in pressures}, level_sensors,
                              n_rows, len(self.table.outputs), self._node_rows(plan))
-        every = self._columns(plan, [_Friction(c, sensor, 1.0, Motion.STANDING) for c, sensor in measured
-                                     if sensor is not None])
-        columns = kernels.SourceColumns(rows=every.rows, uniform=every.uniform,
-                                        cylinders=np.array([solver.cylinder_index[c] for c, _ in measured],
-                                                           dtype=np.int64),
-                                        steer_columns=self.table.steer_columns)
+        every = self._columns(plan, [_Friction(c, sensor, 1.0, Motion.STANDING) for c, sensor in measured])
+        seals = [self.sources.seal_friction(c) for c, _ in measured]
+        n_fixed = len(plan.sources)
+        columns = kernels.SourceColumns(
+            rows=every.rows, scales=every.scales, uniform=every.uniform, sign=every.sign,
+            cylinders=np.array([solver.cylinder_index[c] for c, _ in measured], dtype=np.int64),
+            friction_at=np.arange(n_fixed, n_fixed + len(measured), dtype=np.int64),
+            friction_share=np.array([seal.share for seal in seals]), friction_force=np.array([seal.force for seal in seals]),
+            friction_breakaway=np.array([seal.breakaway for seal in seals]),
+            per_pascal=np.array([plan.per_pascal[sensor] for _, sensor in measured]),
+            steer_columns=self.table.steer_columns)
         program = kernels.budget_program(fields(stroke.table), fields(columns), fields(self.table.layout),
                                          *factor_table(), NORMAL_FACTOR)
-        return replace(plan, stroke=stroke, fast=_Fast(
-            program, every.scales, every.sign, every.uniform,
-            tuple(range(len(plan.sources), len(plan.sources) + len(level_sensors))), every.sources[len(every.sources) - plan.mass:]))
+        return replace(plan, stroke=stroke, fast=_Fast(program, every.uniform, tuple(c for c, _ in measured),
+                                                       every.sources[len(every.sources) - plan.mass:]))
 
     def _node_rows(self, plan: _Plan) -> RawRows:
         """The rows of a table node (``budget_table.RawRows``): ``raw_rows`` at the node's pose, the

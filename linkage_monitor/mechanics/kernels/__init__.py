@@ -30,8 +30,9 @@ ensure_writable()    # and where it can keep them
 
 from .assembly import (assembled, assembled_batch, condition, loop_signs, newton,  # noqa: E402
                        newton_batch, solve_poses)
-from .budget import (BudgetProgram, OutputLayout, PoseTable, SourceColumns, budget_program, chain_rule,  # noqa: E402
-                     output_rows, tabulated_budget)
+from .budget import (MOTION_LIFTING, MOTION_LOWERING, MOTION_STANDING, NODE_EMPTY, NODE_FAILED,  # noqa: E402
+                     NODE_FILLED, NOT_TABULATED, BudgetProgram, OutputLayout, PoseTable, SourceColumns,
+                     budget_program, chain_rule, output_rows, pose_coordinate, tabulated_budget)
 from .capacity import lift_capacity  # noqa: E402
 from .coverage import coverage_factors  # noqa: E402
 from .closure import positions, positions_batch, residual_jacobian, residual_jacobian_batch  # noqa: E402
@@ -47,12 +48,13 @@ from .steerability import (N_STEERABILITY, STEERABILITY_COLUMNS, STEERABILITY_PA
                            steerability_pose, steerability_rows)
 from .threads import PARALLEL_MIN, PARALLEL_PARTS, allow_threads, threads_allowed  # noqa: E402
 
-__all__ = ["BatchOutputs", "BudgetProgram", "NO_MACHINE", "N_STEERABILITY", "OutputLayout", "PARALLEL_MIN", "PARALLEL_PARTS",
+__all__ = ["BatchOutputs", "BudgetProgram", "MOTION_LIFTING", "MOTION_LOWERING", "MOTION_STANDING", "NODE_EMPTY",
+           "NODE_FAILED", "NODE_FILLED", "NOT_TABULATED", "NO_MACHINE", "N_STEERABILITY", "OutputLayout", "PARALLEL_MIN", "PARALLEL_PARTS",
            "PoseTable", "STEERABILITY_COLUMNS", "STEERABILITY_PARAMETERS", "SourceColumns", "allow_threads",
            "assembled", "assembled_batch", "batch_outputs", "budget_program", "chain_fit", "chain_rule", "chain_pose", "closed_step", "condition", "coverage_factors", "det_sign",
            "equilibrium_matrix", "factor_and_condition", "frame_loads", "gram", "largest_force", "lift_capacity",
            "live_buffer", "live_programs", "live_rows", "live_series", "loop_signs", "lu_factor", "lu_solve",
            "measured_force", "measured_forces", "newton", "newton_batch", "output_rows", "pack_row", "pack_rows", "positions",
-           "positions_batch", "residual_jacobian", "residual_jacobian_batch", "smallest_sine", "smallest_sines",
+           "pose_coordinate", "positions_batch", "residual_jacobian", "residual_jacobian_batch", "smallest_sine", "smallest_sines",
            "solve_linear", "solve_poses", "solve_reduced_statics", "solve_statics", "steerability_pose",
            "steerability_rows", "step_transmission", "tabulated_budget", "threads_allowed", "transmission_batch", "transmission_pose"]

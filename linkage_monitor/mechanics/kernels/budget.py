@@ -99,31 +99,74 @@ def _output_row(hinge_force: np.ndarray, cylinder_force: np.ndarray, implement_l
 
 class PoseTable(NamedTuple):
     """The derivatives of a one-DOF linkage's outputs tabulated over its coordinate θ (the solved value
-    of its first input, m or rad; ``uncertainty.TabulatedBudget``): nodes θ = ``origin`` + j·``step``;
+    of its first input, m or rad; ``budget_table.StrokeTable``): nodes θ = ``origin`` + j·``step``;
     at each node, per load level, a row per source input (the lengths and angles, the pressures, the
     implement mass) of the outputs' derivatives (``raw`` (nodes, levels, rows, n_out), the columns not
     linear in the loads left 0: ``chain_rule`` gives them) and the measured cylinders' forces of each
     level (``forces`` (nodes, levels, K) N): level 0, then level 1 + c with cylinder c's force alone
-    changed (the derivatives are affine in those forces at a pose)."""
+    changed (the derivatives are affine in those forces at a pose); each node's ``state`` (nodes,)
+    (NODE_EMPTY, NODE_FILLED, NODE_FAILED). θ of a pose (``pose_coordinate``): the length of cylinder
+    ``cylinder`` (its row of the cylinder values), or (−1) the angle sensor's reading of bodies
+    ``angle_first`` and ``angle_second`` (−1: the ground) plus ``angle_offset``, the one nearest
+    ``reference`` (rad)."""
 
     origin: float
     step: float
     raw: np.ndarray
     forces: np.ndarray
+    state: np.ndarray
+    cylinder: int
+    angle_first: int
+    angle_second: int
+    angle_offset: float
+    reference: float
+
+
+NODE_EMPTY, NODE_FILLED, NODE_FAILED = 0, 1, 2   # a table node's state
+NOT_TABULATED = -1   # ``tabulated_budget``'s answer for a pose the table does not serve
+
+
+@njit(cache=True)
+def pose_coordinate(table: PoseTable, cylinder_values: np.ndarray, body_q: np.ndarray) -> float:
+    """θ of a pose (``PoseTable``) from its cylinder values (C, 5) and body poses (B, 3) (x, z, θ)."""
+    if table.cylinder >= 0:
+        return cylinder_values[table.cylinder, 0]
+    turned = table.angle_offset
+    if table.angle_second >= 0:
+        turned += body_q[table.angle_second, 2]
+    if table.angle_first >= 0:
+        turned -= body_q[table.angle_first, 2]
+    return table.reference + (turned - table.reference + math.pi) % (2.0 * math.pi) - math.pi
 
 
 class SourceColumns(NamedTuple):
     """The sources of a tabulated budget as columns of its contributions: the table row each takes
     (``rows`` (n_src,): a length's, an angle's, a pressure sensor's — a seal friction's through its
-    sensor's — or the implement mass's), which are uniform for the coverage factor (``uniform``
-    (n_src,), ``coverage_factor.coverage_factors``); the measured cylinders of the table's levels
-    (``cylinders`` (K,), columns of the cylinder forces); the steerability columns of the outputs
-    (``steer_columns``, ``output_rows``)."""
+    sensor's — or the implement mass's), its u in its input's unit (``scales`` (n_src,), a friction's
+    set per pose) and shape (``uniform``, ``sign`` (n_src,): ``coverage_factor.coverage_factors``, a
+    friction's sign set per pose); the measured cylinders of the table's levels (``cylinders`` (K,),
+    their rows of the cylinder values), each one's friction column (``friction_at`` (K,)), seal
+    friction band (``friction_share``, ``friction_force`` N, ``friction_breakaway``: as
+    ``error_sources.SealFriction``) and N per Pa of its sensor (``per_pascal`` (K,)); the steerability
+    columns of the outputs (``steer_columns``, ``output_rows``)."""
 
     rows: np.ndarray
+    scales: np.ndarray
     uniform: np.ndarray
+    sign: np.ndarray
     cylinders: np.ndarray
+    friction_at: np.ndarray
+    friction_share: np.ndarray
+    friction_force: np.ndarray
+    friction_breakaway: np.ndarray
+    per_pascal: np.ndarray
     steer_columns: np.ndarray
+
+
+# a cylinder's motion as ``tabulated_budget`` takes it (``error_sources.Motion``), and the sign of its
+# seal friction in the force the pressure carries (``budget.FRICTION_SIGN``'s, by code)
+MOTION_STANDING, MOTION_LIFTING, MOTION_LOWERING = 0, 1, 2
+_FRICTION_SIGN = (0.0, 1.0, -1.0)
 
 
 @structref.register
@@ -155,43 +198,69 @@ def budget_program(table_fields, columns_fields, layout_fields, factors, shares,
 
 
 @njit(cache=True, error_model="numpy")
-def tabulated_budget(program, node, theta, hinge_force, cylinder_values, implement_load, steerability, capacity,
-                     scales, sign, y0, contributions, u, k):
-    """The budget of one pose at coordinate ``theta`` between nodes ``node`` and ``node + 1`` of
-    ``program.table`` (both filled; ``program``: a ``BudgetProgram``): its outputs into ``y0``
-    (n_out,) from its hinge forces (H, 2) N, cylinder values (C, 5) (``Result.cylinder_values``),
-    implement load N, steerability and capacity rows (``_output_row``); each node's rows at its
-    measured cylinders' forces (``columns.cylinders``; the rows are affine in them), interpolated
-    linearly in θ, the chain rule (``chain_rule``), times each source's u in its input's unit
-    (``scales`` (n_src,), from row ``columns.rows``) into ``contributions`` (n_out, n_src); the
-    standard uncertainties into ``u`` (n_out,), the coverage factors (``coverage_factors`` of the
-    columns' shapes, ``columns.uniform`` and ``sign`` (n_src,)) into ``k`` (n_out,)."""
+def tabulated_budget(program, hinge_force, cylinder_values, body_q, implement_load, steerability, capacity, motions,
+                     y0, contributions, u, k, sign, friction_u):
+    """The budget of one pose from ``program.table`` (``program``: a ``BudgetProgram``), in one call:
+    its coordinate θ (``pose_coordinate`` of its cylinder values (C, 5) and body poses (B, 3)); its
+    outputs into ``y0`` (n_out,) from its hinge forces (H, 2) N, cylinder forces, implement load N,
+    steerability and capacity rows (``_output_row``); each measured cylinder's seal friction by its
+    motion (``motions`` (K,), MOTION_* codes) into ``friction_u`` (K,) N: u = band/√3, the band
+    share·|F| + force, standing times the breakaway (``error_sources.SealFriction.standard_uncertainty``'s
+    rule: kept apart, a compiled call; test_uncertainty_table.py holds the two equal), its sign into
+    ``sign`` (n_src,) with the other columns'; the two nodes' rows at the measured cylinders' forces
+    (affine in them), interpolated linearly in θ, the chain rule (``chain_rule``), times each
+    source's u into ``contributions`` (n_out, n_src); the standard uncertainties into ``u`` (n_out,),
+    the coverage factors (``coverage_factors``) into ``k`` (n_out,).
+
+    Returns the node below θ (≥ 0) when done; NOT_TABULATED where θ is beyond the table, a node next
+    to it failed or a seal friction is 0; −2 − j where node j or j + 1 is not filled yet (fill them,
+    call again)."""
     table, columns = program.table, program.columns
+    theta = pose_coordinate(table, cylinder_values, body_q)
+    position = (theta - table.origin) / table.step
+    if not (position >= 0.0 and position < table.state.shape[0] - 1):
+        return NOT_TABULATED
+    node = int(math.floor(position))
+    for j in range(node, node + 2):
+        if table.state[j] == NODE_EMPTY:
+            return -2 - node
+        if table.state[j] != NODE_FILLED:
+            return NOT_TABULATED
+    n_src = columns.rows.shape[0]
+    scales = columns.scales.copy()
+    sign[:] = columns.sign
+    for c in range(columns.cylinders.shape[0]):
+        band = columns.friction_share[c] * abs(cylinder_values[columns.cylinders[c], 1]) + columns.friction_force[c]
+        if motions[c] == MOTION_STANDING:
+            band *= columns.friction_breakaway[c]
+        friction_u[c] = band / math.sqrt(3.0)
+        if not friction_u[c] > 0.0:
+            return NOT_TABULATED
+        scales[columns.friction_at[c]] = friction_u[c] / columns.per_pascal[c]
+        sign[columns.friction_at[c]] = _FRICTION_SIGN[motions[c]]
     _output_row(hinge_force, cylinder_values[:, 1], implement_load, steerability, capacity, columns.steer_columns, y0)
     raw, levels = table.raw, table.forces
     n_rows, n_out = raw.shape[2], raw.shape[3]
-    forces = np.empty(columns.cylinders.shape[0])
-    for c in range(forces.shape[0]):
-        forces[c] = cylinder_values[columns.cylinders[c], 1]
-    a = (theta - (table.origin + node * table.step)) / table.step
+    a = position - node
     d = np.zeros((n_rows, n_out))
     for t in range(2):
         j, weight = node + t, a if t else 1.0 - a
         for r in range(n_rows):
             for o in range(n_out):
                 value = raw[j, 0, r, o]
-                for c in range(forces.shape[0]):
-                    span = levels[j, 1 + c, c] - levels[j, 0, c]
-                    value += (forces[c] - levels[j, 0, c]) / span * (raw[j, 1 + c, r, o] - raw[j, 0, r, o])
+                for c in range(columns.cylinders.shape[0]):
+                    force, span = cylinder_values[columns.cylinders[c], 1], levels[j, 1 + c, c] - levels[j, 0, c]
+                    value += (force - levels[j, 0, c]) / span * (raw[j, 1 + c, r, o] - raw[j, 0, r, o])
                 d[r, o] += weight * value
     chain_rule(d, y0, program.layout)
-    for s in range(columns.rows.shape[0]):
+    for s in range(n_src):
         for o in range(n_out):
             contributions[o, s] = d[columns.rows[s], o] * scales[s]
     for o in range(n_out):
         total = 0.0
-        for s in range(contributions.shape[1]):
+        for s in range(n_src):
             total += contributions[o, s] * contributions[o, s]
         u[o] = math.sqrt(total)
     k[:] = coverage_factors(contributions, columns.uniform, sign, program.factors, program.shares,
                             program.inverse_counts, program.normal_factor)
+    return node
