@@ -136,3 +136,29 @@ def test_the_weight_at_rest_is_averaged_over_the_bounce_s_time_constant(bounce, 
     keep = np.arange(30) != 5
     np.testing.assert_allclose(found[keep], expected[keep], rtol=1e-12)
     assert found[5] == found[4]
+
+
+def test_a_still_body_s_gyro_noise_is_shrunk_and_a_bounce_kept():
+    """Wiener's gain S/(S + N) on the slope: N the slope's variance from its own residuals (σ_ω²/Σ(t − t̄)²),
+    S its mean square over 0.3 s less N. A still body whose gyro reads white noise (σ 0.005 rad/s at
+    400 Hz: the slope's noise σ·√(12/(n·(n²−1)))·rate = 0.042 rad/s² for n = 31) gives a pitch
+    acceleration of a small part of that; a pitching body (2 rad/s² at 2.5 Hz, the same noise) keeps
+    its pitch acceleration to within the noise and the window's curvature error."""
+    rng = np.random.default_rng(7)
+    rate_hz, sigma, n = 400.0, 0.005, 31
+    raw = sigma * np.sqrt(12.0 / (n * (n * n - 1))) * rate_hz
+    for amplitude, check in ((0.0, "still"), (2.0, "pitching")):
+        w = 2.0 * np.pi * 2.5
+        imu = ImuBody(0.0)
+        found, truth = [], []
+        for k in range(1200):
+            t = k / rate_hz
+            body = imu.add(round(t * 1e9), 9.80665, amplitude / w * np.cos(w * t) + sigma * rng.standard_normal())
+            if body is not None and k > 200:
+                found.append(body.acceleration.pitch)
+                truth.append(amplitude * np.sin(w * body.stamp_ns * 1e-9))
+        error = np.sqrt(np.mean((np.array(found) - np.array(truth)) ** 2))
+        if check == "still":
+            assert error < 0.5 * raw, (error, raw)
+        else:
+            assert error < raw + 0.04 * amplitude, (error, raw)

@@ -17,7 +17,9 @@ simulator's road up to 16 Hz, where a tyre follows the profile): assigned to the
 slope is 37.5 ms late and its error is as large as the signal, so ``ImuBody`` gives the body's
 acceleration **at the window's centre**, paired with that sample's specific force: known 37.5 ms
 late, and the monitor gives the dynamic values of the solve at that stamp
-(``monitoring.road``; bench/bench_dynamics.py).
+(``monitoring.road``; bench/bench_dynamics.py). The slope is shrunk by Wiener's gain S/(S + N), N
+its variance from the window's own residuals, S its mean square over the last 0.3 s less N: a
+quiet body's gyro noise is not taken for a pitch.
 
 **Static balance at rest** (Popov 2009, ``kernels.steerability_pose``, as without an IMU): the
 pressures measure the implement's load P = m_6·(g + a_6), its weight and its inertia together; the
@@ -104,8 +106,10 @@ class ImuBody:
     axes): the pitch acceleration is the least-squares slope of −ω_y over the samples of the last
     ``window`` s, which is the derivative at the window's centre; it is paired there with the sample
     of that time (its f_z and stamp), so that the body's acceleration is given ``window``/2 late
-    and without the lag a slope assigned to its newest sample has (module docstring). Running
-    sums: O(1) per sample. None until the samples span ``FULL_SPAN`` of the window."""
+    and without the lag a slope assigned to its newest sample has (module docstring). The slope is
+    shrunk by Wiener's gain S/(S + N): N its variance from its own residuals (σ_ω²/Σ(t − t̄)²), S its
+    mean square over ``BOUNCE_WINDOW`` less N, so that a still body's gyro noise is not taken for a
+    pitch. Running sums: O(1) per sample. None until the samples span ``FULL_SPAN`` of the window."""
 
     def __init__(self, mount_x: float, window: float = PITCH_WINDOW, gravity: float = STANDARD_GRAVITY) -> None:
         self.mount_x, self.gravity = mount_x, gravity
@@ -113,8 +117,10 @@ class ImuBody:
         self._samples: deque[_Sample] = deque()
         self._squares: deque[tuple[int, float]] = deque()   # (stamp ns, (f_z − g)²) over BOUNCE_WINDOW
         self._square_sum = 0.0
+        self._slopes: deque[tuple[int, float]] = deque()   # (stamp ns, slope²) over BOUNCE_WINDOW
+        self._slope_sum = 0.0
         self._origin = 0
-        self._sums = [0.0] * 5   # Σ1, Σt, Σw, Σt², Σt·w; t in s from _origin
+        self._sums = [0.0] * 6   # Σ1, Σt, Σw, Σt², Σt·w, Σw²; t in s from _origin
 
     def _count(self, sample: _Sample, sign: float) -> None:
         t, w = (sample.stamp_ns - self._origin) * 1e-9, sample.nose_up_rate
@@ -124,6 +130,7 @@ class ImuBody:
         sums[2] += sign * w
         sums[3] += sign * t * t
         sums[4] += sign * t * w
+        sums[5] += sign * w * w
 
     def add(self, stamp_ns: int, specific_force_z: float, rate_y: float) -> BodyAt | None:
         """One IMU sample (header stamp ns, f_z m/s², ω_y rad/s): the body's acceleration at the
@@ -132,10 +139,11 @@ class ImuBody:
         if samples and stamp_ns <= samples[-1].stamp_ns:
             samples.clear()
             self._squares.clear()
-            self._square_sum = 0.0
+            self._slopes.clear()
+            self._square_sum = self._slope_sum = 0.0
         samples.append(_Sample(stamp_ns, -rate_y, specific_force_z))
         if len(samples) == 1 or (stamp_ns - self._origin) * 1e-9 > REBASE_S:   # the sums again from a new origin
-            self._origin, self._sums = samples[0].stamp_ns, [0.0] * 5
+            self._origin, self._sums = samples[0].stamp_ns, [0.0] * 6
             for sample in samples:
                 self._count(sample, 1.0)
         else:
@@ -149,8 +157,16 @@ class ImuBody:
             self._square_sum -= self._squares.popleft()[1]
         if len(samples) < 3 or stamp_ns - samples[0].stamp_ns < FULL_SPAN * self.window_ns:
             return None
-        n, st, sw, stt, stw = self._sums
-        pitch = (stw - st * sw / n) / (stt - st * st / n)
+        n, st, sw, stt, stw, sww = self._sums
+        spread = stt - st * st / n   # Σ(t − t̄)², s²
+        slope = (stw - st * sw / n) / spread
+        noise = max(sww - sw * sw / n - slope * slope * spread, 0.0) / (n - 2) / spread   # the slope's variance
+        self._slopes.append((stamp_ns, slope * slope))
+        self._slope_sum += slope * slope
+        while self._slopes[0][0] < stamp_ns - BOUNCE_WINDOW * 1e9:
+            self._slope_sum -= self._slopes.popleft()[1]
+        signal = max(self._slope_sum / len(self._slopes) - noise, 0.0)
+        pitch = slope * signal / (signal + noise) if signal > 0.0 else 0.0
         centre = samples[len(samples) // 2]
         bounce = math.sqrt(max(self._square_sum, 0.0) / len(self._squares))
         return BodyAt(centre.stamp_ns, imu_body_acceleration(centre.specific_force_z, pitch, self.mount_x,
