@@ -165,3 +165,27 @@ def test_the_weighing_takes_the_imu_s_vertical_acceleration():
         phases[imu] = {s.weighing.phase for s in steps if s.weighing is not None}
     assert WeighingPhase.LIFTING in phases[""] and WeighingPhase.BOUNCING not in phases[""]
     assert WeighingPhase.BOUNCING in phases["/imu"] and WeighingPhase.LIFTING not in phases["/imu"]
+
+
+def test_a_new_imu_mounting_takes_effect_without_a_restart():
+    """A body pitching with a constant α = 1 rad/s² (the gyro's rate −α·t) whose IMU reads f_z = g + 0.5:
+    at x_i the body's vertical acceleration at B is f_z − g − α·x_i (module docstring of
+    mechanics.dynamics): 0.5 m/s² with imu_x 0, −0.5 m/s² once imu_x is set to 1 m at run time."""
+    mech = load_preset("belarus_1221")
+    monitor = Monitor(mech, _config(mech))
+    alpha = 1.0
+
+    def feed(first: int, count: int) -> None:
+        for k in range(first, first + count):
+            stamp = START + k * IMU_RATE_NS
+            monitor.step(ImuEvent("/imu", "imu_link", STANDARD_GRAVITY + 0.5, -alpha * k * IMU_RATE_NS * 1e-9,
+                                  stamp, stamp))
+
+    feed(0, 40)
+    body = monitor.road.body_at(START + 39 * IMU_RATE_NS)
+    assert body.acceleration.vertical == pytest.approx(0.5) and body.acceleration.pitch == pytest.approx(alpha)
+    monitor.reconfigure(replace(monitor.config, imu_x=1.0))
+    assert monitor.road.body_at(START + 39 * IMU_RATE_NS) is None   # the last one was of the old mounting
+    feed(40, 1)
+    body = monitor.road.body_at(START + 40 * IMU_RATE_NS)
+    assert body.acceleration.vertical == pytest.approx(-0.5) and body.acceleration.pitch == pytest.approx(alpha)

@@ -111,9 +111,12 @@ class RoadInput:
         self._stamp_ns = 0
 
     def carry_over(self, previous: RoadInput) -> None:
-        """Keep ``previous``'s readings (a reconfiguration with the same IMU)."""
+        """Keep ``previous``'s readings (a reconfiguration with the same IMU); the body's acceleration from
+        the next message on with this configuration's mounting (``imu_x``)."""
         self._imu, self._rest, self._history = previous._imu, previous._rest, previous._history
-        self._rest_at, self._body, self._stamp_ns = previous._rest_at, previous._body, previous._stamp_ns
+        self._imu.mount_x, self._imu.gravity = self.config.imu_x, self.mechanism.gravity
+        self._rest_at, self._stamp_ns = previous._rest_at, previous._stamp_ns
+        self._body = previous._body if previous.config.imu_x == self.config.imu_x else None
 
     def accept(self, event: ImuEvent) -> None:
         """Take an IMU message (its stamp checked against the clock by ``InputTracker.check_stamp``), or
