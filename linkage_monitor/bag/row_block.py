@@ -180,33 +180,63 @@ def chunk_end(block: RowBlock, lo: int, files: BagFiles) -> tuple[int, bool]:
     return (cut, True) if cut < hi else (hi, False)
 
 
-def write_chunk(block: RowBlock, lo: int, hi: int, current: StorageFile) -> None:
-    """Messages ``lo``..``hi - 1`` of ``block`` as one chunk and its message indexes written to ``current``:
-    the channels they need registered, the chunk counted in the file's summary, the topics' counts and the
-    file's span."""
+class ChunkRecords(NamedTuple):
+    """Messages ``lo``..``hi - 1`` of a block as the uncompressed records of one chunk (``chunk_records``):
+    ``data`` the records, ``offset`` each message's record offset in them, ``channels`` each topic's
+    channel id (by the block's topic index), ``present`` / ``counts`` the topics in the chunk and their
+    messages."""
+
+    lo: int
+    hi: int
+    data: bytes
+    offset: np.ndarray
+    channels: np.ndarray
+    present: np.ndarray
+    counts: np.ndarray
+
+
+def chunk_records(block: RowBlock, lo: int, hi: int, current: StorageFile) -> ChunkRecords:
+    """The records of messages ``lo``..``hi - 1`` of ``block`` as one chunk of ``current``: the channels
+    they need registered (in the order of their first messages), the schema and channel records waiting
+    in the writer at the front."""
     writer = current.writer
-    topic = block.topic[lo:hi]
-    present, first_at, counts = np.unique(topic, return_index=True, return_counts=True)
+    present, first_at, counts = np.unique(block.topic[lo:hi], return_index=True, return_counts=True)
     channels = np.zeros(len(block.entries), np.int64)
     for t in present[np.argsort(first_at)].tolist():   # registered in the order of their first messages
         channels[t] = current.channel(block.entries[t])
     data, offset = block.records(lo, hi, channels, writer.take_pending_records())
+    return ChunkRecords(lo, hi, data, offset, channels, present, counts)
+
+
+def compressed(current: StorageFile, data: bytes) -> tuple[bytes, int]:
+    """``data`` compressed as ``current``'s chunks are, and its uncompressed CRC (both release the GIL:
+    ``BagWriter`` runs this beside the next chunk's records)."""
+    writer = current.writer
+    return writer.compress(data), writer.chunk_crc(data)
+
+
+def write_chunk(block: RowBlock, chunk: ChunkRecords, packed: tuple[bytes, int], current: StorageFile) -> None:
+    """``chunk`` (its data compressed, and its CRC: ``packed``) and its message indexes written to ``current``:
+    the chunk counted in the file's summary, the topics' counts and the file's span."""
+    writer = current.writer
+    lo, hi, data, offset, channels = chunk.lo, chunk.hi, chunk.data, chunk.offset, chunk.channels
     log = block.log_time[lo:hi]
     first, last = int(log[0]), int(log[-1])
-    compressed = writer.compress(data)
-    chunk = chunk_record(first, last, len(data), writer.chunk_crc(data), writer.compression_name(), compressed)
-    indexes = message_index_records(channels[topic], log, offset)
+    compressed_data, crc = packed
+    record = chunk_record(first, last, len(data), crc, writer.compression_name(), compressed_data)
+    indexes = message_index_records(channels[block.topic[lo:hi]], log, offset)
     start = current.file.tell()
-    index_offsets, at = {}, start + len(chunk)
-    for channel_id, record in indexes:
+    index_offsets, at = {}, start + len(record)
+    for channel_id, index in indexes:
         index_offsets[channel_id] = at
-        at += len(record)
-    current.file.write(b"".join([chunk, *(record for _, record in indexes)]))
+        at += len(index)
+    current.file.write(b"".join([record, *(index for _, index in indexes)]))
+    present, counts = chunk.present.tolist(), chunk.counts.tolist()
     writer.add_chunk(ChunkIndex(message_start_time=first, message_end_time=last, chunk_start_offset=start,
-                                chunk_length=len(chunk), message_index_offsets=index_offsets,
-                                message_index_length=at - start - len(chunk), compression=writer.compression_name(),
-                                compressed_size=len(compressed), uncompressed_size=len(data)),
-                     {int(channels[t]): int(c) for t, c in zip(present.tolist(), counts.tolist())})
-    for t, c in zip(present.tolist(), counts.tolist()):
+                                chunk_length=len(record), message_index_offsets=index_offsets,
+                                message_index_length=at - start - len(record), compression=writer.compression_name(),
+                                compressed_size=len(compressed_data), uncompressed_size=len(data)),
+                     {int(channels[t]): int(c) for t, c in zip(present, counts)})
+    for t, c in zip(present, counts):
         block.entries[t].count += c
     current.span.add_many(first, last, hi - lo)

@@ -25,6 +25,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -35,8 +36,9 @@ from rclpy.serialization import serialize_message
 
 from linkage_monitor.bag.errors import BagError
 from linkage_monitor.bag.metadata import Span, Topic, bag_information, qos_to_dict, write_metadata_yaml
-from linkage_monitor.bag.row_block import MessageRows, RowBlock, chunk_end, write_chunk
-from linkage_monitor.bag.split_files import MIN_SPLIT_SIZE, Attachment, BagFiles, file_path
+from linkage_monitor.bag.row_block import (ChunkRecords, MessageRows, RowBlock, chunk_end, chunk_records, compressed,
+                                           write_chunk)
+from linkage_monitor.bag.split_files import MIN_SPLIT_SIZE, Attachment, BagFiles, StorageFile, file_path
 from linkage_monitor.bag.write_queue import WriteQueue, WriteThread
 from linkage_monitor.wire.definitions import exact_cdr
 
@@ -103,6 +105,8 @@ class BagWriter:
         self._flusher = WriteThread(f"BagWriter {self.name}", self._closed, flush_period_s,
                                     self._write_queued_if_open, self.flush)
         self._flusher.start()
+        # write_rows' chunks compressed beside the building of the next (its thread started at the first)
+        self._compressor = ThreadPoolExecutor(max_workers=1, thread_name_prefix=f"BagWriter {self.name} chunks")
 
     @property
     def paths(self) -> list[Path]:
@@ -176,21 +180,41 @@ class BagWriter:
                     self.unwritten += n - written
 
     def _write_block(self, block: RowBlock) -> int:
-        """Write ``block`` in chunks (under ``_lock``), the writer's open chunk first; the messages written."""
-        lo, split_next = 0, False
+        """Write ``block`` in chunks (under ``_lock``), the writer's open chunk first; the messages written.
+        A chunk is compressed in the compressor thread while the next chunk's records are built, unless
+        the bag splits (where the next file starts depends on the chunk written last)."""
+        files = self._files
+        overlap = files.max_size == 0 and files.max_duration_ns == 0
+        lo, split_next, written = 0, False, 0
+        waiting: tuple[ChunkRecords, Future[tuple[bytes, int]], StorageFile] | None = None
         try:
-            self._files.current.writer.flush()
+            files.current.writer.flush()
             while lo < len(block):
-                if split_next or self._files.split_due(int(block.log_time[lo])):
+                if split_next or files.split_due(int(block.log_time[lo])):
                     self._next_file()
-                hi, split_next = chunk_end(block, lo, self._files)
-                write_chunk(block, lo, hi, self._files.current)
-                self._span.add_many(int(block.log_time[lo]), int(block.log_time[hi - 1]), hi - lo)
-                self._dirty = True
+                hi, split_next = chunk_end(block, lo, files)
+                current = files.current
+                chunk = chunk_records(block, lo, hi, current)
+                packing = self._compressor.submit(compressed, current, chunk.data)
+                if waiting is not None:
+                    written = self._write_chunk(block, *waiting)
+                waiting = (chunk, packing, current)
+                if not overlap:
+                    written, waiting = self._write_chunk(block, *waiting), None
                 lo = hi
+            if waiting is not None:
+                written = self._write_chunk(block, *waiting)
         except OSError as exc:
             self._fail(exc)
-        return lo
+        return written
+
+    def _write_chunk(self, block: RowBlock, chunk: ChunkRecords, packing: Future[tuple[bytes, int]],
+                     current: StorageFile) -> int:
+        """``chunk`` of ``block`` written to ``current`` once compressed; the block's messages written so far."""
+        write_chunk(block, chunk, packing.result(), current)
+        self._span.add_many(int(block.log_time[chunk.lo]), int(block.log_time[chunk.hi - 1]), chunk.hi - chunk.lo)
+        self._dirty = True
+        return chunk.hi
 
     def _write_queued(self) -> None:
         """Write the queued messages into the MCAP writer, in order (under ``_lock``). Receive order
@@ -293,6 +317,7 @@ class BagWriter:
             except OSError as exc:
                 self.error = self.error or f"{self.directory}: {exc.strerror or exc}"
         self._flusher.join()
+        self._compressor.shutdown()
 
     @property
     def outcome(self) -> str:
