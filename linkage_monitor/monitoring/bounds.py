@@ -85,6 +85,7 @@ def straddles(value: float | np.ndarray, half_width: float | np.ndarray, limit: 
 
 _LIMITS = np.array([0.0, 0.0, 0.0, 1.0])   # the limits of the four (``LimitUncertainties``' order)
 _BITS = np.array([_FRONT, _REAR, _STEER, _RESERVE])
+_LIMIT_LIST, _BIT_LIST = _LIMITS.tolist(), _BITS.tolist()   # the same, for one pose on floats
 
 
 def interval_checks(front_axle_load: float | np.ndarray, rear_axle_load: float | np.ndarray,
@@ -93,8 +94,8 @@ def interval_checks(front_axle_load: float | np.ndarray, rear_axle_load: float |
     pose (floats), an int array (N,) for N poses (the limits of ``checks.pose_checks``: 0 N, 0, 1)."""
     if not isinstance(front_axle_load, np.ndarray):   # one pose: ``straddles``' rule on floats, a tenth of its time
         bits = 0
-        for value, half_width, limit, bit in zip((front_axle_load, rear_axle_load, margin, reserve), u,
-                                                 _LIMITS.tolist(), _BITS.tolist()):
+        for value, half_width, limit, bit in zip((front_axle_load, rear_axle_load, margin, reserve), u, _LIMIT_LIST,
+                                                 _BIT_LIST):
             if math.isfinite(value) and value >= limit and not value - half_width >= limit:
                 bits |= bit
         return np.asarray(bits)
