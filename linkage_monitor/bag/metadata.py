@@ -52,6 +52,12 @@ def ros_distro() -> str:
     (`ros-<distro>-rclpy`), else the one of rclpy's version (its release series); 'unknown' when none says."""
     if os.environ.get("ROS_DISTRO"):
         return os.environ["ROS_DISTRO"]
+    for distro in _RCLPY_SERIES.values():   # the known ones looked up by name: the scan below reads every wheel's
+        try:                                # metadata (~0.06 s with ~200 installed)
+            importlib.metadata.distribution(f"ros-{distro}-rclpy")
+            return distro
+        except importlib.metadata.PackageNotFoundError:
+            pass
     for distribution in importlib.metadata.distributions():
         name = (distribution.metadata["Name"] or "").lower().replace("_", "-")
         if name.startswith("ros-") and name.endswith("-rclpy") and name.count("-") == 2:

@@ -210,7 +210,8 @@ class OutputEncoder:
             source = np.concatenate([source, *(q.values for q in quiet)])
             stamps = np.concatenate([stamps, *(q.segment.stamps_ns[q.rows] for q in quiet)])
             messages = [q.segment.batch.messages[k] for q in quiet for k in q.rows.tolist()]
-            hinge_keys += [solve_status(message, self._overdetermined) for message in messages]
+            statuses = {message: solve_status(message, self._overdetermined) for message in set(messages)}
+            hinge_keys += [statuses[message] for message in messages]
             texts += [NO_FINDINGS] * len(messages)
             flags = np.concatenate([flags, np.full((len(messages), 1), _statuses().hitch_ok, np.uint8)])
             order = np.argsort(index, kind="stable")
@@ -346,13 +347,12 @@ def _filled(kind: str, template_of: Callable[[Any], Template], keys: list, steps
             source: np.ndarray, flags: np.ndarray | None = None) -> list[OutputRows]:
     """The ``kind`` messages of N poses (of ``steps``): ``template_of(keys[i])`` filled with stamps[i], its
     columns of source[i] and flags[i]; one ``Template.fill_rows`` per distinct key."""
-    rows: dict[Any, list[int]] = {}
-    for i, key in enumerate(keys):
-        rows.setdefault(key, []).append(i)
+    codes: dict[Any, int] = {}   # each distinct key's number, in the order of first use
+    code = np.fromiter((codes.setdefault(key, len(codes)) for key in keys), np.intp, len(keys))
     found = []
-    for key, index in rows.items():
+    for key, number in codes.items():
         template = template_of(key)
-        at = np.array(index, dtype=np.intp)
+        at = np.flatnonzero(code == number) if len(codes) > 1 else np.arange(len(keys))
         found.append(OutputRows(kind, steps[at], template.fill_rows(stamps[at], source[np.ix_(at, template.columns)],
                                                                     flags[at] if flags is not None else None)))
     return found

@@ -73,9 +73,11 @@ class StepMessenger:
         stamps, drawn_now = steps.stamps_ns.tolist(), self._marker_gate.due
         drawn = [k for k in np.flatnonzero(solved).tolist() if drawn_now(stamps[k])]
         markers = dict(zip(drawn, self.markers.markers_of([stamps[k] for k in drawn], steps.results(drawn))))
-        gate = self._diagnostic_gate
-        reported = [k for k, (step, quiet) in enumerate(zip(steps.made, steps.is_quiet.tolist()))
-                    if (gate.due_quiet() if quiet else gate.due(step))]  # type: ignore[arg-type]  # not quiet: made
+        gate, quiet = self._diagnostic_gate, steps.is_quiet
+        # of a run of quiet poses only the first may be reported (an OK after a WARN): the gate sees the others alike
+        asked = np.flatnonzero(~quiet | ~np.concatenate([[False], quiet[:-1]])).tolist()
+        reported = [k for k in asked
+                    if (gate.due_quiet() if quiet[k] else gate.due(steps.made[k]))]  # type: ignore[arg-type]  # made
         return SentBesides(markers, {k: self.diagnostic(steps[k], now_ns[k]) for k in reported})
 
     def _sent(self, step: Step, outputs: Outputs | None, markers: bytes | None, now_ns: int) -> StepMessages:
