@@ -20,8 +20,10 @@ refused (``MechanismFileError``). Units SI (m, Pa, N); frame x forward, z up.
 
 from __future__ import annotations
 
+import bisect
 import copy
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -50,13 +52,17 @@ TABLES_KEPT = 8        # the mechanisms whose tables this process keeps (the las
 
 @dataclass(frozen=True)
 class _Table:
-    """The derivatives of one set of given pressures: ``nodes`` (S,) of the driving input (m or rad),
-    ``constant`` (S, G, n_out) ∂A/∂g and ``per_pascal`` (S, L, G, n_out) ∂B_l/∂g, L the ``pressures``."""
+    """The derivatives of one set of given ``pressures`` (L) at the ``nodes`` (S,) of the driving input (m
+    or rad): ``coefficients`` (S, 1 + L, G·n_out), per node ∂A/∂g then ∂B_l/∂g per Pa of each pressure."""
 
     nodes: np.ndarray
-    constant: np.ndarray
-    per_pascal: np.ndarray
+    coefficients: np.ndarray
     pressures: tuple[str, ...]
+
+    @cached_property
+    def stops(self) -> list[float]:
+        """``nodes`` as a list (``bisect`` takes a scalar's place in it faster than numpy)."""
+        return self.nodes.tolist()
 
 
 # (description, coordinates and their order, the solver's settings) -> the tables by given pressures
@@ -104,18 +110,18 @@ class GeometryBudget:
         """∂y/∂g (G, n_out) per m of each toleranced coordinate at the pose of ``inputs`` (its driving input
         and pressures), the linear outputs' exact to the interpolation (the others: the chain rule's to
         apply); NaN outside the table's range."""
-        table = self._table(tuple(sorted(inputs.pressures)))
+        given = tuple(inputs.pressures)
+        table = self._tables.get(given)
+        if table is None:   # kept under the order they come in as well
+            table = self._tables[given] = self._table(tuple(sorted(given)))
         s = getattr(inputs, self.kind)[self.driving]
-        nodes = table.nodes
-        k = int(np.searchsorted(nodes, s)) - 1
-        if not 0 <= k < len(nodes) - 1:
+        k = bisect.bisect_left(table.stops, s) - 1
+        if not 0 <= k < len(table.stops) - 1:
             return np.full((len(self.coordinates), len(self.table.outputs)), np.nan)
-        w = (s - nodes[k]) / (nodes[k + 1] - nodes[k])
-        d = (1.0 - w) * table.constant[k] + w * table.constant[k + 1]
-        if table.pressures:
-            p = np.array([inputs.pressures[name] for name in table.pressures])
-            d = d + np.einsum("l,lgo->go", p, (1.0 - w) * table.per_pascal[k] + w * table.per_pascal[k + 1])
-        return d
+        w = (s - table.stops[k]) / (table.stops[k + 1] - table.stops[k])
+        loads = np.array([1.0, *(inputs.pressures[name] for name in table.pressures)])
+        row = loads @ ((1.0 - w) * table.coefficients[k] + w * table.coefficients[k + 1])
+        return row.reshape(len(self.coordinates), len(self.table.outputs))
 
     def _table(self, pressures: tuple[str, ...]) -> _Table:
         """The table of these given pressures (sorted by name), built once for them."""
@@ -148,17 +154,21 @@ class GeometryBudget:
         inputs = {kind: {name: np.tile(v, rows) for name, v in group.items()} for kind, group in held.items()}
         inputs["pressures"] = {name: np.repeat(levels[:, l], n) for l, name in enumerate(pressures)}
         moved = self._moved_models()
+
+        def solve(model: MachineModel) -> np.ndarray:
+            return series_rows(self.table, model, model.solve_series(inputs["cylinders"], inputs["angles"],
+                                                                     inputs["pressures"]))
+
         d = np.empty((len(self.coordinates), rows * n, len(self.table.outputs)))
         for g in range(len(self.coordinates)):
-            up, down = (series_rows(self.table, m, m.solve_series(inputs["cylinders"], inputs["angles"],
-                                                                   inputs["pressures"]))
-                        for m in moved[2 * g: 2 * g + 2])
+            up, down = solve(moved[2 * g]), solve(moved[2 * g + 1])
             with np.errstate(invalid="ignore"):   # a node a moved model does not solve (NaN) or no load (inf)
                 d[g] = (up - down) / (2.0 * POINT_STEP)
         by_node = d.reshape(len(self.coordinates), rows, n, -1).transpose(2, 1, 0, 3)   # (S, rows, G, n_out)
-        per_pascal = (by_node[:, 1:] - by_node[:, :1]) / PRESSURE_STEP
-        constant = by_node[:, 0] - np.einsum("l,slgo->sgo", base, per_pascal)
-        return _Table(nodes, constant, per_pascal, pressures)
+        with np.errstate(invalid="ignore"):
+            per_pascal = (by_node[:, 1:] - by_node[:, :1]) / PRESSURE_STEP
+            constant = by_node[:, 0] - np.einsum("l,slgo->sgo", base, per_pascal)
+        return _Table(nodes, np.concatenate([constant[:, None], per_pascal], axis=1).reshape(n, rows, -1), pressures)
 
     def _moved_models(self) -> list[MachineModel]:
         """The mechanism with each toleranced coordinate moved by +POINT_STEP and −POINT_STEP, in turn."""

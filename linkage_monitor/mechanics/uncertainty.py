@@ -347,17 +347,19 @@ class UncertaintyModel:
     def _with_geometry(self, plan: _Plan, columns: _Columns, contributions: np.ndarray, y0: np.ndarray,
                        inputs: Inputs) -> tuple[_Columns, np.ndarray]:
         """``columns`` and their ``contributions`` (n_out, n_src) with the toleranced point coordinates'
-        (``geometry_budget``, their linear outputs' derivatives from its table, the others by the chain
-        rule) joined before the implement mass's; as they are without point tolerances."""
+        (``geometry_budget``: their linear outputs' derivatives from its table, the others by the chain
+        rule) joined last; as they are without point tolerances."""
         geometry = self.geometry
         if not geometry.sources:
             return columns, contributions
-        at, g = len(columns.sources) - plan.mass, len(geometry.sources)
-        per_point = self._linear.chain(y0, geometry.derivatives(inputs))
-        return (_Columns(columns.sources[:at] + geometry.sources + columns.sources[at:], columns.rows,
-                         np.insert(columns.scales, at, geometry.scales), np.insert(columns.uniform, at, [False] * g),
-                         np.insert(columns.sign, at, [0.0] * g), columns.motions),
-                np.insert(contributions, [at] * g, per_point.T * geometry.scales, axis=1))
+        per_point = geometry.derivatives(inputs)
+        kernels.chain_rule(per_point, y0, self.table.layout)
+        g = len(geometry.sources)
+        joined = np.concatenate([contributions, per_point.T * geometry.scales], axis=1)
+        return (_Columns(columns.sources + geometry.sources, columns.rows,
+                         np.concatenate([columns.scales, geometry.scales]),
+                         np.concatenate([columns.uniform, np.zeros(g, dtype=bool)]),
+                         np.concatenate([columns.sign, np.zeros(g)]), columns.motions), joined)
 
     def _frictions(self, plan: _Plan, result: Result, motion: Motion | Mapping[str, Motion]) -> list[_Friction]:
         """The seal frictions of the pose: each force-measured cylinder's whose band is not 0, by its
