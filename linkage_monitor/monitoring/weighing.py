@@ -16,7 +16,8 @@ IMU, the body's vertical acceleration) and
    filling, emptying) is an ``ImplementChange`` and the estimate restarts from that stroke;
 3. fits the weight and the cg over the lift/lower pairs (``weighing_fit``) and gives the mass
    (kg) and the cg (m, the implement's reference-pose coordinates, as the mechanism file takes
-   them) with standard uncertainties (1 σ; the 95 % interval is ±1.96 u).
+   them) with standard uncertainties (1 σ widened by Student's factor for the degrees of freedom
+   the scatter was estimated from: the 95 % interval is ±1.96 u).
 
 Units SI; frame x forward, z up, origin at the rear wheels' ground contact.
 """
@@ -32,7 +33,7 @@ import numpy as np
 from linkage_monitor.mechanics import Mechanism, Result
 from linkage_monitor.mechanics.constants import STANDARD_GRAVITY
 
-from .weighing_fit import N, SUMS, Y, Fit, Priors, SensorErrors, fit
+from .weighing_fit import N, SUMS, UNITS, Y, Fit, Priors, SensorErrors, fit, student_factor
 from .weighing_model import ForceColumns, WeighingModel
 
 
@@ -81,8 +82,8 @@ class WeighingSettings:
 @dataclass(frozen=True)
 class WeighingEstimate:
     """The implement's mass (kg) and cg (m, the mechanism's reference pose, the implement's frame)
-    with their standard uncertainties (1 σ); ``cg_x_identified`` / ``cg_z_identified``: the data
-    narrowed the coordinate to less than half its prior (otherwise it is the file's value and the
+    with their standard uncertainties (1 σ, Student-widened: ±1.96 u is 95 %); ``cg_x_identified`` /
+    ``cg_z_identified``: the data narrowed the coordinate to less than half its prior (otherwise it is the file's value and the
     prior's uncertainty); ``pairs``: lift/lower pairs of stroke bins used; ``friction_share``: the
     seal friction found, as a share of the load's force (-)."""
 
@@ -126,6 +127,8 @@ class WeighingEstimator:
         self._contact_edge = m.reference_length + m.lifting_sign * settings.ground_contact * span
         self._bin_width = span / settings.bins
         self._sums = np.zeros((settings.bins, 2, len(SUMS)))
+        self._units = np.zeros((UNITS, settings.bins, 2, len(SUMS)))   # the strokes in groups, a direction each
+        self._strokes = [0, 0]   # strokes so far per direction (lifting, lowering): the next one's group
         self._stroke: dict[tuple[int, int], list[float]] = {}
         self._stroke_direction = 0
         self._last_stamp: int | None = None
@@ -238,9 +241,14 @@ class WeighingEstimator:
         if change is not None and abs(change) > self.settings.change:
             self.changes.append(ImplementChange(stamp_ns, change))
             self._sums = stroke
+            self._units[:] = 0.0
+            self._strokes = [0, 0]
         else:
             self._sums += stroke
-        self._fit = fit(self._sums, self.errors, self.settings.priors, self.settings.min_samples)
+        side = 0 if self._stroke_direction > 0 else 1
+        self._units[self._strokes[side] % UNITS, :, side] += stroke[:, side]
+        self._strokes[side] += 1
+        self._fit = fit(self._sums, self.errors, self.settings.priors, self.settings.min_samples, self._units)
         self.fits += 1
 
     def _relative_change(self, stroke: np.ndarray) -> float | None:
@@ -268,7 +276,7 @@ class WeighingEstimator:
             return None
         g = self.model.gravity
         weight, wx, wz = (float(v) for v in result.theta)
-        cov = result.covariance
+        cov = result.covariance * student_factor(result.dof) ** 2   # the 95 % interval ±1.96·u: Student's
         offsets = []
         for j in (1, 2):   # d = θj/θ0: first-order propagation of θ's covariance
             jac = np.zeros(3)

@@ -13,12 +13,24 @@ over the pairs k (the unknowns θ = (W, W·dx, W·dz): linear). dx and dz are th
 the file's cg in the implement's frame (m, reference pose); each has a Gaussian prior around
 the file's cg (``Priors``), so that what the stroke does not identify (dz where the implement
 hardly turns, everything from one pair) stays at the file's value with its prior uncertainty
-instead of making the system singular. The rows' scatter is the larger of what the declared
-pressure noise gives and the residuals' own (a Newey & West 1987 covariance over neighbouring
-bins, whose residuals a bounce may correlate, scaled by the pairs over the degrees of freedom
-left and widened by a Student factor for them). The sensors' calibration (a gain and an offset
-of the pressure, ``SensorErrors``) is common to all rows: it is propagated through the fit's gain
-matrix and added. Units SI.
+instead of making the system singular.
+
+The uncertainty: a bin's error is not independent of its neighbours' (a bounce during a stroke
+moves the loads of the bins the rod crosses meanwhile, in turn or together), and the weight's
+variance is the sum of those correlations weighted by the fit's smooth gain, which the
+residuals of one fit cannot estimate (their long-range part is what the fit absorbs). The
+strokes are what is independent: each lift and each lower meets its own bounce and noise. The
+estimator keeps its strokes' sums in groups (``UNITS`` per direction, a stroke to each in turn)
+and the fit's covariance is the jackknife over them, stratified by direction (Quenouille 1956,
+Efron & Stein 1981: each group left out in turn; a direction's friction stays cancelled, as the
+pair's mean takes each direction's mean), with its degrees of freedom (Satterthwaite 1946) for
+the Student widening; never below what the declared pressure noise gives. With fewer than two
+groups in a direction the rows' own scatter stands in (the residuals scaled by the degrees of
+freedom left, taken white: right for a noise white along the stroke, not for a bounce that
+moves neighbouring bins together, so that an estimate from one lift and one lower says so by its
+few degrees of freedom). The sensors' calibration (a gain and an offset of the pressure,
+``SensorErrors``) is common to all rows: it is propagated through the fit's gain matrix and
+added. Units SI.
 """
 
 from __future__ import annotations
@@ -27,8 +39,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.special import stdtrit
 
-HAC_LAGS = 4   # neighbouring bins whose residuals may be correlated (Newey & West 1987)
+UNITS = 8   # groups of strokes per direction that the jackknife leaves out in turn
 SUMS = ("n", "u0", "ux", "uz", "y", "yy", "force")   # the columns of a bin's sums, in this order
 N, U0, UX, UZ, Y, YY, FORCE = range(len(SUMS))
 
@@ -55,29 +68,47 @@ class Priors:
 
 @dataclass(frozen=True)
 class Fit:
-    """θ = (W N, W·dx N·m, W·dz N·m), its covariance (3, 3), the pairs used, the rows' RMS residual (N),
+    """θ = (W N, W·dx N·m, W·dz N·m), its covariance (3, 3) and the degrees of freedom of its W entry
+    (∞: from the declared errors alone), the pairs used, the rows' RMS residual (N),
     the mean friction share (half the lifting-lowering difference over the mean, -)."""
 
     theta: np.ndarray
     covariance: np.ndarray
+    dof: float
     pairs: int
     scatter: float
     friction_share: float
 
 
-def student_factor(dof: int) -> float:
-    """t(0.975, dof)/1.96: how much wider a 95 % interval is when σ comes from dof residuals
-    (Cornish-Fisher expansion of Student's t, to 0.5 % for dof ≥ 2)."""
-    if dof <= 0:
+def student_factor(dof: float) -> float:
+    """t(0.975, dof)/1.96: how much wider a 95 % interval is when σ comes from ``dof`` degrees of
+    freedom (Student's t quantile; 1 for dof = ∞, ∞ for dof ≤ 0)."""
+    if dof <= 0.0:
         return math.inf
-    z = 1.959964
-    t = z + (z**3 + z) / (4 * dof) + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * dof**2) \
-        + (3 * z**7 + 19 * z**5 + 17 * z**3 - 15 * z) / (384 * dof**3)
-    return t / z
+    if math.isinf(dof):
+        return 1.0
+    return float(stdtrit(dof, 0.975)) / 1.959963984540054
 
 
-def fit(sums: np.ndarray, errors: SensorErrors, priors: Priors, min_samples: int) -> Fit | None:
-    """The fit over the paired bins of ``sums`` (bins, 2 directions, len(SUMS)); None without a pair."""
+@dataclass(frozen=True)
+class _Solution:
+    """One least squares: θ, the posterior covariance from the declared noise and the priors
+    (inverse), the gain (3, K) of θ per newton of each row, the rows (K, 3), their y and mean
+    force (K,), residuals (K,), declared variances (K,), the lifting-lowering half gap (K,)."""
+
+    theta: np.ndarray
+    inverse: np.ndarray
+    prior: np.ndarray
+    gain: np.ndarray
+    rows: np.ndarray
+    y: np.ndarray
+    force: np.ndarray
+    residual: np.ndarray
+    noise_var: np.ndarray
+    half_gap: np.ndarray
+
+
+def _solve(sums: np.ndarray, errors: SensorErrors, priors: Priors, min_samples: int) -> _Solution | None:
     counts = sums[:, :, N]
     paired = np.flatnonzero((counts[:, 0] >= min_samples) & (counts[:, 1] >= min_samples))
     if paired.size == 0:
@@ -85,31 +116,77 @@ def fit(sums: np.ndarray, errors: SensorErrors, priors: Priors, min_samples: int
     means = sums[paired] / counts[paired][:, :, None]                 # (K, 2, SUMS)
     rows = 0.5 * (means[:, 0, U0:UZ + 1] + means[:, 1, U0:UZ + 1])    # (K, 3)
     y = 0.5 * (means[:, 0, Y] + means[:, 1, Y])
-    force = 0.5 * (means[:, 0, FORCE] + means[:, 1, FORCE])
-    half_gap = 0.5 * (means[:, 0, Y] - means[:, 1, Y])
     n_eff = 4.0 / (1.0 / counts[paired, 0] + 1.0 / counts[paired, 1])   # a pair mean's variance: σ²/n_eff
     weight0 = float(rows[:, 0] @ y / (rows[:, 0] @ rows[:, 0]))
-    prior_precision = np.diag([0.0, 1.0 / (weight0 * priors.x) ** 2, 1.0 / (weight0 * priors.z) ** 2])
+    prior = np.diag([0.0, 1.0 / (weight0 * priors.x) ** 2, 1.0 / (weight0 * priors.z) ** 2])
     noise_var = errors.noise**2 / n_eff                                # per row, from the declared noise
     w = 1.0 / noise_var
-    normal = rows.T @ (rows * w[:, None]) + prior_precision
-    inverse = np.linalg.inv(normal)
-    theta = inverse @ (rows.T @ (w * y))
-    residual = y - rows @ theta
-    dof = paired.size - float(np.trace(inverse @ (rows.T @ (rows * w[:, None]))))
-    covariance = inverse
-    if dof >= 1.0:   # the residuals' own scatter, where it is larger than the declared noise's
-        scores = rows * (w * residual)[:, None]
-        meat = scores.T @ scores
-        for lag in range(1, HAC_LAGS + 1):
-            cross = scores[:-lag].T @ scores[lag:]
-            meat += (1.0 - lag / (HAC_LAGS + 1)) * (cross + cross.T)
-        observed = inverse @ (meat * (paired.size / dof) + prior_precision) @ inverse
-        if observed[0, 0] > inverse[0, 0]:
-            covariance = observed * student_factor(max(1, int(dof))) ** 2
-    gain = inverse @ (rows.T * w)                                      # θ per newton of each row
-    calibration = (np.outer(gain @ force, gain @ force) * errors.gain**2
-                   + np.outer(gain.sum(axis=1), gain.sum(axis=1)) * errors.offset**2)
-    return Fit(theta=theta, covariance=covariance + calibration, pairs=int(paired.size),
-               scatter=float(math.sqrt(np.mean(residual**2))),
-               friction_share=float(np.mean(half_gap) / np.mean(y)) if np.mean(y) != 0.0 else math.nan)
+    inverse = np.linalg.inv(rows.T @ (rows * w[:, None]) + prior)
+    gain = inverse @ (rows.T * w)
+    theta = gain @ y
+    return _Solution(theta=theta, inverse=inverse, prior=prior, gain=gain, rows=rows, y=y,
+                     force=0.5 * (means[:, 0, FORCE] + means[:, 1, FORCE]), residual=y - rows @ theta,
+                     noise_var=noise_var, half_gap=0.5 * (means[:, 0, Y] - means[:, 1, Y]))
+
+
+def fit(sums: np.ndarray, errors: SensorErrors, priors: Priors, min_samples: int,
+        units: np.ndarray | None = None) -> Fit | None:
+    """The fit over the paired bins of ``sums`` (bins, 2 directions, len(SUMS)); None without a pair.
+    ``units`` (groups, bins, 2, len(SUMS)): the strokes' sums in independent groups, whose total is
+    ``sums``, for the jackknife; without them (or fewer than two groups a direction) the rows' scatter."""
+    solution = _solve(sums, errors, priors, min_samples)
+    if solution is None:
+        return None
+    s = solution
+    covariance, dof = _jackknife(s, sums, units, errors, priors, min_samples) if units is not None else (None, 0.0)
+    if covariance is None:
+        covariance, dof = _scatter(s)
+    if covariance[0, 0] < s.inverse[0, 0]:   # never below the declared noise's, known to as many more
+        dof = dof * (s.inverse[0, 0] / covariance[0, 0]) ** 2   # degrees of freedom as the floor is above
+        covariance = s.inverse
+    calibration = (np.outer(s.gain @ s.force, s.gain @ s.force) * errors.gain**2
+                   + np.outer(s.gain.sum(axis=1), s.gain.sum(axis=1)) * errors.offset**2)
+    total = covariance + calibration
+    # the calibration's variance is declared (no degrees of freedom lost): Satterthwaite's sum
+    dof = dof * (total[0, 0] / covariance[0, 0]) ** 2
+    mean_y = float(np.mean(s.y))
+    return Fit(theta=s.theta, covariance=total, dof=dof, pairs=int(s.y.size),
+               scatter=float(math.sqrt(np.mean(s.residual**2))),
+               friction_share=float(np.mean(s.half_gap)) / mean_y if mean_y != 0.0 else math.nan)
+
+
+def _scatter(s: _Solution) -> tuple[np.ndarray, float]:
+    """The covariance from the rows' own scatter taken white (the weighted residuals' mean square over
+    the degrees of freedom left, times the declared-noise covariance), its degrees of freedom."""
+    w = 1.0 / s.noise_var
+    dof = s.y.size - float(np.trace(s.inverse @ (s.rows.T @ (s.rows * w[:, None]))))
+    if dof < 1.0:   # no residual left: the declared noise alone
+        return s.inverse, math.inf
+    ratio = float(np.sum(w * s.residual**2)) / dof
+    return s.inverse @ (s.rows.T @ (s.rows * (ratio * w)[:, None]) + s.prior) @ s.inverse, dof
+
+
+def _jackknife(s: _Solution, sums: np.ndarray, units: np.ndarray, errors: SensorErrors, priors: Priors,
+               min_samples: int) -> tuple[np.ndarray | None, float]:
+    """The stratified delete-a-group jackknife covariance of θ plus the prior's share, and the
+    degrees of freedom of its W entry; None where a direction has fewer than two groups."""
+    covariance = s.inverse @ s.prior @ s.inverse
+    shares = []
+    for direction in (0, 1):
+        present = np.flatnonzero(units[:, :, direction, N].sum(axis=1) > 0.0)
+        if present.size < 2:
+            return None, 0.0
+        thetas = []
+        for group in present:
+            left = sums.copy()
+            left[:, direction] -= units[group, :, direction]
+            other = _solve(left, errors, priors, min_samples)
+            if other is None:
+                return None, 0.0
+            thetas.append(other.theta)
+        spread = np.asarray(thetas) - np.mean(thetas, axis=0)
+        part = spread.T @ spread * (present.size - 1) / present.size
+        covariance = covariance + part
+        shares.append((float(part[0, 0]), present.size - 1))
+    denominator = sum(v * v / n for v, n in shares)
+    return covariance, (sum(v for v, _ in shares) ** 2 / denominator if denominator > 0.0 else math.inf)
