@@ -12,10 +12,12 @@ per-source oracle and to Monte Carlo by test_uncertainty_moved_poses.py and test
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
-from linkage_monitor.mechanics import preset_names
+from linkage_monitor.mechanics import kernels, preset_names
 from linkage_monitor.mechanics.budget_table import one_dof
 from linkage_monitor.mechanics.error_sources import Motion
 from linkage_monitor.mechanics.reduced import LOAD_AMPLIFICATION_WARN
@@ -31,12 +33,21 @@ TABLE_TOLERANCE = 0.02
 ONE_DOF = ["belarus_1221", "drill_coulter", "ttz1080_base_change"]
 
 
+def _cell(stroke, theta: float, result) -> int:
+    """The table's node below ``theta`` when its cell is filled (filled from ``result`` first), else −1."""
+    j = math.floor((theta - stroke.table.origin) / stroke.table.step)
+    if not 0 <= j < len(stroke.table.state) - 1:
+        return -1
+    stroke.fill(j, result)
+    return j if stroke.table.state[j] == stroke.table.state[j + 1] == kernels.NODE_FILLED else -1
+
+
 def _tabulated(um: UncertaintyModel, inputs, pose) -> bool:
-    """Whether the table serves this pose (the budget's u and k were computed in the compiled call)."""
+    """Whether the table serves this pose."""
     plan = um._plan(inputs)
     if plan.stroke is None or pose.result.load_amplification > LOAD_AMPLIFICATION_WARN:
         return False
-    return plan.stroke.node(plan.stroke.theta(pose.result), pose.result) >= 0
+    return _cell(plan.stroke, plan.stroke.theta(pose.result), pose.result) >= 0
 
 
 def test_the_one_dof_presets_are_the_tabulated_ones() -> None:
@@ -87,6 +98,6 @@ def test_a_pose_beyond_the_tables_reach_takes_the_moved_poses() -> None:
     stroke = um._plan(inputs).stroke
     assert stroke is not None
     origin, step, count = stroke.table.origin, stroke.table.step, stroke.table.raw.shape[0]
-    assert stroke.node(origin - step, pose.result) == -1
-    assert stroke.node(origin + (count - 0.5) * step, pose.result) == -1
-    assert stroke.node(stroke.theta(pose.result), pose.result) >= 0
+    assert _cell(stroke, origin - step, pose.result) == -1
+    assert _cell(stroke, origin + (count - 0.5) * step, pose.result) == -1
+    assert _cell(stroke, stroke.theta(pose.result), pose.result) >= 0

@@ -53,10 +53,10 @@ def one_dof(model: MachineModel) -> bool:
 
 
 class StrokeTable:
-    """The tabulated derivatives (``PoseTable``) of one set of inputs on a one-DOF linkage: ``kinds``
-    the pose inputs' kinds (``cylinders``/``angles``) in ``Kinematics.input_names`` order, ``pressures``
-    the pressure sensors given (gauge Pa of their level 0), ``level_sensors`` the sensor raised by
-    LEVEL_PRESSURE_STEP for each measured cylinder's level, ``n_rows`` the rows ``raw_rows`` gives."""
+    """The tabulated derivatives (``table``, a ``kernels.PoseTable``) of one set of inputs on ``model``'s
+    one-DOF linkage: ``pressures`` the pressure sensors given with their level-0 gauge pressure (Pa),
+    ``level_sensors`` the sensor raised by LEVEL_PRESSURE_STEP for each measured cylinder's level,
+    ``n_rows`` the rows and ``n_out`` the outputs ``raw_rows`` gives a node (``fill``)."""
 
     def __init__(self, model: MachineModel, pressures: dict[str, float], level_sensors: list[str], n_rows: int,
                  n_out: int, raw_rows: RawRows) -> None:
@@ -86,16 +86,6 @@ class StrokeTable:
     def theta(self, result: Result) -> float:
         """The pose's coordinate: the solved value of its first input (m or rad; ``kernels.pose_coordinate``)."""
         return float(kernels.pose_coordinate(self.table, result.cylinder_values, result.body_q))
-
-    def node(self, theta: float, result: Result) -> int:
-        """The node at or below ``theta`` whose cell is filled (``fill``ed now from ``result``, the pose at
-        ``theta``, where it is not yet), −1 where the cell is not tabulated."""
-        table = self.table
-        j = math.floor((theta - table.origin) / table.step)
-        if not 0 <= j < len(table.state) - 1:
-            return -1
-        self.fill(j, result)
-        return j if table.state[j] == table.state[j + 1] == kernels.NODE_FILLED else -1
 
     def fill(self, j: int, result: Result) -> None:
         """Nodes j and j + 1 computed where they are not yet, from ``result`` (a pose between them)."""
