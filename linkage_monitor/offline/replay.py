@@ -195,13 +195,13 @@ def _read_inputs(block: list[RawMessage], raw: list[RecordedInput]) -> Iterator[
     ``block`` is left empty."""
     if not block:
         return
-    items = input_items([m.topic for m in block], [m.type_name for m in block], [m.data for m in block],
-                        [m.log_time_ns for m in block])
+    topics, type_names, datas, receive = ([m.topic for m in block], [m.type_name for m in block],
+                                          [m.data for m in block], [m.log_time_ns for m in block])
+    items = input_items(topics, type_names, datas, receive)
     stamps: list[int] = []
     for item in items:
         stamps += item.stamps_ns.tolist() if isinstance(item, InputColumns) else [item.stamp_ns]
-    raw += map(RecordedInput, (m.topic for m in block), (m.type_name for m in block), stamps,
-               (m.log_time_ns for m in block), (m.data for m in block))
+    raw += map(RecordedInput, topics, type_names, stamps, receive, datas)
     block.clear()
     yield from items
 
