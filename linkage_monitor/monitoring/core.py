@@ -318,18 +318,14 @@ class Monitor:
     def _dues(self, columns: InputColumns, run: DueRun) -> list[Due] | list[DueColumns]:
         """The due solves of the first ``run.accepted`` events of ``columns``, accepted at once (``_accept``'s):
         as columns, unless a Due carries more (the cylinders' motions with the error budget, an IMU's body)."""
-        stamps = columns.stamps_ns[:run.accepted]
+        due = DueColumns(columns.stamps_ns[:run.accepted], columns.topics[:run.accepted], run.cylinders, run.angles,
+                         run.pressures)
         if self.uncertainty is None and self.road is None:
-            return [DueColumns(stamps, columns.topics[:run.accepted], run.cylinders, run.angles, run.pressures)]
-        kinds = [run.cylinders, run.angles, run.pressures]
-        rows = [list(zip(*(column.tolist() for column in kind.values()))) or [()] * run.accepted for kind in kinds]
-        dues = []
-        for stamp, topic, cylinders, angles, pressures in zip(stamps.tolist(), columns.topics, *rows):
-            inputs = Inputs(cylinders=dict(zip(kinds[0], cylinders)), angles=dict(zip(kinds[1], angles)),
-                            pressures=dict(zip(kinds[2], pressures)), rates={}, accelerations={})
-            dues.append(Due(stamp, topic, inputs, self.motion.motions(inputs, stamp) if self.uncertainty is not None else None,
-                            self.road.body_at(stamp) if self.road is not None else None))
-        return dues
+            return [due]
+        return [Due(d.stamp_ns, d.trigger, d.inputs,
+                    self.motion.motions(d.inputs, d.stamp_ns) if self.uncertainty is not None else None,
+                    self.road.body_at(d.stamp_ns) if self.road is not None else None)
+                for d in due.dues(np.arange(run.accepted))]
 
     def _solve_segment(self, cut: Cut, steps: list[Step | None], segments: list[Segment],
                        quiet: list[QuietPoses]) -> None:
@@ -366,7 +362,7 @@ class Monitor:
                  else np.zeros(len(batch), bool))
         said = np.flatnonzero(~still)   # every pose with the error budget on
         results, machine_results = batch.results(said), machine.results(said)
-        said_dues = [taken.due(k) for k in said.tolist()]
+        said_dues = taken.dues(said)
         budgets = self._budgets(said_dues, results, machine_results, batch.status[said])
         if self.uncertainty is not None:
             front, rear, margin, reserve = limit_values(machine, len(batch))
@@ -384,7 +380,7 @@ class Monitor:
         segments.append(solved)
         if still.any():
             rows = np.flatnonzero(still)
-            quiet.append(QuietPoses(solved.steps[rows], rows, solved, values[rows], taken.due))
+            quiet.append(QuietPoses(solved.steps[rows], rows, solved, values[rows], taken.dues))
 
     # ---- the stages both paths share -------------------------------------------------------------
     def _accept(self, event: InputEvent) -> Due | Step:

@@ -27,8 +27,8 @@ def input_columns(dues: Sequence[Due], kind: str) -> dict[str, np.ndarray]:
 
 class TakenDues:
     """The dues of a segment ``SegmentSeries.cut`` hands over, in order: ``steps`` (n,) their Steps'
-    places, ``stamps_ns`` (n,) their stamps, ``due`` the Due of one (a run accepted at once is held as
-    ``DueColumns``: its Due built when asked for)."""
+    places, ``stamps_ns`` (n,) their stamps, ``dues`` the Dues of some (a run accepted at once is held as
+    ``DueColumns``: its Dues built when asked for)."""
 
     def __init__(self, parts: list[tuple[list[int], list[Due]] | tuple[np.ndarray, DueColumns]]) -> None:
         self._parts = [dues for _, dues in parts]
@@ -42,16 +42,18 @@ class TakenDues:
     def __len__(self) -> int:
         return len(self.steps)
 
-    def due(self, k: int) -> Due:
-        """The Due of the k-th due."""
-        part = int(np.searchsorted(self._ends, k, side="right"))
-        dues, k = self._parts[part], k - (int(self._ends[part - 1]) if part else 0)
-        return dues.due(k) if isinstance(dues, DueColumns) else dues[k]
+    def dues(self, rows: np.ndarray) -> list[Due]:
+        """The Dues of ``rows`` (ascending), in order (a run's built from its columns)."""
+        part_of = np.searchsorted(self._ends, rows, side="right")
+        found: list[Due] = []
+        for part in np.unique(part_of).tolist():
+            dues, at = self._parts[part], rows[part_of == part] - (int(self._ends[part - 1]) if part else 0)
+            found += dues.dues(at) if isinstance(dues, DueColumns) else [dues[k] for k in at.tolist()]
+        return found
 
     def all(self) -> list[Due]:
         """Every Due, in order."""
-        return [due for dues in self._parts for due in (map(dues.due, range(len(dues))) if isinstance(dues, DueColumns)
-                                                         else dues)]
+        return self.dues(np.arange(len(self)))
 
 
 class Cut(NamedTuple):

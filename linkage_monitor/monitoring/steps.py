@@ -133,7 +133,7 @@ class QuietPoses:
     rows: np.ndarray
     segment: Segment
     values: np.ndarray
-    dues: Callable[[int], Due]   # the Due of a row of the segment
+    dues: Callable[[np.ndarray], list[Due]]   # the Dues of rows of the segment (ascending)
 
     def within(self, lo: int, hi: int) -> QuietPoses:
         """Those of places lo..hi-1, their places counted from lo."""
@@ -145,7 +145,7 @@ class QuietPoses:
         batch, machine = self.segment.batch, self.segment.machine
         rows = self.rows[which]
         return [Step(due.stamp_ns, due.trigger, (), Pose(result, machine_result, values), due.inputs)
-                for due, result, machine_result, values in zip(map(self.dues, rows.tolist()), batch.results(rows),
+                for due, result, machine_result, values in zip(self.dues(rows), batch.results(rows),
                                                                machine.results(rows), self.values[which])]
 
 
@@ -254,7 +254,7 @@ class DueColumns:
     """Accepted input events whose solves are due, as columns (``InputTracker.accept_run``'s): their
     stamps (n,) ns, triggers (input topics) and inputs by name (cylinders m, angles rad, pressures Pa
     gauge; (n,) arrays each). For a configuration whose Due carries nothing else (no cylinder motions,
-    no IMU body): ``due`` is the Due of one of them, as the live path builds it."""
+    no IMU body): ``dues`` builds the Dues of some of them, as the live path builds them."""
 
     stamps_ns: np.ndarray
     triggers: list[str]
@@ -265,9 +265,12 @@ class DueColumns:
     def __len__(self) -> int:
         return len(self.stamps_ns)
 
-    def due(self, k: int) -> Due:
-        """The Due of event k."""
-        return Due(int(self.stamps_ns[k]), self.triggers[k], Inputs(
-            cylinders={n: float(c[k]) for n, c in self.cylinders.items()},
-            angles={n: float(c[k]) for n, c in self.angles.items()},
-            pressures={n: float(c[k]) for n, c in self.pressures.items()}, rates={}, accelerations={}))
+    def dues(self, at: np.ndarray) -> list[Due]:
+        """The Dues of events ``at`` (indices), in that order."""
+        kinds = [{n: c[at].tolist() for n, c in group.items()} for group in (self.cylinders, self.angles, self.pressures)]
+        rows = [list(zip(*kind.values())) or [()] * len(at) for kind in kinds]
+        return [Due(stamp, self.triggers[k], Inputs(cylinders=dict(zip(kinds[0], cylinders)),
+                                                    angles=dict(zip(kinds[1], angles)),
+                                                    pressures=dict(zip(kinds[2], pressures)), rates={},
+                                                    accelerations={}))
+                for k, stamp, cylinders, angles, pressures in zip(at.tolist(), self.stamps_ns[at].tolist(), *rows)]
