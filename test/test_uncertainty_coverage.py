@@ -27,6 +27,11 @@ SHARPNESS_CEILING = 3.0   # between honest intervals (1.96) and ones twice too w
 # lifts the cg at all (machine.py: NaN where pushing it lowers the cg, Akhmetov & Usmanov 2018's front axle),
 # near the load's line through pivot O, where the capacity grows without bound and many are unbounded
 DEFINED_IN_PART = {"lift capacity", "lift reserve"}
+# the share of an output kind's values the monitor may call unbounded: few, but on ttz1080_base_change, whose
+# lift scenario holds its cylinder at 0.715 m, 1.5 mm (5 standard uncertainties of its stroke sensor) from the
+# load's line through pivot O at 0.7135 m, 29 % of the time (sim.telemetry.simulate(..., "lift") at 100 Hz):
+# there the pole is within reach (uncertainty.POLE_REACH_MAX: within 6.2 u) and every inferred output unbounded
+UNBOUNDED_SHARE = {"ttz1080_base_change": 0.35}
 
 
 @pytest.fixture(scope="module")
@@ -49,7 +54,7 @@ def test_the_95_percent_intervals_hold_the_truth(tallies, preset: str) -> None:
         # line through a pivot: docs/dead-centre.md) is not compared, and is rare
         if group in DEFINED_IN_PART and preset == "ttz1080_base_change":
             continue   # a few values, where its capacity grows without bound towards pivot O (docs/accuracy.md)
-        assert g.unbounded <= 0.05 * (g.steps + g.unbounded), (group, g.unbounded)
+        assert g.unbounded <= UNBOUNDED_SHARE.get(preset, 0.05) * (g.steps + g.unbounded), (group, g.unbounded)
         assert g.steps + g.unbounded >= RUNS * STEPS - tally.refused, group
         assert g.coverage >= COVERAGE_FLOOR, f"{group}: coverage {g.coverage:.1%}"
         assert not np.isfinite(g.sharpness) or g.sharpness <= SHARPNESS_CEILING, f"{group}: sharpness {g.sharpness:.2f}"

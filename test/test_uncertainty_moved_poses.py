@@ -14,6 +14,7 @@ import pytest
 
 from linkage_monitor.mechanics import preset_names
 from linkage_monitor.mechanics.error_sources import Motion
+from linkage_monitor.mechanics.reduced import LOAD_AMPLIFICATION_WARN
 from linkage_monitor.mechanics.uncertainty import UncertaintyModel
 from oracles.monte_carlo import sample_poses
 from oracles.per_source_budget import per_source_contributions
@@ -23,9 +24,13 @@ from oracles.per_source_budget import per_source_contributions
 RTOL = 1e-6
 
 
-def _agree(budget, oracle) -> None:
-    """Every contribution within RTOL of its output's largest (NaN where the oracle's is)."""
-    assert np.array_equal(np.isnan(budget.contributions), np.isnan(oracle))
+def _agree(budget, oracle, weak: bool = False) -> None:
+    """Every contribution within RTOL of its output's largest (NaN where the oracle's is); at a weak
+    inference (``weak``) an output may be unbounded as well, every contribution NaN (the pole within
+    reach: test/test_uncertainty_pole.py holds that verdict to its own oracle): not compared."""
+    unbounded = np.isnan(budget.contributions).all(axis=1, keepdims=True) if weak else False
+    assert np.array_equal(np.isnan(budget.contributions), np.isnan(oracle) | unbounded)
+    oracle = np.where(unbounded, np.nan, oracle)
     scale = np.max(np.abs(np.nan_to_num(oracle)), axis=1, keepdims=True, initial=0.0)
     with np.errstate(invalid="ignore"):
         off = np.abs(budget.contributions - oracle) > RTOL * scale + 1e-12
@@ -48,7 +53,8 @@ def test_moved_poses_in_one_call_agree_with_one_solve_each(preset) -> None:
         for inputs, pose in poses.poses:
             budget = _without_mass(um, um.budget(inputs, pose.result, pose.machine, motion))
             assert budget.sources, preset
-            _agree(budget, per_source_contributions(um, inputs, pose.result, budget))
+            _agree(budget, per_source_contributions(um, inputs, pose.result, budget),
+                   pose.result.load_amplification > LOAD_AMPLIFICATION_WARN)
 
 
 def test_inputs_the_compiled_call_does_not_take() -> None:

@@ -106,10 +106,11 @@ class GeometryBudget:
                 f"'{self.model.solver.kin.input_names[0]}' alone does not fix this one's pose"))
         return driving
 
-    def derivatives(self, inputs: Inputs) -> np.ndarray:
+    def derivatives(self, inputs: Inputs, per_pascal: str | None = None) -> np.ndarray:
         """∂y/∂g (G, n_out) per m of each toleranced coordinate at the pose of ``inputs`` (its driving input
         and pressures), the linear outputs' exact to the interpolation (the others: the chain rule's to
-        apply); NaN outside the table's range."""
+        apply); NaN outside the table's range. With ``per_pascal`` (a given pressure sensor): ∂B/∂g of the
+        outputs' derivative B per Pa of that pressure instead (per m and Pa)."""
         given = tuple(inputs.pressures)
         table = self._tables.get(given)
         if table is None:   # kept under the order they come in as well
@@ -119,7 +120,8 @@ class GeometryBudget:
         if not 0 <= k < len(table.stops) - 1:
             return np.full((len(self.coordinates), len(self.table.outputs)), np.nan)
         w = (s - table.stops[k]) / (table.stops[k + 1] - table.stops[k])
-        loads = np.array([1.0, *(inputs.pressures[name] for name in table.pressures)])
+        loads = (np.array([1.0, *(inputs.pressures[name] for name in table.pressures)]) if per_pascal is None
+                 else np.array([0.0, *(float(name == per_pascal) for name in table.pressures)]))
         row = loads @ ((1.0 - w) * table.coefficients[k] + w * table.coefficients[k + 1])
         return row.reshape(len(self.coordinates), len(self.table.outputs))
 

@@ -19,10 +19,10 @@ the same compiled solve as the pose (``Solver.solve_moved``; a moved pose it doe
 - cylinder lengths and angles move the pose along the linkage's degrees of freedom: a central
   difference of step ``pose_step`` (truncation error O(h²), held by test/test_uncertainty.py to a
   Richardson estimate); at a pose whose load is a weak inference (``Result.load_amplification``
-  above ``reduced.LOAD_AMPLIFICATION_WARN``: near the load's line through a pivot, where it goes as
-  1/distance) the same two poses give the second difference, and an output whose second-order
-  change over ±2 u is a large share of its interval (``NONLINEAR_SHARE``) has no first-order
-  interval: its u is NaN (unbounded).
+  above ``reduced.LOAD_AMPLIFICATION_WARN``: near the load's line through the closing pivot, its
+  *pole*, where the inferred load goes as 1/d, d the line's distance from the pivot) the pole's reach
+  u_d/|d| is measured (``pole_reach``), and beyond ``POLE_REACH_MAX`` (from the 1/d model) every
+  output the statics infer has no first-order interval: its u is NaN (unbounded).
 What moves for a set of input names is worked out once (``_Plan``).
 On a linkage of one degree of freedom the derivatives come from a table over the stroke, each node
 from these moved poses, interpolated per pose, the rest of the budget in one compiled call
@@ -62,12 +62,23 @@ LOAD_STEP_PRESSURE = 1.0e5   # Pa: the pressure step of a load derivative (any s
 LOAD_STEP_MASS = 100.0       # kg: the implement-mass step of a load derivative (likewise)
 POSE_STEP_SHARE = 0.25       # the central difference's step, as a share of the input's standard uncertainty
 POSE_STEP_MIN, POSE_STEP_MAX = 1e-6, 1e-3   # m or rad: its bounds (Newton's 1e-13 below, the curvature above)
-# An output whose second-order change over ±2 u of the lengths and angles is above this share of its
-# first-order 95 % half-width (1.96 u) has no first-order interval: its u is unbounded (NaN). Near a
-# load's line through a pivot (docs/dead-centre.md) the inferred load goes as 1/distance: the ratio of
-# the second-order change to the first is the interval's reach over the distance: at a half, the
-# interval reaches half the way to where the load is not determined.
-NONLINEAR_SHARE = 0.5
+# The pole's reach (``pole_reach``): near a load's line through the closing pivot (docs/dead-centre.md)
+# the inferred load goes as a/d, d the line's distance from the pivot, and so does every output the
+# statics infer from it. With d normal of standard uncertainty u_d (the declared lengths, angles and
+# points that move the line) and r = u_d/|d| (the relative first-order u of a/d), the standard deviation
+# of a/d is its first-order one, a·u_d/d², times √(1 + 8 r² + O(r⁴)) (1/(1 + ε) = 1 − ε + ε² − ε³ ...,
+# Var = r² + 8 r⁴ in units of 1/d²), and over the whole normal it is infinite: the pole lies 1/r
+# standard uncertainties away, and 10⁴ Monte Carlo draws reach about 4 (r = 0.25). The first order is
+# within FIRST_ORDER_GOAL of the spread while √(1 + 8 r²) <= 1 + FIRST_ORDER_GOAL:
+# r <= r_1 = √(((1 + FIRST_ORDER_GOAL)² − 1)/8) = 0.162. The monitor sees d as read; the true d may lie
+# anywhere in its 95 % interval, as near as |d| − k·u_d (k = NORMAL_FACTOR), where the reach is
+# u_d/(|d| − k·u_d): it stays within r_1 while r <= r_1/(1 + k·r_1) = 0.123, the pole beyond 8.1 u_d (a bound
+# on the read r alone would pass exactly the readings that err away from the pole). Beyond, every output the
+# statics infer is unbounded (u NaN): the smallest share of the pole in an output (a hinge's fx through a
+# point's tolerance) has an infinite variance once the draws reach it.
+FIRST_ORDER_GOAL = 0.10
+_FIRST_ORDER_REACH = math.sqrt(((1.0 + FIRST_ORDER_GOAL) ** 2 - 1.0) / 8.0)
+POLE_REACH_MAX = _FIRST_ORDER_REACH / (1.0 + NORMAL_FACTOR * _FIRST_ORDER_REACH)
 
 
 class OutputTable:
@@ -109,6 +120,9 @@ class OutputTable:
             unit_reference=tractor is not None and tractor.steerability_reference == "unit",
             tractor_weight=tractor.mass * model.mech.gravity if tractor is not None else 1.0,
             capacity_cg=cg, reserve=len(self.outputs) - 1 if cg >= 0 else -1)
+        # the outputs of a weak inference's pole (``POLE_REACH_MAX``): all the statics infer, not a cylinder's force
+        self.of_the_pole = np.ones(len(self.outputs), dtype=bool)
+        self.of_the_pole[3 * h:3 * h + c] = False
         # the outputs not linear in the loads (``kernels.chain_rule`` gives their derivatives)
         self.nonlinear = np.zeros(len(self.outputs), dtype=bool)
         self.nonlinear[2 * h:3 * h] = True
@@ -293,13 +307,50 @@ class UncertaintyModel:
         columns, contributions = self._with_geometry(plan, columns, derivatives[columns.rows].T * columns.scales, y0,
                                                      inputs)
         if result.load_amplification > LOAD_AMPLIFICATION_WARN:   # a weak inference: does the first order hold?
-            with np.errstate(invalid="ignore"):   # the second-order change over ±2 u of each length and angle
-                curvature = (moved[plan.up] + moved[plan.down] - 2.0 * y0) / (plan.spans / 2.0) ** 2
-                second = np.sum(2.0 * np.abs(curvature) * plan.reach**2, axis=0)
-                linear = NONLINEAR_SHARE * NORMAL_FACTOR * np.sqrt(np.sum(contributions**2, axis=1))
-            contributions[second > linear] = math.nan   # not over the interval: unbounded
+            if not self.pole_reach(plan, inputs, result, moved, derivatives) <= POLE_REACH_MAX:
+                contributions[self.table.of_the_pole] = math.nan   # the pole within reach: unbounded
         return Budget(self.table.outputs, columns.sources, y0, contributions, columns.motions, self.table.index,
                       columns.uniform, columns.sign)
+
+    def pole_reach(self, plan: _Plan, inputs: Inputs, result: Result, moved: np.ndarray, derivatives: np.ndarray
+                   ) -> float:
+        """The pole's reach at a weak inference, r = u_d/|d| (-; ``POLE_REACH_MAX``): d the distance of the
+        load's line from the closing pivot, u_d its standard uncertainty from the declared lengths, angles
+        and points. The implement load's N per Pa of a pressure, B = ∂λ/∂p = ±A·area (A the load's
+        amplification, |m/d|, m the cylinder's arm, slow beside d there), goes as 1/d: r is the relative
+        first-order change of B over those sources, sqrt(Σ_s (∂B/∂s·u_s)²)/|B| — the lengths' and angles'
+        from B at the budget's central-difference poses, each solved again with the pressure moved; the
+        points' from the geometry table's ∂B/∂g — the largest over the given pressures. NaN where a moved
+        pose fails (unbounded). A step across the pole (|d| below the step, a quarter of u_d) turns B's
+        sign: r then reads at least 1/POSE_STEP_SHARE."""
+        n_pose = 2 * len(plan.reach)
+        load = self.table.layout.load
+        sensors = [move.name for move in plan.moves[plan.loads]]
+        both = [(plan.moves[k], _Move("pressures", sensor, LOAD_STEP_PRESSURE)) for sensor in sensors
+                for k in range(n_pose)]
+        solved = self._moved_outputs(inputs, result, tuple(both), self._inputs_moved_both(plan, len(sensors)))
+        geometry = self.geometry
+        reach = [0.0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for l, sensor in enumerate(sensors):
+                b0 = derivatives[plan.derivative[sensor], load]
+                b = (solved[l * n_pose:(l + 1) * n_pose, load] - moved[:n_pose, load]) / LOAD_STEP_PRESSURE
+                changes = [(b[plan.up] - b[plan.down]) / plan.spans[:, 0] * plan.reach[:, 0]]
+                if geometry.sources:
+                    changes.append(geometry.derivatives(inputs, per_pascal=sensor)[:, load] * geometry.scales)
+                reach.append(math.sqrt(float(np.sum(np.concatenate(changes) ** 2))) / abs(b0))
+        return float(np.max(reach))   # NaN where one is
+
+    def _inputs_moved_both(self, plan: _Plan, n_sensors: int) -> InputMoves | None:
+        """The budget's length and angle moves (``plan.inputs_moved``'s first rows), each with one given
+        pressure moved by LOAD_STEP_PRESSURE too, pressure after pressure; None as ``plan.inputs_moved``."""
+        moves = plan.inputs_moved
+        if moves is None:
+            return None
+        n_pose = 2 * len(plan.reach)
+        loads = moves.pressures[plan.loads][:n_sensors]
+        return InputMoves(np.tile(moves.s[:n_pose], (n_sensors, 1)),
+                          np.repeat(loads, n_pose, axis=0) + np.tile(moves.pressures[:n_pose], (n_sensors, 1, 1)))
 
     def raw_rows(self, inputs: Inputs, result: Result, y0: np.ndarray, plan: _Plan) -> tuple[np.ndarray, np.ndarray]:
         """The moved poses' outputs (R, n_out) of the pose ``result`` of ``inputs`` (outputs ``y0``) and
@@ -501,11 +552,12 @@ class UncertaintyModel:
                 return None
         return InputMoves(s, pressures)
 
-    def _moved_outputs(self, inputs: Inputs, result: Result, moves: tuple[_Move, ...],
+    def _moved_outputs(self, inputs: Inputs, result: Result, moves: tuple[_Move | tuple[_Move, ...], ...],
                        inputs_moved: InputMoves | None) -> np.ndarray:
         """The outputs (R, n_out) of ``inputs`` moved by each of ``moves`` (``inputs_moved`` the same as
-        ``Solver.solve_moved`` takes them), solved from ``result``: in one compiled call, the poses it
-        does not take one by one (``_solved``; NaN where a pose fails)."""
+        ``Solver.solve_moved`` takes them; a move of several inputs at once, a tuple), solved from
+        ``result``: in one compiled call, the poses it does not take one by one (``_solved``; NaN where
+        a pose fails)."""
         if not moves:
             return np.zeros((0, len(self.table.outputs)))
         solved = (self.model.solver.solve_moved(inputs, result, self.model.program, inputs_moved)
@@ -519,7 +571,7 @@ class UncertaintyModel:
             taken = rows.plain[span]
         if not taken.all():
             for k in np.flatnonzero(~taken):
-                outputs[k] = self._solved(self.model, _moved(inputs, *moves[k]), result)
+                outputs[k] = self._solved(self.model, _moved(inputs, moves[k]), result)
         return outputs
 
     def friction_sensor(self, cylinder: str, inputs: Inputs) -> str | None:
@@ -566,8 +618,11 @@ class UncertaintyModel:
         return self.table.values(pose.result, pose.machine)
 
 
-def _moved(inputs: Inputs, kind: str, name: str, step: float) -> Inputs:
-    """``inputs`` with the ``kind`` input ``name`` moved by ``step``."""
-    group = dict(getattr(inputs, kind))
-    group[name] = group[name] + step
-    return replace(inputs, **{kind: group})
+def _moved(inputs: Inputs, move: _Move | tuple[_Move, ...]) -> Inputs:
+    """``inputs`` with the ``kind`` input ``name`` of ``move`` moved by its ``step`` (of each, for several)."""
+    for kind, name, step in (move,) if isinstance(move, _Move) else move:
+        group = dict(getattr(inputs, kind))
+        group[name] = group[name] + step
+        inputs = replace(inputs, **{kind: group})
+    return inputs
+
