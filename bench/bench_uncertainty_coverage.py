@@ -44,6 +44,9 @@ def report(preset: str, tally: CoverageTally, seconds: float) -> bool:
           f"{tally.untrue} whose truth does not solve), {seconds:.0f} s", flush=True)
     met = compared >= 5000 and tally.runs >= 200
     for group, g in tally.groups.items():
+        if g.steps == 0 and g.unbounded:   # e.g. a lift capacity that exists only within reach of a pole
+            print(f"    {group:<20} every one of its {g.unbounded} values unbounded: no interval claimed", flush=True)
+            continue
         if g.squared_error == 0.0 and g.half_width == 0.0:   # e.g. the configured implement weight: no source
             print(f"    {group:<20} exact: no error and u 0 over {g.steps} values", flush=True)
             continue
