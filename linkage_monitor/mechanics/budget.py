@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Mapping, NamedTuple
+from typing import Callable, Mapping, NamedTuple
 
 import numpy as np
 
@@ -99,14 +99,16 @@ class Budget:
     uniform: np.ndarray
     sign: np.ndarray
 
-    @classmethod
-    def summarised(cls, outputs: tuple[Output, ...], sources: tuple[Source, ...], values: np.ndarray,
+    @staticmethod
+    def summarised(outputs: tuple[Output, ...], sources: Callable[[], tuple[Source, ...]], values: np.ndarray,
                    contributions: np.ndarray, motions: Mapping[str, Motion], index: Mapping[str, int],
                    uniform: np.ndarray, sign: np.ndarray, u: np.ndarray, k: np.ndarray) -> "Budget":
         """A budget whose ``u`` and ``k`` are computed already (``kernels.tabulated_budget``: as the
-        properties below compute them)."""
-        budget = cls(outputs, sources, values, contributions, motions, index, uniform, sign)
-        budget.__dict__.update(u=u, k=k)   # the cached properties' values
+        properties below compute them) and whose ``sources`` are built by ``sources()`` when first read
+        (a live step reads u and k alone, the names only where a finding words them)."""
+        budget = object.__new__(_SummarisedBudget)   # the fields and the cached properties' values at once
+        budget.__dict__.update(outputs=outputs, _sources=sources, values=values, contributions=contributions,
+                               motions=motions, index=index, uniform=uniform, sign=sign, u=u, k=k)
         return budget
 
     @cached_property
@@ -152,3 +154,13 @@ class Budget:
         """The 95 % half-width of the output ``name`` (NaN for an output this budget lacks)."""
         k = self.index.get(name)
         return float(self.half_width[k]) if k is not None else math.nan
+
+
+class _SummarisedBudget(Budget):
+    """A ``Budget.summarised``: its ``sources`` built when first read."""
+
+    _sources: Callable[[], tuple[Source, ...]]
+
+    @cached_property
+    def sources(self) -> tuple[Source, ...]:  # type: ignore[override]  # the field, built when first read
+        return self._sources()

@@ -37,6 +37,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import partial
+from types import MappingProxyType
 from typing import Mapping, NamedTuple
 
 import numpy as np
@@ -212,19 +214,28 @@ class _Columns(NamedTuple):
     scales: np.ndarray
     uniform: np.ndarray
     sign: np.ndarray
-    motions: dict[str, Motion]
+    motions: Mapping[str, Motion]
 
 
 class _Fast(NamedTuple):
     """What a budget from the stroke's table takes of its ``_Plan``: the compiled call's ``program``
     (``kernels.BudgetProgram``), its columns' shapes (``uniform``) with every measured cylinder's
     friction (``cylinders``, in the columns' order), the implement mass's source (``mass``, empty
-    without)."""
+    without), the cylinders' motions as the call takes them (``motions``, each set once)."""
 
     program: kernels.BudgetProgram
     uniform: np.ndarray
     cylinders: tuple[str, ...]
     mass: tuple[Source, ...]
+    motions: dict[tuple[Motion, ...], "_Motions"]   # by the cylinders' motions, built when first met
+
+
+class _Motions(NamedTuple):
+    """The measured cylinders' motions as ``kernels.tabulated_budget`` takes them (``codes``, MOTION_*)
+    and as a budget names them (``motions``, cylinder name -> motion; read-only: budgets share it)."""
+
+    codes: np.ndarray
+    motions: Mapping[str, Motion]
 
 
 # a cylinder's motion as kernels.tabulated_budget takes it
@@ -370,29 +381,32 @@ class UncertaintyModel:
         None where the table does not hold it, or a measured cylinder's seal friction is 0."""
         stroke, fast = plan.stroke, plan.fast
         assert stroke is not None and fast is not None
-        moving = [motion if isinstance(motion, Motion) else motion.get(c, Motion.STANDING) for c in fast.cylinders]
+        moving = (tuple([motion] * len(fast.cylinders)) if isinstance(motion, Motion)
+                  else tuple([motion.get(c, Motion.STANDING) for c in fast.cylinders]))
+        codes = fast.motions.get(moving)
+        if codes is None:
+            codes = fast.motions[moving] = _Motions(np.array([_MOTION_CODES[m] for m in moving], np.int64),
+                                                    MappingProxyType(dict(zip(fast.cylinders, moving))))
         n_out, n_src = len(self.table.outputs), len(fast.uniform)
         y0, u, k, sign = np.empty(n_out), np.empty(n_out), np.empty(n_out), np.empty(n_src)
         contributions, friction_u = np.empty((n_out, n_src)), np.empty(len(moving))
         args = (fast.program, result.hinge_force, result.cylinder_values, result.body_q, result.implement_load,
-                machine.steerability_row, machine.capacity_row, np.array([_MOTION_CODES[m] for m in moving], np.int64),
-                y0, contributions, u, k, sign, friction_u)
+                machine.steerability_row, machine.capacity_row, codes.codes, y0, contributions, u, k, sign, friction_u)
         node = kernels.tabulated_budget(*args)
         if node <= -2:   # a node next to the pose not computed yet
             stroke.fill(-2 - node, result)
             node = kernels.tabulated_budget(*args)
         if node < 0:
             return None
-        sources = [*plan.sources, *(Source(f"{c} seal friction", c, "friction", f, "N")
-                                    for c, f in zip(fast.cylinders, friction_u.tolist())), *fast.mass]
-        motions = dict(zip(fast.cylinders, moving))
+        sources = partial(_tabulated_sources, plan.sources, fast, friction_u)
         if self.geometry.sources:   # the point coordinates' columns join: u and k of them all, as Budget has them
-            columns, contributions = self._with_geometry(plan, _Columns(tuple(sources), np.zeros(0, dtype=np.int64),
-                                                                        np.zeros(n_src), fast.uniform, sign, motions),
+            columns, contributions = self._with_geometry(plan, _Columns(sources(), np.zeros(0, dtype=np.int64),
+                                                                        np.zeros(n_src), fast.uniform, sign,
+                                                                        codes.motions),
                                                          contributions, y0, inputs)
-            return Budget(self.table.outputs, columns.sources, y0, contributions, motions, self.table.index,
+            return Budget(self.table.outputs, columns.sources, y0, contributions, codes.motions, self.table.index,
                           columns.uniform, columns.sign)
-        return Budget.summarised(self.table.outputs, tuple(sources), y0, contributions, motions, self.table.index,
+        return Budget.summarised(self.table.outputs, sources, y0, contributions, codes.motions, self.table.index,
                                  fast.uniform, sign, u, k)
 
     def _with_geometry(self, plan: _Plan, columns: _Columns, contributions: np.ndarray, y0: np.ndarray,
@@ -521,7 +535,7 @@ class UncertaintyModel:
         program = kernels.budget_program(fields(stroke.table), fields(columns), fields(self.table.layout),
                                          *factor_table(), NORMAL_FACTOR)
         return replace(plan, stroke=stroke, fast=_Fast(program, every.uniform, tuple(c for c, _ in measured),
-                                                       every.sources[len(every.sources) - plan.mass:]))
+                                                       every.sources[len(every.sources) - plan.mass:], {}))
 
     def _node_rows(self, plan: _Plan) -> RawRows:
         """The rows of a table node (``budget_table.RawRows``): ``raw_rows`` at the node's pose, the
@@ -618,6 +632,13 @@ class UncertaintyModel:
         return self.table.values(pose.result, pose.machine)
 
 
+def _tabulated_sources(fixed: tuple[Source, ...], fast: _Fast, friction_u: np.ndarray) -> tuple[Source, ...]:
+    """The sources of a budget from the stroke's table: the inputs' (``fixed``), each measured cylinder's
+    seal friction of u ``friction_u`` (N), the implement mass."""
+    return (*fixed, *(Source(f"{c} seal friction", c, "friction", f, "N")
+                      for c, f in zip(fast.cylinders, friction_u.tolist())), *fast.mass)
+
+
 def _moved(inputs: Inputs, move: _Move | tuple[_Move, ...]) -> Inputs:
     """``inputs`` with the ``kind`` input ``name`` of ``move`` moved by its ``step`` (of each, for several)."""
     for kind, name, step in (move,) if isinstance(move, _Move) else move:
@@ -625,4 +646,3 @@ def _moved(inputs: Inputs, move: _Move | tuple[_Move, ...]) -> Inputs:
         group[name] = group[name] + step
         inputs = replace(inputs, **{kind: group})
     return inputs
-

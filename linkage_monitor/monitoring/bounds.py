@@ -16,7 +16,7 @@ whole interval clears its limit passes. One rule for the live pose (floats) and 
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
@@ -52,12 +52,15 @@ class LimitUncertainties(NamedTuple):
     def of(budget: Budget) -> "LimitUncertainties":
         """The four from a pose's budget (NaN for one the mechanism does not compute), each as
         ``verdict_half_width`` gives it."""
-        u, k, index = budget.u.tolist(), budget.k.tolist(), budget.index
-        found = []   # max(k·u, floor·u) = max(k, floor)·u, u ≥ 0 (NaN where k is)
-        for name in _LIMIT_OUTPUTS:
-            i = index.get(name)
-            found.append(max(k[i], VERDICT_FACTOR_FLOOR) * u[i] if i is not None else math.nan)
-        return LimitUncertainties(*found)
+        return LimitUncertainties._make(limit_half_widths(budget))
+
+
+def limit_half_widths(budget: Budget) -> list[float]:
+    """``LimitUncertainties.of``'s four, in its order, as a list (``pose_interval_checks`` takes them)."""
+    u, k, index = budget.u, budget.k, budget.index
+    # max(k·u, floor·u) = max(k, floor)·u, u ≥ 0 (NaN where k is); four items, not the whole rows' lists
+    return [max(k.item(i), VERDICT_FACTOR_FLOOR) * u.item(i) if i is not None else math.nan
+            for i in map(index.get, _LIMIT_OUTPUTS)]
 
 
 _LIMIT_OUTPUTS = ("front_axle_load", "rear_axle_load", "steerability_margin", "lift_reserve")   # the budget's names
@@ -77,7 +80,7 @@ def straddles(value: float | np.ndarray, half_width: float | np.ndarray, limit: 
     """True where a finite ``value`` clears ``limit`` (≥) but its 95 % interval, value ± ``half_width``,
     does not, or the half-width is unbounded (a NaN value fails no check; an infinite one, a reserve
     without load, clears); a 0-d array for one pose (the three broadcast together). The same rule on
-    floats: ``interval_checks``' one pose (kept apart: numpy's calls took ten times its time)."""
+    floats: ``pose_interval_checks`` (kept apart: numpy's calls took ten times its time)."""
     with np.errstate(invalid="ignore"):
         bound = np.subtract(value, np.asarray(half_width))
         return np.asarray(np.isfinite(value) & np.greater_equal(value, limit) & ~np.greater_equal(bound, limit))
@@ -91,18 +94,27 @@ _LIMIT_LIST, _BIT_LIST = _LIMITS.tolist(), _BITS.tolist()   # the same, for one 
 def interval_checks(front_axle_load: float | np.ndarray, rear_axle_load: float | np.ndarray,
                     margin: float | np.ndarray, reserve: float | np.ndarray, u: LimitUncertainties) -> np.ndarray:
     """The ``Check`` bits of the values whose interval straddles their limit: a 0-d int array for one
-    pose (floats), an int array (N,) for N poses (the limits of ``checks.pose_checks``: 0 N, 0, 1)."""
-    if not isinstance(front_axle_load, np.ndarray):   # one pose: ``straddles``' rule on floats, a tenth of its time
-        bits = 0
-        for value, half_width, limit, bit in zip((front_axle_load, rear_axle_load, margin, reserve), u, _LIMIT_LIST,
-                                                 _BIT_LIST):
-            if math.isfinite(value) and value >= limit and not value - half_width >= limit:
-                bits |= bit
-        return np.asarray(bits)
+    pose (floats: ``pose_interval_checks``), an int array (N,) for N poses (the limits of
+    ``checks.pose_checks``: 0 N, 0, 1)."""
+    if not isinstance(front_axle_load, np.ndarray):
+        return np.asarray(pose_interval_checks(float(front_axle_load), float(rear_axle_load), float(margin),
+                                               float(reserve), [float(h) for h in u]))
     values = np.array([front_axle_load, rear_axle_load, margin, reserve], dtype=float)   # (4,) or (4, N)
     shape = (4,) + (1,) * (values.ndim - 1)
     crossed = straddles(values, np.array(u, dtype=float), _LIMITS.reshape(shape))
     return np.asarray(np.sum(crossed * _BITS.reshape(shape), axis=0))
+
+
+def pose_interval_checks(front_axle_load: float, rear_axle_load: float, margin: float, reserve: float,
+                         half_widths: Sequence[float]) -> int:
+    """``interval_checks`` of one pose, its four 95 % half-widths in ``LimitUncertainties``' order (a
+    live pose's: ``limit_half_widths`` of its budget): ``straddles``' rule on floats, a tenth of its time."""
+    bits = 0
+    for value, half_width, limit, bit in zip((front_axle_load, rear_axle_load, margin, reserve), half_widths,
+                                             _LIMIT_LIST, _BIT_LIST):
+        if math.isfinite(value) and value >= limit and not value - half_width >= limit:
+            bits |= bit
+    return bits
 
 
 def ballast_at_bound(mech: Mechanism, ratio: float, half_width: float, total_weight: float) -> float:

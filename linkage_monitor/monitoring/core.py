@@ -28,7 +28,7 @@ from linkage_monitor.mechanics.programs import ValueRow
 from linkage_monitor.mechanics.budget import Budget
 from linkage_monitor.mechanics.uncertainty import UncertaintyModel
 
-from .bounds import LimitUncertainties, interval_checks
+from .bounds import LimitUncertainties, interval_checks, limit_half_widths, pose_interval_checks
 from .checks import Check, CheckedValues, pose_checks
 from .config import MonitorConfig
 from .events import ConfigEvent, Event, ImuEvent, InputEvent, JointStateEvent, PressureEvent, UnreadableEvent
@@ -428,7 +428,7 @@ class Monitor:
 
     def _finish(self, due: Due, result: Result, machine: MachineResult, values: np.ndarray | None) -> Step:
         """The Step of one solved pose with its machine-level results and value row, if any
-        (``checks.pose_checks``; with the uncertainty, ``bounds.interval_checks`` too; with an IMU
+        (``checks.pose_checks``; with the uncertainty, ``bounds.pose_interval_checks`` too; with an IMU
         reading, the axle loads on the road: ``road``)."""
         dynamic = None
         if self.road is not None:
@@ -447,7 +447,7 @@ class Monitor:
                                                dynamic[DYNAMIC_MARGIN] if dynamic is not None else math.nan)))
         budget = self._budget(due, result, machine) if self.uncertainty is not None else None
         if budget is not None:
-            checks += int(interval_checks(*limits, LimitUncertainties.of(budget)))
+            checks += pose_interval_checks(*limits, limit_half_widths(budget))
         return self._pose_step(due, Pose(result, machine, values, budget, dynamic), checks)
 
     def _with_static(self, values: np.ndarray, static: np.ndarray) -> np.ndarray:

@@ -51,11 +51,14 @@ class MotionTracker:
         """Each measured cylinder's motion over the window ending at ``stamp_ns`` (ns), these inputs its
         latest reading; a stamp before the latest one starts the window anew."""
         out = {}
+        start = stamp_ns - self.window_ns
         for name, length in inputs.cylinders.items():
-            kept = self.readings.setdefault(name, deque())
-            if kept and stamp_ns < kept[-1][0]:
+            kept = self.readings.get(name)
+            if kept is None:
+                kept = self.readings[name] = deque()
+            elif kept and stamp_ns < kept[-1][0]:
                 kept.clear()
-            while kept and kept[0][0] < stamp_ns - self.window_ns:
+            while kept and kept[0][0] < start:
                 kept.popleft()
             change = length - kept[0][1] if kept else 0.0
             out[name] = (Motion.STANDING if abs(change) <= self.deadband.get(name, MOTION_DEADBAND_M)

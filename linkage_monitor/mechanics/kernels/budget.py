@@ -243,14 +243,18 @@ def tabulated_budget(program, hinge_force, cylinder_values, body_q, implement_lo
     n_rows, n_out = raw.shape[2], raw.shape[3]
     a = position - node
     d = np.zeros((n_rows, n_out))
+    n_cylinders = columns.cylinders.shape[0]
+    at_level = np.empty(n_cylinders)   # each measured force's place between the node's two load levels
     for t in range(2):
         j, weight = node + t, a if t else 1.0 - a
+        for c in range(n_cylinders):
+            force, span = cylinder_values[columns.cylinders[c], 1], levels[j, 1 + c, c] - levels[j, 0, c]
+            at_level[c] = (force - levels[j, 0, c]) / span
         for r in range(n_rows):
             for o in range(n_out):
                 value = raw[j, 0, r, o]
-                for c in range(columns.cylinders.shape[0]):
-                    force, span = cylinder_values[columns.cylinders[c], 1], levels[j, 1 + c, c] - levels[j, 0, c]
-                    value += (force - levels[j, 0, c]) / span * (raw[j, 1 + c, r, o] - raw[j, 0, r, o])
+                for c in range(n_cylinders):
+                    value += at_level[c] * (raw[j, 1 + c, r, o] - raw[j, 0, r, o])
                 d[r, o] += weight * value
     chain_rule(d, y0, program.layout)
     for s in range(n_src):
