@@ -38,6 +38,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from functools import partial
+from itertools import repeat
 from types import MappingProxyType
 from typing import Mapping, NamedTuple
 
@@ -227,17 +228,20 @@ class _Fast(NamedTuple):
     uniform: np.ndarray
     cylinders: tuple[str, ...]
     mass: tuple[Source, ...]
-    motions: dict[tuple[Motion, ...], "_Motions"]   # by the cylinders' motions, built when first met
+    motions: list["_Motions"]   # each set of the cylinders' motions met, built when first met
 
 
 class _Motions(NamedTuple):
-    """The measured cylinders' motions as ``kernels.tabulated_budget`` takes them (``codes``, MOTION_*)
-    and as a budget names them (``motions``, cylinder name -> motion; read-only: budgets share it)."""
+    """A set of the measured cylinders' motions (``moving``, in ``_Fast.cylinders``' order) as
+    ``kernels.tabulated_budget`` takes them (``codes``, MOTION_*) and as a budget names them
+    (``motions``, cylinder name -> motion; read-only: budgets share it)."""
 
+    moving: tuple[Motion, ...]
     codes: np.ndarray
     motions: Mapping[str, Motion]
 
 
+_STANDING = Motion.STANDING   # read once: a lookup on the Enum class takes ~0.1 µs
 # a cylinder's motion as kernels.tabulated_budget takes it
 _MOTION_CODES = {Motion.STANDING: kernels.MOTION_STANDING, Motion.LIFTING: kernels.MOTION_LIFTING,
                  Motion.LOWERING: kernels.MOTION_LOWERING}
@@ -381,12 +385,15 @@ class UncertaintyModel:
         None where the table does not hold it, or a measured cylinder's seal friction is 0."""
         stroke, fast = plan.stroke, plan.fast
         assert stroke is not None and fast is not None
-        moving = (tuple([motion] * len(fast.cylinders)) if isinstance(motion, Motion)
-                  else tuple([motion.get(c, Motion.STANDING) for c in fast.cylinders]))
-        codes = fast.motions.get(moving)
-        if codes is None:
-            codes = fast.motions[moving] = _Motions(np.array([_MOTION_CODES[m] for m in moving], np.int64),
-                                                    MappingProxyType(dict(zip(fast.cylinders, moving))))
+        moving = ((motion,) * len(fast.cylinders) if isinstance(motion, Motion)
+                  else tuple(map(motion.get, fast.cylinders, repeat(_STANDING))))
+        for codes in fast.motions:   # compared by identity: a Motion's hash is a Python call
+            if codes.moving == moving:
+                break
+        else:
+            codes = _Motions(moving, np.array([_MOTION_CODES[m] for m in moving], np.int64),
+                             MappingProxyType(dict(zip(fast.cylinders, moving))))
+            fast.motions.append(codes)
         n_out, n_src = len(self.table.outputs), len(fast.uniform)
         y0, u, k, sign = np.empty(n_out), np.empty(n_out), np.empty(n_out), np.empty(n_src)
         contributions, friction_u = np.empty((n_out, n_src)), np.empty(len(moving))
@@ -535,7 +542,7 @@ class UncertaintyModel:
         program = kernels.budget_program(fields(stroke.table), fields(columns), fields(self.table.layout),
                                          *factor_table(), NORMAL_FACTOR)
         return replace(plan, stroke=stroke, fast=_Fast(program, every.uniform, tuple(c for c, _ in measured),
-                                                       every.sources[len(every.sources) - plan.mass:], {}))
+                                                       every.sources[len(every.sources) - plan.mass:], []))
 
     def _node_rows(self, plan: _Plan) -> RawRows:
         """The rows of a table node (``budget_table.RawRows``): ``raw_rows`` at the node's pose, the

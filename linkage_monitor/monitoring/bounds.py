@@ -58,9 +58,15 @@ class LimitUncertainties(NamedTuple):
 def limit_half_widths(budget: Budget) -> list[float]:
     """``LimitUncertainties.of``'s four, in its order, as a list (``pose_interval_checks`` takes them)."""
     u, k, index = budget.u, budget.k, budget.index
-    # max(k·u, floor·u) = max(k, floor)·u, u ≥ 0 (NaN where k is); four items, not the whole rows' lists
-    return [max(k.item(i), VERDICT_FACTOR_FLOOR) * u.item(i) if i is not None else math.nan
-            for i in map(index.get, _LIMIT_OUTPUTS)]
+    found = []   # max(k·u, floor·u) = max(k, floor)·u, u ≥ 0 (NaN where k is); four items, not the rows' lists
+    for name in _LIMIT_OUTPUTS:
+        i = index.get(name)
+        if i is None:
+            found.append(math.nan)
+        else:
+            factor = k.item(i)   # max(factor, floor) by max()'s rule, without its call
+            found.append((VERDICT_FACTOR_FLOOR if VERDICT_FACTOR_FLOOR > factor else factor) * u.item(i))
+    return found
 
 
 _LIMIT_OUTPUTS = ("front_axle_load", "rear_axle_load", "steerability_margin", "lift_reserve")   # the budget's names
