@@ -41,7 +41,7 @@ from .schema import mechanism_from_dict
 from .solver import Solver
 
 if TYPE_CHECKING:
-    from .uncertainty import OutputTable
+    from .output_table import OutputTable
 
 POINT_STEP = 1.0e-4    # m: the central difference's step of a point coordinate (truncation O(h²): ~1e-8 relative)
 PRESSURE_STEP = 1.0e6  # Pa: the pressure step of the affine part (any step: the outputs are affine in it)

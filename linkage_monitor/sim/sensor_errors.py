@@ -33,7 +33,7 @@ import numpy as np
 from linkage_monitor.mechanics.error_sources import ErrorSources
 from linkage_monitor.mechanics.inputs import Inputs
 from linkage_monitor.mechanics.model import Mechanism
-from linkage_monitor.mechanics.uncertainty import force_per_pressure
+from linkage_monitor.mechanics.output_table import force_per_pressure
 
 KINDS = ("cylinders", "angles", "pressures")   # the measured inputs, as ``Inputs`` names them
 

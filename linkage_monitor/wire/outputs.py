@@ -48,7 +48,7 @@ CAPACITY_FIELDS = {"lift_capacity_hitch_axis": "hitch_axis", "lift_capacity_610m
                    "lift_capacity_implement_cg": "implement_cg", "lift_reserve": "reserve"}
 # Steerability's float64 fields are MachineResult.steerability keys and, with an IMU, mechanics.dynamics.DYNAMIC_KEYS
 # (Pose.dynamic) of the same names
-# the standard uncertainty fields (1 sigma) <- the error budget's outputs (mechanics.uncertainty.OutputTable)
+# the standard uncertainty fields (1 sigma) <- the error budget's outputs (mechanics.output_table.OutputTable)
 HITCH_UNCERTAINTIES = {"implement_load_u": "implement_load",
                        "lift_capacity_hitch_axis_u": "lift_capacity.hitch_axis",
                        "lift_capacity_610mm_u": "lift_capacity.behind_610mm",

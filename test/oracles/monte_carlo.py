@@ -20,7 +20,8 @@ from linkage_monitor.mechanics.geometry_budget import series_rows
 from linkage_monitor.mechanics.machine import MachineModel, MachinePose
 from linkage_monitor.mechanics.inputs import Inputs
 from linkage_monitor.mechanics.budget import Budget
-from linkage_monitor.mechanics.uncertainty import UncertaintyModel, force_per_pressure
+from linkage_monitor.mechanics.output_table import force_per_pressure
+from linkage_monitor.mechanics.uncertainty import UncertaintyModel
 from linkage_monitor.monitoring.core import ASSEMBLY_LIMIT_M
 from linkage_monitor.sim.telemetry import simulate
 from linkage_monitor.sim.true_geometry import draw_geometry

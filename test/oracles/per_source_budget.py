@@ -19,7 +19,8 @@ from linkage_monitor.mechanics import LinkageError
 from linkage_monitor.mechanics.inputs import Inputs
 from linkage_monitor.mechanics.results import Result
 from linkage_monitor.mechanics.budget import Budget
-from linkage_monitor.mechanics.uncertainty import LOAD_STEP_PRESSURE, UncertaintyModel, force_per_pressure, pose_step
+from linkage_monitor.mechanics.output_table import force_per_pressure
+from linkage_monitor.mechanics.uncertainty import LOAD_STEP_PRESSURE, UncertaintyModel, pose_step
 
 
 def per_source_contributions(um: UncertaintyModel, inputs: Inputs, result: Result, budget: Budget) -> np.ndarray:

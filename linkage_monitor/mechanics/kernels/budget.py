@@ -18,7 +18,7 @@ from .coverage import coverage_factors
 
 
 class OutputLayout(NamedTuple):
-    """Where the outputs of a budget sit in its row (``uncertainty.OutputTable``): the first fx, fz and
+    """Where the outputs of a budget sit in its row (``output_table.OutputTable``): the first fx, fz and
     magnitude columns of the hinges and their count, the implement load's column; with steerability
     (``steer``), the front and rear axle loads', the ratio's and the margin's, whether the ratio is of
     the unit's weight (``unit_reference``) or of the tractor's (``tractor_weight``, N); the capacity at
@@ -66,7 +66,7 @@ def chain_rule(d: np.ndarray, y0: np.ndarray, layout: OutputLayout) -> None:
 @njit(cache=True)
 def output_rows(hinge_force: np.ndarray, cylinder_force: np.ndarray, implement_load: np.ndarray,
                 steerability: np.ndarray, capacity: np.ndarray, steer_columns: np.ndarray, out: np.ndarray) -> None:
-    """The outputs of N poses into ``out`` (N, n_out) in ``uncertainty.OutputTable``'s order
+    """The outputs of N poses into ``out`` (N, n_out) in ``output_table.OutputTable``'s order
     (``_output_row``): hinge forces (N, H, 2) N, cylinder forces (N, C) N, implement loads (N,) N,
     steerability rows (N, S) and capacity rows (N, P + 1)."""
     for i in range(out.shape[0]):
