@@ -37,6 +37,7 @@ DIAGNOSTICS = "/diagnostics"
 WATCH_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 GRAPH_PERIOD_S = 1.0   # s, the ROS graph is asked at most this often which node publishes the outputs
 RATE_WINDOW_S = 2.0   # s, the received rates are counted over this window
+RATE_MIN_SPAN_S = 0.5   # s, the shortest time a rate is taken over (right after a topic's first arrival)
 CODES_KEY = "findings"   # wire.diagnostics.CODES_KEY (importing wire loads the compiled kernels: seconds)
 INPUTS_STATUS = ": inputs"   # the node's input-stream status (<node>: inputs): its losses
 REFERENCES = {Steerability.REFERENCE_UNIT: "unit", Steerability.REFERENCE_TRACTOR: "tractor"}
@@ -45,22 +46,27 @@ REFERENCES = {Steerability.REFERENCE_UNIT: "unit", Steerability.REFERENCE_TRACTO
 @dataclass
 class _Arrivals:
     """Receive times of one topic within the rate window (s since the epoch: the middleware's, so a
-    watch that takes a backlog late still rates the stream as it came), and the count in all."""
+    watch that takes a backlog late still rates the stream as it came), the first ever, and the count in all."""
 
     times: deque[float] = field(default_factory=deque)
+    first: float | None = None
     count: int = 0
 
     def arrived(self, received_s: float) -> None:
         self.times.append(received_s)
+        self.first = received_s if self.first is None else self.first
         self.count += 1
 
     def rate(self, now: float) -> float:
-        """Messages per second between the first and the last arrival of the last RATE_WINDOW_S (0
-        with fewer than two: a topic that started lately is not rated over time it did not exist)."""
+        """Messages per second received in the last RATE_WINDOW_S, or since the first arrival when that
+        is later but at least RATE_MIN_SPAN_S ago (a topic that started lately is not rated over time it
+        did not exist; 0 before an arrival). A burst counts as its number of messages, never over its own
+        short span."""
         while self.times and self.times[0] < now - RATE_WINDOW_S:
             self.times.popleft()
-        span = self.times[-1] - self.times[0] if len(self.times) > 1 else 0.0
-        return (len(self.times) - 1) / span if span > 0.0 else 0.0
+        if self.first is None:
+            return 0.0
+        return len(self.times) / max(RATE_MIN_SPAN_S, min(RATE_WINDOW_S, now - self.first))
 
 
 class OutputWatch:
