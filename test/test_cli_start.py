@@ -8,6 +8,7 @@ import argparse
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -51,3 +52,13 @@ def test_the_listing_is_each_subcommands_own_help() -> None:
     sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
     registered = {action.dest: action.help for action in sub._choices_actions}
     assert registered == {name: command.help for name, command in COMMANDS.items()}
+
+
+def test_a_replay_that_weighs_nothing_loads_no_student_quantile() -> None:
+    """scipy.special (~0.2 s to import) serves the weighing's Student factor only: a replay of a bag whose
+    implement comes from its file (the bundled belarus_1221 bag) never loads it; a weighing replay does."""
+    bag = str(Path(__file__).resolve().parent.parent / "bags" / "belarus_1221_lift_transport")
+    code, modules = _loaded("replay", bag, "--quiet")
+    assert code == 0 and "scipy.special" not in modules
+    code, modules = _loaded("replay", bag, "--quiet", "--implement-mass-source", "estimate")
+    assert code == 0 and "scipy.special" in modules

@@ -39,7 +39,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import stdtrit
 
 UNITS = 8   # groups of strokes per direction that the jackknife leaves out in turn
 SUMS = ("n", "u0", "ux", "uz", "y", "yy", "force")   # the columns of a bin's sums, in this order
@@ -87,6 +86,7 @@ def student_factor(dof: float) -> float:
         return math.inf
     if math.isinf(dof):
         return 1.0
+    from scipy.special import stdtrit   # here: a monitor that weighs nothing never needs it (~0.2 s to import)
     return float(stdtrit(dof, 0.975)) / 1.959963984540054
 
 
