@@ -54,11 +54,34 @@ def test_the_listing_is_each_subcommands_own_help() -> None:
     assert registered == {name: command.help for name, command in COMMANDS.items()}
 
 
-def test_a_replay_that_weighs_nothing_loads_no_student_quantile() -> None:
+def test_a_replay_that_weighs_nothing_loads_neither_student_quantile_nor_scipy_linalg() -> None:
     """scipy.special (~0.2 s to import) serves the weighing's Student factor only: a replay of a bag whose
-    implement comes from its file (the bundled belarus_1221 bag) never loads it; a weighing replay does."""
+    implement comes from its file (the bundled belarus_1221 bag) never loads it; a weighing replay does.
+    The kernels' BLAS and LAPACK come without the rest of scipy.linalg (mechanics.numba_blas)."""
     bag = str(Path(__file__).resolve().parent.parent / "bags" / "belarus_1221_lift_transport")
     code, modules = _loaded("replay", bag, "--quiet")
-    assert code == 0 and "scipy.special" not in modules
+    assert code == 0 and "scipy.special" not in modules and "scipy.linalg" not in modules
+    assert "scipy.linalg.cython_blas" in modules and "scipy.linalg.cython_lapack" in modules
     code, modules = _loaded("replay", bag, "--quiet", "--implement-mass-source", "estimate")
     assert code == 0 and "scipy.special" in modules
+
+
+def test_scipy_linalg_imports_after_the_kernels_took_its_blas_alone() -> None:
+    """After the kernels ran on the BLAS and LAPACK loaded alone, ``import scipy.linalg`` (the calibration's
+    least squares) imports the package whole, with those two modules as they are, and both still work."""
+    script = """
+import sys
+import numpy as np
+from linkage_monitor.mechanics.kernels import solve_linear
+jac, rhs = np.array([[1.0, 0.0], [0.0, 2.0], [1.0, 1.0]]), np.array([1.0, 4.0, 3.0])
+assert np.allclose(solve_linear(jac, rhs), [1.0, 2.0])   # least squares by jac.T @ rhs: numba's BLAS
+blas = sys.modules["scipy.linalg.cython_blas"]
+import scipy.linalg
+from scipy.optimize import least_squares
+assert sys.modules["scipy.linalg.cython_blas"] is blas
+assert np.allclose(scipy.linalg.solve(np.eye(2) * 2.0, np.ones(2)), 0.5)
+assert np.allclose(least_squares(lambda x: x - 3.0, np.zeros(1)).x, 3.0)
+print("ok")
+"""
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=True)
+    assert run.stdout.strip() == "ok"

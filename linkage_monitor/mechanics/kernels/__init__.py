@@ -23,10 +23,12 @@ in one call). The names other modules use are importable from the package.
 
 from __future__ import annotations
 
+from ..numba_blas import load_alone
 from ..numba_cache import ensure_writable, stamp_by_package
 
 stamp_by_package()   # before the kernels are defined: how numba stamps them,
 ensure_writable()    # and where it can keep them
+load_alone()         # the BLAS and LAPACK they call, without the rest of scipy.linalg
 
 from .assembly import (assembled, assembled_batch, condition, loop_signs, newton,  # noqa: E402
                        newton_batch, solve_poses)
