@@ -22,7 +22,7 @@ import math
 import sys
 import time
 from collections import Counter
-from contextlib import nullcontext
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Iterator, ParamSpec, TextIO, TypeVar
@@ -328,18 +328,12 @@ class _Replayer:
 
     def replay(self) -> Summary:
         """The summary of the whole replay (its outputs written)."""
-        from tqdm import tqdm   # here: ~0.05 s to import with its logging bridge
-        from tqdm.contrib.logging import logging_redirect_tqdm
-
         monitor = Monitor(self.description, self.config)
         raw: list[RecordedInput] = []
         output: BagOutput | None = None
         view: RerunOutput | None = None
         try:
-            # with a bar, what the reader finds (a cut file, a skipped chunk) is written on a line of its own
-            bar_shown = self.progress is not None
-            with tqdm(desc="replay", unit="msg", file=self.progress, disable=not bar_shown, mininterval=0.5) as bar, \
-                    (logging_redirect_tqdm([logging.getLogger("linkage_monitor")]) if bar_shown else nullcontext()):
+            with _progress_bar(self.progress) as advance:
                 for piece in monitor.runs(_events(self.bag, self.config, raw), self.piece_steps):
                     inputs = raw[:len(piece.steps)]
                     del raw[:len(piece.steps)]
@@ -355,7 +349,7 @@ class _Replayer:
                         view.log(piece)
                     for consume in self.consumers:
                         consume(piece)
-                    bar.update(len(inputs))
+                    advance(len(inputs))
                     del piece, inputs   # let go before the next piece is solved: one piece held at a time
         finally:
             if output is not None:
@@ -376,6 +370,22 @@ class _Replayer:
         if self.out_dir is None:
             return None
         return BagOutput(self.out_dir, self.description, self.config, first_receive_ns, self.rate)
+
+
+@contextmanager
+def _progress_bar(progress: TextIO | None) -> Iterator[Callable[[int], object]]:
+    """The replay's progress bar on ``progress``, advanced by the callable given (messages replayed), with
+    what the reader finds (a cut file, a skipped chunk) written on a line of its own; without ``progress``
+    none, tqdm not even imported (~0.05 s with its logging bridge)."""
+    if progress is None:
+        yield lambda replayed: None
+        return
+    from tqdm import tqdm
+    from tqdm.contrib.logging import logging_redirect_tqdm
+
+    with tqdm(desc="replay", unit="msg", file=progress, mininterval=0.5) as bar, \
+            logging_redirect_tqdm([logging.getLogger("linkage_monitor")]):
+        yield bar.update
 
 
 def _account(summary: Summary, run: Run) -> None:
