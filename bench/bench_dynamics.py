@@ -13,7 +13,8 @@ from the IMU to the body whose inertia it gives), with the simulator's noise (0.
 solver's poses of the noisy inputs, the IMU's samples one by one (``mechanics.dynamics.ImuBody``: the
 gyro differentiated over ``PITCH_WINDOW``, centred) and ``monitoring.road.RoadInput.balance`` as the node
 and the replay compute it (the weight at rest averaged over the bounce, ``RestLoad``); each step's
-dynamic values are those of the solve at its body's stamp and are compared with that solve's truth.
+dynamic values and static margin are those of the solve at its body's stamp and are compared with that
+solve's truth.
 The truth, from the simulator's true body motion and implement mass: the unit at rest (the solver at the true lengths with the implement's
 weight), and d'Alembert's inertia forces added by the unit's moment balance about B (the oracle of
 test/test_machine_dynamics.py, written out here again on purpose: the truth must not come from the
@@ -129,12 +130,12 @@ def _run(base: Mechanism, seed: int, rate: float, places: dict[str, float]) -> d
         static = found.static
         plain = MachineModel(mech, Solver(mech)).evaluate_batch(batch).steerability["margin"]
         ok = np.isfinite(found.dynamic) & (found.described >= 0) & np.isfinite(static)   # a solve that failed: none
-        dyn_err = np.full(static.size, np.nan)   # each dynamic value against the truth of the step it describes
+        dyn_err = np.full(static.size, np.nan)   # each value against the truth of the step it describes
         dyn_err[ok] = found.dynamic[ok] - dynamic_truth[found.described[ok]]
         transport = ok & (run.truth.phase == "transport")
         out[f"{place} dynamic"] = math.sqrt(np.mean(dyn_err[ok] ** 2))
         out[f"{place} dynamic transport"] = math.sqrt(np.mean(dyn_err[transport] ** 2))
-        out[f"{place} static"] = math.sqrt(np.mean((static[ok] - static_truth[ok]) ** 2))
+        out[f"{place} static"] = math.sqrt(np.mean((static[ok] - static_truth[found.described[ok]]) ** 2))
         out["static bumps, no IMU"] = math.sqrt(np.mean((plain[ok] - static_truth[ok]) ** 2))
         out["dip"] = float(np.min(dynamic_truth - static_truth))
     return out

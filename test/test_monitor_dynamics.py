@@ -189,3 +189,38 @@ def test_a_new_imu_mounting_takes_effect_without_a_restart():
     feed(40, 1)
     body = monitor.road.body_at(START + 40 * IMU_RATE_NS)
     assert body.acceleration.vertical == pytest.approx(-0.5) and body.acceleration.pitch == pytest.approx(alpha)
+
+
+
+@pytest.mark.parametrize("heave", [0.0, 2.0])
+def test_a_measured_load_s_static_rows_are_those_of_the_solve_at_the_body_s_stamp(heave):
+    """40 solves of a simulated lift (the pose moving), their load stepping down by 40 % at solve 20 (the
+    ground taking part of the implement), while the body heaves with a constant ``heave`` m/s², its
+    acceleration known 15 solves (37.5 ms at 400 Hz) late. Oracle: the linkage's statics are linear
+    in the load, so the unit at rest of solve j is that solve with its load and frame forces scaled by
+    g/(g + a) (``kernels.steerability_rows`` on them). Each row k is solve k − 15's at rest, its pose
+    and load with its own weight at rest (a row of solve k's pose with solve k − 15's weight at rest
+    mixes two instants); a row without a body is the solve's own, as without an IMU."""
+    from linkage_monitor.mechanics import Solver, kernels
+    from linkage_monitor.mechanics.dynamics import BodyAcceleration, BodyAt
+    from linkage_monitor.mechanics.machine import machine_parameters
+    from linkage_monitor.monitoring.road import RoadInput
+    from linkage_monitor.sim.telemetry import simulate
+
+    mech = load_preset("belarus_1221")
+    n, lag, first = 40, 15, 200   # solves 200-239 of the lift at 50 Hz: the implement's cg moves 0.1 m
+    solved = Solver(mech).solve_batch(**simulate(mech, "lift", rate_hz=50.0, seed=4).solver_inputs())
+    part = slice(first, first + n)
+    scale = np.where(np.arange(n) < 20, 1.0, 0.6)
+    points, x6 = solved.frame_load_points[part], solved.implement_cg[part, 0]
+    load, forces = solved.implement_load[part] * scale, solved.frame_load_forces[part] * scale[:, None, None]
+    stamps = START + np.arange(n) * IMU_RATE_NS
+    bodies = [BodyAt(int(stamps[k - lag]), BodyAcceleration(heave, 0.0), 0.0) if k >= lag else None for k in range(n)]
+    road = RoadInput(mech, _config(mech), load_measured=True)
+    static = np.concatenate([road.balance(stamps[k:k + 1], points[k:k + 1], forces[k:k + 1], load[k:k + 1],
+                                          x6[k:k + 1], bodies[k:k + 1]).static for k in range(n)])
+    params = machine_parameters(mech.tractor, mech.gravity)
+    rest, j = STANDARD_GRAVITY / (STANDARD_GRAVITY + heave), np.arange(n) - lag
+    expected = kernels.steerability_rows(points[j], forces[j] * rest, load[j] * rest, x6[j], params)
+    np.testing.assert_allclose(static[lag:], expected[lag:], rtol=1e-9)
+    np.testing.assert_array_equal(static[:lag], kernels.steerability_rows(points, forces, load, x6, params)[:lag])

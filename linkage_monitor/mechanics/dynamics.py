@@ -16,8 +16,8 @@ seconds is the derivative at the window's centre, to its curvature error, with n
 simulator's road up to 16 Hz, where a tyre follows the profile): assigned to the newest sample a
 slope is 37.5 ms late and its error is as large as the signal, so ``ImuBody`` gives the body's
 acceleration **at the window's centre**, paired with that sample's specific force: known 37.5 ms
-late, and the monitor gives the dynamic values of the solve at that stamp
-(``monitoring.road``; bench/bench_dynamics.py). The slope is shrunk by Wiener's gain S/(S + N), N
+late, and the monitor gives the dynamic values (and, with a measured load, the static rows) of the
+solve at that stamp (``monitoring.road``; bench/bench_dynamics.py). The slope is shrunk by Wiener's gain S/(S + N), N
 its variance from the window's own residuals, S its mean square over the last 0.3 s less N: a
 quiet body's gyro noise is not taken for a pitch.
 

@@ -7,11 +7,11 @@ its values finite, its stamp near the clock and not older than the one before �
 with a finding; it solves nothing. Each solve takes the body's acceleration of the newest IMU
 message (``mechanics.dynamics.ImuBody``: the specific force along z and the gyro's rate
 differentiated, both at the centre of the pitch window, 37.5 ms before the newest message), if that
-message is not older than the staleness limit: the pose's static steerability is then that of the
-unit at rest (the implement's inertia taken out of the measured load) and it carries the dynamic
-values of the solve at the body's stamp; without it, the static one is as without an IMU and the
-dynamic one NaN. Units SI (m/s², rad/s,
-rad/s², N); frame x forward, z up, origin at the rear wheels' ground contact.
+message is not older than the staleness limit: the pose then carries the dynamic values of the solve
+at the body's stamp and, with a measured load, that solve's static steerability at rest (the
+implement's inertia taken out of its load): the values of one instant; without it, the static one
+is as without an IMU and the dynamic one NaN. Units SI (m/s², rad/s, rad/s², N); frame x forward,
+z up, origin at the rear wheels' ground contact.
 """
 
 from __future__ import annotations
@@ -46,35 +46,27 @@ PRUNE_AT = 1024   # solves forgotten before the history's lists are cut
 
 
 class _History:
-    """The recent solves, by header stamp (ns, non-decreasing): the implement load (N) at its cg's x (m),
-    and, once their rows at rest are known, the front axle load and total with the load as the linkage
-    carries it and the weight the dynamic ratio is taken over (N; ``mechanics.dynamics``)."""
+    """The recent solves, by header stamp (ns, non-decreasing): the implement load (N) at its cg's x (m)
+    and the forces the linkage puts on the frame (points / forces (K, 2), m / N), so that a solve's rows
+    at rest can be taken once its body's acceleration is known (``RoadInput.balance``)."""
 
     def __init__(self) -> None:
         self.stamps: list[int] = []
         self.load: list[float] = []
         self.x: list[float] = []
-        self.front: list[float] = []
-        self.total: list[float] = []
-        self.reference: list[float] = []
+        self.points: list[np.ndarray] = []
+        self.forces: list[np.ndarray] = []
         self.start = 0
 
-    def extend(self, stamps: np.ndarray, load: np.ndarray, x: np.ndarray) -> None:
+    def extend(self, stamps: np.ndarray, load: np.ndarray, x: np.ndarray, points: np.ndarray,
+               forces: np.ndarray) -> None:
         if self.stamps and stamps.size and int(stamps[0]) < self.stamps[-1]:   # a stamp going back: start again
             self.__init__()   # type: ignore[misc]
-        nan = [math.nan] * stamps.size
         self.stamps += stamps.tolist()
         self.load += load.tolist()
         self.x += x.tolist()
-        self.front += nan
-        self.total += nan
-        self.reference += nan
-
-    def fill(self, count: int, front: np.ndarray, total: np.ndarray, reference: np.ndarray) -> None:
-        """The last ``count`` solves' carried axle loads and reference weight."""
-        end = len(self.stamps)
-        self.front[end - count:], self.total[end - count:], self.reference[end - count:] = (
-            front.tolist(), total.tolist(), reference.tolist())
+        self.points += list(np.array(points, dtype=float))   # copies: the solver's arrays are not kept
+        self.forces += list(np.array(forces, dtype=float))
 
     def nearest(self, stamp_ns: int, tolerance_ns: float) -> int:
         """The index of the solve nearest ``stamp_ns`` (of equal stamps the last), −1 if none is within the tolerance."""
@@ -91,7 +83,7 @@ class _History:
             return
         self.start = bisect_left(self.stamps, self.stamps[-1] - keep_ns, lo=self.start)
         if self.start > PRUNE_AT:
-            for name in ("stamps", "load", "x", "front", "total", "reference"):
+            for name in ("stamps", "load", "x", "points", "forces"):
                 setattr(self, name, getattr(self, name)[self.start:])
             self.start = 0
 
@@ -158,23 +150,23 @@ class RoadInput:
         """The static rows at rest and the dynamic values of N solved poses in input order (their stamps (N,)
         ns, the other arrays as ``mechanics.dynamics.static_at_rest`` takes them), each with its body
         acceleration (None: no IMU reading in use; the rows then as without an IMU, the dynamic values
-        NaN). The body's acceleration is known half the pitch window late: a measured load's weight
-        at rest is that of the solve at the body's stamp (its inertia taken out there), averaged
-        over the bounce (``RestLoad``); a pose's dynamic values are **those of the solve at its body's
-        stamp** (``PITCH_WINDOW``/2 = 37.5 ms before the newest IMU message), NaN without a solve
-        within the staleness limit of it."""
+        NaN). The body's acceleration is known half the pitch window late, so a pose's values are
+        **those of the solve at its body's stamp** (``PITCH_WINDOW``/2 = 37.5 ms before the newest IMU
+        message): the dynamic ones, and, with a measured load, the static rows, the solve's load with its
+        own inertia taken out (its weight at rest averaged over the bounce, ``RestLoad``), so that no
+        load is paired with a weight at rest of another instant (the ground taking or giving up the
+        implement changes the load within a few tenths of a second). Without a solve within the
+        staleness limit of the body's stamp (or where that solve failed) the dynamic values are NaN and
+        the static rows the pose's own with the last weight at rest."""
         mech = self.mechanism
         assert mech.tractor is not None   # RoadInput is built for a mechanism with a tractor block only
         g, history, tolerance = mech.gravity, self._history, self.config.staleness_limit_s * NS
         load, x6 = np.asarray(implement_load, dtype=float), np.asarray(implement_x, dtype=float)
-        history.extend(np.asarray(stamps_ns, dtype=np.int64), load, x6)
+        history.extend(np.asarray(stamps_ns, dtype=np.int64), load, x6, frame_load_points, frame_load_forces)
         found = [history.nearest(b.stamp_ns, tolerance) if b is not None else -1 for b in bodies]
-        rest = np.full(load.size, math.nan)
+        rest = np.full(load.size, math.nan)   # a measured load's weight at rest, of the solve the row is taken of
         for k, (body, j) in enumerate(zip(bodies, found)):
-            if body is None:
-                continue
-            if not self.load_measured:
-                rest[k] = load[k]
+            if body is None or not self.load_measured:
                 continue
             if body.stamp_ns != self._rest_at[0] and j >= 0:
                 at_rest = implement_at_rest(np.array([history.load[j]]),
@@ -182,21 +174,23 @@ class RoadInput:
                 self._rest_at = (body.stamp_ns, self._rest.add(body.stamp_ns, float(at_rest), body.bounce))
             rest[k] = self._rest_at[1]   # the last average while no solve is at the body's stamp
         static = static_at_rest(self._params, frame_load_points, frame_load_forces, load, x6, rest)
-        history.fill(load.size, *carried_axle_loads(mech.tractor, static, load, rest, x6),
-                     ratio_reference(mech.tractor, g, static))
         dynamic = np.full((load.size, len(DYNAMIC_KEYS)), math.nan)
-        rows = [(k, j, b.acceleration) for k, (j, b) in enumerate(zip(found, bodies)) if j >= 0 and b is not None]
-        if rows:
-            at = np.array([k for k, _, _ in rows])
-            acceleration = BodyAcceleration(np.array([a.vertical for _, _, a in rows], dtype=float),
-                                            np.array([a.pitch for _, _, a in rows], dtype=float))
-            x = np.array([history.x[j] for _, j, _ in rows])
+        used = [(k, j, b.acceleration) for k, (j, b) in enumerate(zip(found, bodies)) if j >= 0 and b is not None]
+        if used:
+            at = np.array([k for k, _, _ in used])
+            load_j = np.array([history.load[j] for _, j, _ in used])
+            x_j = np.array([history.x[j] for _, j, _ in used])
+            rest_j = rest[at] if self.load_measured else load_j   # a configured load is the weight at rest
+            rows = static_at_rest(self._params, np.stack([history.points[j] for _, j, _ in used]),
+                                  np.stack([history.forces[j] for _, j, _ in used]), load_j, x_j, rest_j)
+            if self.load_measured:   # but where either solve failed: no rows of a failed pose, none from one
+                solved = np.isfinite(static[at, 0]) & np.isfinite(rows[:, 0])
+                static[at[solved]] = rows[solved]
+            acceleration = BodyAcceleration(np.array([a.vertical for _, _, a in used], dtype=float),
+                                            np.array([a.pitch for _, _, a in used], dtype=float))
             inertia = (np.zeros(at.size) if self.load_measured
-                       else implement_at_rest(np.array([history.load[j] for _, j, _ in rows]),
-                                              np.asarray(acceleration.at(x)), g, False).inertia)
-            dynamic[at] = dynamic_balance(mech.tractor, g, np.array([history.front[j] for _, j, _ in rows]),
-                                          np.array([history.total[j] for _, j, _ in rows]),
-                                          np.array([history.reference[j] for _, j, _ in rows]), inertia, x,
-                                          acceleration)
+                       else implement_at_rest(load_j, np.asarray(acceleration.at(x_j)), g, False).inertia)
+            dynamic[at] = dynamic_balance(mech.tractor, g, *carried_axle_loads(mech.tractor, rows, load_j, rest_j, x_j),
+                                          ratio_reference(mech.tractor, g, rows), inertia, x_j, acceleration)
         history.prune(tolerance + PITCH_WINDOW * NS)
         return RoadBalance(static, dynamic)
