@@ -20,7 +20,7 @@ from std_msgs.msg import String
 from linkage_monitor.bag.columns import JointStateColumns, PressureColumns
 from linkage_monitor.bag.errors import BagError
 from linkage_monitor.bag.mcap_records import chunk_messages, indexed_offsets
-from linkage_monitor.bag.reader import read_bag, read_bag_raw, read_inputs
+from linkage_monitor.bag.reader import read_bag, read_bag_raw, read_bag_raw_blocks, read_inputs
 from linkage_monitor.bag.writer import BagWriter
 
 T0 = 1_700_000_000_000_000_000  # ns since the epoch
@@ -277,7 +277,8 @@ def _chunked_mcap(file: Path, chunks: list[list[int]]) -> Path:
                          ids=["in_sequence", "overlapping", "touching_backwards"])
 def test_messages_come_in_mcaps_log_time_order(tmp_path: Path, chunks: list[list[int]]) -> None:
     """read_bag_raw yields an MCAP file's messages in the order of mcap's SeekingReader (log time; equal
-    log times by chunk offset, then position in the chunk), on all topics and on one."""
+    log times by chunk offset, then position in the chunk), on all topics and on one; read_bag_raw_blocks
+    the same messages as columns (a chunk at a time where the chunks are in sequence)."""
     from mcap.reader import SeekingReader
 
     file = _chunked_mcap(tmp_path / "chunks.mcap", chunks)
@@ -292,6 +293,9 @@ def test_messages_come_in_mcaps_log_time_order(tmp_path: Path, chunks: list[list
             expected = [(channel.topic, message.log_time, message.data) for _, channel, message
                         in SeekingReader(stream).iter_messages(topics=topics, log_time_order=True)]
         assert [(m.topic, m.log_time_ns, m.data) for m in read_bag_raw(file, topics=topics)] == expected
+        blocks = list(read_bag_raw_blocks(file, topics=topics))
+        assert [m for b in blocks for m in zip(b.topic, b.log_time_ns, b.data)] == expected
+        assert [t for b in blocks for t in b.type_name] == ["std_msgs/msg/String"] * len(expected)
         assert len(expected) == sum(len(c) if topics is None else len(c) // 2 for c in chunks)
 
 

@@ -6,10 +6,12 @@ from __future__ import annotations
 import io
 import os
 import struct
-from collections.abc import Collection, Iterator
+from collections.abc import Collection, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
+
+import numpy as np
 
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
@@ -21,7 +23,8 @@ from mcap.stream_reader import CRCValidationError
 from linkage_monitor.bag.errors import BagError
 from linkage_monitor.bag.faults import ReadFault, report
 from linkage_monitor.bag.mcap_records import (
-    MCAP_MAGIC, RECORD_HEAD, chunk_messages, indexed_offsets, log_time_queue, message_count, split_chunk)
+    MCAP_MAGIC, RECORD_HEAD, ChunkColumns, chunk_columns, indexed_offsets, log_time_queue, message_count,
+    split_chunk)
 
 
 class _Record(NamedTuple):
@@ -66,9 +69,7 @@ def mcap_messages(file: Path, topics: Collection[str] | None) -> Iterator[tuple[
                 count += 1
                 yield record
         except Exception as exc:  # noqa: BLE001 - damaged data: decompression, lengths
-            raise BagError(f"{file} is damaged after {count} messages ({type(exc).__name__}: "
-                           f"{str(exc).splitlines()[0] if str(exc) else 'unreadable data'}): "
-                           "copy what can be read with an MCAP tool or record again") from exc
+            raise _damaged(file, count, exc) from exc
 
 
 def _record_stream(body: bytes) -> ReadDataStream:
@@ -241,17 +242,93 @@ def _log_time(record: _Record) -> int:
 
 def _chunk_records(file: Path, stream: Any, chunk_index: ChunkIndex, summary: Any, channel_ids: set[int]
                    ) -> list[_Record]:
-    """The messages of one chunk on the channels ``channel_ids``, in their order in the chunk; none, with
-    a warning naming the chunk, when it fails its CRC or does not read."""
+    """The messages of one chunk on the channels ``channel_ids``, in their order in the chunk (``_chunk_columns``)."""
+    columns = _chunk_columns(file, stream, chunk_index, channel_ids)
+    if columns is None:
+        return []
+    schemas, channels = summary.schemas, summary.channels
+    return [_Record(schemas[channels[m.channel_id].schema_id] if channels[m.channel_id].schema_id else None,
+                    channels[m.channel_id], m) for m in columns.messages()]
+
+
+def _chunk_columns(file: Path, stream: Any, chunk_index: ChunkIndex, channel_ids: set[int]) -> ChunkColumns | None:
+    """The messages of one chunk on the channels ``channel_ids`` as columns, in their order in the chunk; None,
+    with a warning naming the chunk, when it fails its CRC or does not read."""
     stream.seek(chunk_index.chunk_start_offset + 1 + 8)   # past the record's opcode and length
     chunk = None
-    channels = summary.channels
     try:
         chunk = Chunk.read(ReadDataStream(stream))
-        records = chunk_messages(chunk, channel_ids, indexed_offsets(stream, chunk_index, channel_ids))
+        return chunk_columns(chunk, channel_ids, indexed_offsets(stream, chunk_index, channel_ids))
     except Exception as exc:  # noqa: BLE001 - a CRC mismatch, data that does not decompress, a broken record
         _report_chunk(file, chunk_index.chunk_start_offset, chunk, exc, chunk_index)
-        return []
-    schemas = summary.schemas
-    return [_Record(schemas[channels[m.channel_id].schema_id] if channels[m.channel_id].schema_id else None,
-                    channels[m.channel_id], m) for m in records]
+        return None
+
+
+BLOCK = 1024   # messages read one by one gathered into one MessageColumns (``blocks_of``)
+
+
+class MessageColumns(NamedTuple):
+    """Messages of a bag in ``mcap_messages``' order as columns: each one's topic, type (its schema's
+    name, '' without one), log time (ns since the epoch) and CDR bytes."""
+
+    topic: list[str]
+    type_name: list[str]
+    log_time_ns: list[int]
+    data: list[bytes]
+
+
+def blocks_of(records: Iterable[tuple[Any, Any, Any]]) -> Iterator[MessageColumns]:
+    """(schema, channel, message) records gathered BLOCK at a time into columns."""
+    block: list[tuple[Any, Any, Any]] = []
+    for record in records:
+        block.append(record)
+        if len(block) == BLOCK:
+            yield _gathered(block)
+            block = []
+    if block:
+        yield _gathered(block)
+
+
+def _gathered(records: list[tuple[Any, Any, Any]]) -> MessageColumns:
+    return MessageColumns([channel.topic for _, channel, _ in records],
+                          [schema.name if schema is not None else "" for schema, _, _ in records],
+                          [message.log_time for _, _, message in records], [message.data for _, _, message in records])
+
+
+def mcap_columns(file: Path, topics: Collection[str] | None) -> Iterator[MessageColumns]:
+    """``mcap_messages`` of one MCAP file as columns: a chunk at a time, its messages read at once
+    (``chunk_columns``) and sorted by log time, when the file is indexed and its chunks in sequence
+    (``_in_sequence``: a recording's usual shape); else its records (``mcap_messages``) ``blocks_of``."""
+    with open(file, "rb") as stream:
+        try:
+            summary = SeekingReader(stream).get_summary()
+        except (McapError, OSError, struct.error, ValueError):   # no footer or summary: scanned by mcap_messages
+            summary = None
+        chunks = sorted(summary.chunk_indexes, key=_chunk_start) if summary is not None else []
+        if summary is None or not _in_sequence(chunks):
+            yield from blocks_of(mcap_messages(file, topics))
+            return
+        channels, schemas = summary.channels, summary.schemas
+        channel_ids = {i for i, c in channels.items() if topics is None or c.topic in topics}
+        topic = {i: channels[i].topic for i in channel_ids}
+        type_name = {i: schemas[channels[i].schema_id].name if channels[i].schema_id else "" for i in channel_ids}
+        count = 0
+        try:
+            for chunk_index in chunks:
+                columns = _chunk_columns(file, stream, chunk_index, channel_ids)
+                if columns is None or not columns.data:
+                    continue
+                order = np.argsort(columns.log_time, kind="stable")   # a chunk's messages: usually in order already
+                ids = columns.channel_id[order].tolist()
+                yield MessageColumns([topic[i] for i in ids], [type_name[i] for i in ids],
+                                     columns.log_time[order].tolist(), [columns.data[k] for k in order.tolist()])
+                count += len(ids)
+        except Exception as exc:  # noqa: BLE001 - damaged data: decompression, lengths
+            raise _damaged(file, count, exc) from exc
+
+
+def _damaged(file: Path, count: int, exc: Exception) -> BagError:
+    """The error of an indexed file that stops reading after ``count`` messages."""
+    return BagError(f"{file} is damaged after {count} messages ({type(exc).__name__}: "
+                    f"{str(exc).splitlines()[0] if str(exc) else 'unreadable data'}): "
+                    "copy what can be read with an MCAP tool or record again")

@@ -16,7 +16,7 @@ import io
 import struct
 import zlib
 from collections.abc import Collection
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from mcap import writer as mcap_writer
@@ -190,20 +190,45 @@ def indexed_offsets(stream: Any, chunk_index: ChunkIndex, channel_ids: Collectio
     return offsets if np.all(offsets[1:] > offsets[:-1]) else None   # an offset twice is no index
 
 
+class ChunkColumns(NamedTuple):
+    """Message records of a chunk (``chunk_columns``) as columns, in their order in the chunk: channel ids,
+    sequence numbers, log and publish times (ns) and data."""
+
+    channel_id: np.ndarray     # (n,) uint16
+    sequence: np.ndarray       # (n,) uint32
+    log_time: np.ndarray       # (n,) uint64
+    publish_time: np.ndarray   # (n,) uint64
+    data: list[bytes]
+
+    def messages(self) -> list[Message]:
+        """The records as mcap's Message records."""
+        return [Message(channel_id=channel_id, log_time=log_time, publish_time=publish_time, sequence=sequence,
+                        data=data)
+                for channel_id, sequence, log_time, publish_time, data in zip(
+                    self.channel_id.tolist(), self.sequence.tolist(), self.log_time.tolist(),
+                    self.publish_time.tolist(), self.data)]
+
+
 def chunk_messages(chunk: Chunk, channel_ids: Collection[int], offsets: np.ndarray | None) -> list[Message]:
+    """``chunk_columns`` as mcap's Message records."""
+    return chunk_columns(chunk, channel_ids, offsets).messages()
+
+
+def chunk_columns(chunk: Chunk, channel_ids: Collection[int], offsets: np.ndarray | None) -> ChunkColumns:
     """The Message records of ``chunk`` on ``channel_ids``, in their order in the chunk. The chunk is
     decompressed and its CRC checked by mcap (``get_chunk_data_stream``, as ``breakup_chunk`` does);
-    then only the wanted messages are built (most of a node's recording are outputs a replay does not
-    read): those at ``offsets`` (``indexed_offsets``), or, without them or where they do not point at
-    such a message, those the records split by their heads hold. Raises ValueError for a record that
-    runs past the chunk's end."""
+    then only the wanted messages are read (most of a node's recording are outputs a replay does not
+    read): those at ``offsets`` (``indexed_offsets``; their heads read at once), or, without them or
+    where they do not point at such a message, those the records split by their heads hold. Raises
+    ValueError for a record that runs past the chunk's end."""
     data_stream, size = get_chunk_data_stream(chunk, validate_crc=True)
     data = data_stream.read(size)
     if offsets is not None:
-        indexed = _messages_at(data, offsets.tolist(), channel_ids)
+        indexed = _columns_at(data, offsets, channel_ids)
         if indexed is not None:
             return indexed
-    messages = []
+    heads: list[tuple[int, int, int, int]] = []
+    datas = []
     position = 0
     while position < size:
         if size - position < RECORD_HEAD.size:
@@ -216,32 +241,32 @@ def chunk_messages(chunk: Chunk, channel_ids: Collection[int], offsets: np.ndarr
         if opcode == Opcode.MESSAGE:
             if length < MESSAGE_HEAD.size:
                 raise ValueError(f"a message record at byte {body - RECORD_HEAD.size} is shorter than its head")
-            channel_id, sequence, log_time, publish_time = MESSAGE_HEAD.unpack_from(data, body)
-            if channel_id in channel_ids:
-                messages.append(Message(channel_id=channel_id, log_time=log_time, publish_time=publish_time,
-                                        sequence=sequence, data=data[body + MESSAGE_HEAD.size:position]))
-    return messages
+            head = MESSAGE_HEAD.unpack_from(data, body)   # channel id, sequence, log time, publish time
+            if head[0] in channel_ids:
+                heads.append(head)
+                datas.append(data[body + MESSAGE_HEAD.size:position])
+    columns = np.array(heads, np.uint64).reshape(-1, 4)
+    return ChunkColumns(columns[:, 0].astype(np.uint16), columns[:, 1].astype(np.uint32), columns[:, 2],
+                        columns[:, 3], datas)
 
 
-def _messages_at(data: bytes, offsets: list[int], channel_ids: Collection[int]) -> list[Message] | None:
-    """The Message records at ``offsets`` of the chunk's records ``data``; None if one is not a whole
-    Message record on ``channel_ids`` there."""
-    messages = []
-    size = len(data)
-    for position in offsets:
-        body = position + RECORD_HEAD.size
-        if body + MESSAGE_HEAD.size > size:
-            return None
-        opcode, length = RECORD_HEAD.unpack_from(data, position)
-        end = body + length
-        if opcode != Opcode.MESSAGE or length < MESSAGE_HEAD.size or end > size:
-            return None
-        channel_id, sequence, log_time, publish_time = MESSAGE_HEAD.unpack_from(data, body)
-        if channel_id not in channel_ids:
-            return None
-        messages.append(Message(channel_id=channel_id, log_time=log_time, publish_time=publish_time,
-                                sequence=sequence, data=data[body + MESSAGE_HEAD.size:end]))
-    return messages
+def _columns_at(data: bytes, offsets: np.ndarray, channel_ids: Collection[int]) -> ChunkColumns | None:
+    """The Message records at ``offsets`` (increasing) of the chunk's records ``data``, their heads read at
+    once; None if one is not a whole Message record on ``channel_ids`` there."""
+    size, head_size = len(data), MESSAGE_RECORD_HEAD.itemsize
+    if len(offsets) and int(offsets[-1]) + head_size > size:
+        return None
+    at = offsets.astype(np.int64)
+    heads = np.frombuffer(data, np.uint8)[at[:, None] + np.arange(head_size)].view(MESSAGE_RECORD_HEAD)[:, 0]
+    length = heads["length"]
+    if not (np.all(heads["opcode"] == Opcode.MESSAGE) and np.all(length >= MESSAGE_HEAD.size)
+            and np.all(length <= size)):
+        return None
+    end = at + RECORD_HEAD.size + length.astype(np.int64)
+    if (len(end) and int(end.max()) > size) or not np.all(np.isin(heads["channel"], list(channel_ids))):
+        return None
+    return ChunkColumns(heads["channel"], heads["sequence"], heads["log_time"], heads["publish_time"],
+                        [data[start:stop] for start, stop in zip((at + head_size).tolist(), end.tolist())])
 
 
 def split_chunk(chunk: Chunk) -> list[Any]:

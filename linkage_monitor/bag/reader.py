@@ -29,7 +29,8 @@ from linkage_monitor.bag.columns import JointStateColumns, PressureColumns, join
 from linkage_monitor.bag.decode import BagMessage, Undecoded, decoded, undecoded_lines
 from linkage_monitor.bag.errors import BagError
 from linkage_monitor.bag.faults import log
-from linkage_monitor.bag.storage import raw_messages, storage_files
+from linkage_monitor.bag.mcap_file import MessageColumns, blocks_of, mcap_columns
+from linkage_monitor.bag.storage import raw_messages, storage_files, storage_of
 from linkage_monitor.wire.sensor_messages import FLUID_PRESSURE, JOINT_STATE
 
 
@@ -65,6 +66,16 @@ def read_bag_raw(path: str | os.PathLike[str], topics: Collection[str] | None = 
         for schema, channel, message in raw_messages(file, topics):
             yield RawMessage(channel.topic, schema.name if schema is not None else "", message.publish_time,
                              message.log_time, message.data)
+
+
+def read_bag_raw_blocks(path: str | os.PathLike[str], topics: Collection[str] | None = None
+                        ) -> Iterator[MessageColumns]:
+    """``read_bag_raw``'s messages in its order, as blocks of columns: an MCAP file's (``mcap_columns``: a
+    chunk at a time, no object per message but its bytes, when it is indexed), a sqlite3 file's
+    ``blocks_of`` its records."""
+    for file in storage_files(path):
+        yield from (mcap_columns(file, topics) if storage_of(file) == "mcap" else
+                    blocks_of(raw_messages(file, topics)))
 
 
 def read_inputs(path: str | os.PathLike[str]) -> dict[str, JointStateColumns | PressureColumns]:

@@ -31,7 +31,8 @@ import numpy as np
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 
-from linkage_monitor.bag.reader import RawMessage, read_bag, read_bag_raw
+from linkage_monitor.bag.mcap_file import MessageColumns
+from linkage_monitor.bag.reader import read_bag, read_bag_raw, read_bag_raw_blocks
 from linkage_monitor.bag.step_recorder import RecordedInput
 from linkage_monitor.bag.errors import BagError
 from linkage_monitor.bag.writer import MECHANISM_TOPIC
@@ -151,38 +152,44 @@ def _default_config(bag: Path, description: Mechanism) -> MonitorConfig:
 
 
 def _events(path: Path, config: MonitorConfig, raw: list[RecordedInput]) -> Iterator[Event | InputColumns]:
-    """The bag's input and configuration events in recording order, read as they are asked for, the
-    inputs READ_BLOCK messages at a time as runs of columns and single events
-    (``wire.input_block``); inputs also appended to ``raw`` (the caller takes them out piece by piece).
-    The inputs are read from their bytes as the node reads them (``wire.sensor_messages``); bytes
-    that are not their type (the node records them as they came) are an UnreadableEvent, as in the node."""
+    """The bag's input and configuration events in recording order, read as they are asked for (a block of
+    columns at a time: ``read_bag_raw_blocks``), the inputs READ_BLOCK messages at a time as runs of columns
+    and single events (``wire.input_block``); inputs also appended to ``raw`` (the caller takes them out
+    piece by piece). The inputs are read from their bytes as the node reads them (``wire.sensor_messages``);
+    bytes that are not their type (the node records them as they came) are an UnreadableEvent, as in the node."""
     imu = config.topics.imu   # the IMU the node was configured with ('' none; MonitorConfig)
     wanted = [config.topics.joint_states, *config.pressure_topics, *([imu] if imu else []), CONFIG_TOPIC]
+    inputs = {(config.topics.joint_states, JOINT_STATE), *((topic, FLUID_PRESSURE) for topic in config.pressure_topics),
+              *([(imu, IMU)] if imu else [])}   # (topic, type name) of the inputs read
     first_config = True
-    block: list[RawMessage] = []
-    for message in read_bag_raw(path, topics=wanted):
-        topic, type_name = message.topic, message.type_name
-        if topic == CONFIG_TOPIC:
-            yield from _read_inputs(block, raw)
-            if not first_config:
-                yield ConfigEvent(_recorded_change(path, config, message))
-            first_config = False
-            continue
-        if ((type_name == JOINT_STATE and topic == config.topics.joint_states)
-                or (type_name == FLUID_PRESSURE and topic in config.pressure_topics)
-                or (type_name == IMU and topic == imu)):
-            block.append(message)
-            if len(block) >= READ_BLOCK:
-                yield from _read_inputs(block, raw)
-    yield from _read_inputs(block, raw)
+    block = MessageColumns([], [], [], [])   # inputs read, not yet handed over
+    for read in read_bag_raw_blocks(path, topics=wanted):
+        start = 0
+        for end in [*(i for i, topic in enumerate(read.topic) if topic == CONFIG_TOPIC), len(read.topic)]:
+            taken = [i for i, kind in enumerate(zip(read.topic[start:end], read.type_name[start:end]), start)
+                     if kind in inputs]
+            block.topic.extend([read.topic[i] for i in taken])
+            block.type_name.extend([read.type_name[i] for i in taken])
+            block.log_time_ns.extend([read.log_time_ns[i] for i in taken])
+            block.data.extend([read.data[i] for i in taken])
+            while len(block.data) >= READ_BLOCK:
+                yield from _read_inputs(block, raw, READ_BLOCK)
+            if end < len(read.topic):   # a configuration change
+                yield from _read_inputs(block, raw, len(block.data))
+                if not first_config:
+                    yield ConfigEvent(_recorded_change(path, config, read.data[end], read.log_time_ns[end]))
+                first_config = False
+            start = end + 1
+    yield from _read_inputs(block, raw, len(block.data))
 
 
-def _recorded_change(path: Path, config: MonitorConfig, message: RawMessage) -> MonitorConfig:
-    """``config`` with the runtime parameters of the configuration change ``message`` recorded."""
+def _recorded_change(path: Path, config: MonitorConfig, data: bytes, log_time_ns: int) -> MonitorConfig:
+    """``config`` with the runtime parameters of the configuration change recorded (``data``, its CDR
+    bytes, logged at ``log_time_ns``)."""
     try:
-        text = deserialize_message(message.data, String).data
+        text = deserialize_message(data, String).data
     except Exception as exc:  # noqa: BLE001 - rclpy raises RMWError for bytes it cannot read
-        raise BagError(f"bag {path}: a configuration change on {CONFIG_TOPIC} (log time {message.log_time_ns} ns) "
+        raise BagError(f"bag {path}: a configuration change on {CONFIG_TOPIC} (log time {log_time_ns} ns) "
                        f"does not decode as std_msgs/msg/String ({exc}): the bag is damaged") from None
     recorded = MonitorConfig.from_yaml(text, source=f"{path} ({CONFIG_TOPIC})")
     return replace(config, overrides=recorded.overrides, staleness_limit_s=recorded.staleness_limit_s,
@@ -190,19 +197,20 @@ def _recorded_change(path: Path, config: MonitorConfig, message: RawMessage) -> 
                    dead_centre_transmission_deg=recorded.dead_centre_transmission_deg, implement=recorded.implement)
 
 
-def _read_inputs(block: list[RawMessage], raw: list[RecordedInput]) -> Iterator[InputColumns | InputEvent]:
-    """The input messages ``block`` read (``wire.input_block.input_items``), each recorded in ``raw``;
-    ``block`` is left empty."""
-    if not block:
+def _read_inputs(block: MessageColumns, raw: list[RecordedInput], count: int) -> Iterator[InputColumns | InputEvent]:
+    """The first ``count`` input messages of ``block`` read (``wire.input_block.input_items``), each recorded
+    in ``raw``, and taken out of ``block``."""
+    if not count:
         return
-    topics, type_names, datas, receive = ([m.topic for m in block], [m.type_name for m in block],
-                                          [m.data for m in block], [m.log_time_ns for m in block])
+    topics, type_names, receive, datas = (block.topic[:count], block.type_name[:count], block.log_time_ns[:count],
+                                          block.data[:count])
+    for column in block:
+        del column[:count]
     items = input_items(topics, type_names, datas, receive)
     stamps: list[int] = []
     for item in items:
         stamps += item.stamps_ns.tolist() if isinstance(item, InputColumns) else [item.stamp_ns]
     raw += map(RecordedInput, topics, type_names, stamps, receive, datas)
-    block.clear()
     yield from items
 
 
