@@ -189,13 +189,23 @@ class Steps(Sequence[Step]):
 
     def __iter__(self) -> Iterator[Step]:
         for poses in self.quiet:
-            missing = np.flatnonzero(np.fromiter((self.made[i] is None for i in poses.index.tolist()), bool,
-                                                 len(poses.index)))
-            if not missing.size:
-                continue
+            self._build(poses, np.arange(len(poses.index)))
+        return iter(self.made)  # type: ignore[arg-type]  # every None filled above
+
+    def at(self, which: Sequence[int]) -> list[Step]:
+        """``self[i]`` of each place of ``which``, the quiet poses' Steps not built yet built at once (one
+        ``QuietPoses.steps`` per segment)."""
+        wanted = np.asarray(which, np.int64)
+        for poses in self.quiet:
+            self._build(poses, np.flatnonzero(np.isin(poses.index, wanted)))
+        return [self[i] for i in which]
+
+    def _build(self, poses: QuietPoses, at: np.ndarray) -> None:
+        """The Steps of ``poses`` at positions ``at`` (ascending) that are not built yet, built."""
+        missing = at[np.fromiter((self.made[i] is None for i in poses.index[at].tolist()), bool, len(at))]
+        if missing.size:
             for i, step in zip(poses.index[missing].tolist(), poses.steps(missing)):
                 self.made[i] = step
-        return iter(self.made)  # type: ignore[arg-type]  # every None filled above
 
     @property
     def stamps_ns(self) -> np.ndarray:

@@ -78,7 +78,7 @@ class StepMessenger:
         asked = np.flatnonzero(~quiet | ~np.concatenate([[False], quiet[:-1]])).tolist()
         reported = [k for k in asked
                     if (gate.due_quiet() if quiet[k] else gate.due(steps.made[k]))]  # type: ignore[arg-type]  # made
-        return SentBesides(markers, {k: self.diagnostic(steps[k], now_ns[k]) for k in reported})
+        return SentBesides(markers, {k: self.diagnostic(step, now_ns[k]) for k, step in zip(reported, steps.at(reported))})
 
     def _sent(self, step: Step, outputs: Outputs | None, markers: bytes | None, now_ns: int) -> StepMessages:
         """``step``'s messages with its ``outputs`` and ``markers``, and its diagnostic when one is due."""
