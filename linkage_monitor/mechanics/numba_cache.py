@@ -115,9 +115,16 @@ class _PackageStamped:
 
     @classmethod
     def from_function(cls, py_func: Any, py_file: str) -> Any:
-        if Path(py_file).resolve().parent != KERNELS.resolve():
+        if not _in_package(py_file):
             return None
         return super().from_function(py_func, py_file)   # type: ignore[misc]
+
+
+@functools.lru_cache(maxsize=None)
+def _in_package(py_file: str) -> bool:
+    """Whether ``py_file`` is a module of the kernels package (asked for each kernel by each locator: its
+    paths resolved once per file)."""
+    return Path(py_file).resolve().parent == KERNELS.resolve()
 
 
 def stamp_by_package() -> None:
