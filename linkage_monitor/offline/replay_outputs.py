@@ -6,6 +6,7 @@ Units SI; frame x forward, z up, origin at the rear wheels' ground contact.
 from __future__ import annotations
 
 import time
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -29,7 +30,9 @@ class BagOutput:
     order, as the node records them (``bag.step_recorder``), ENCODE_BLOCK steps at a time: their outputs
     encoded at once (``OutputEncoder.output_rows``, with the monitor in the steps' configuration; a quiet
     pose's from its segment's columns, its Step not built: ``monitoring.steps.Steps``) and,
-    as fast as possible, all their messages written at once (``StepRecorder.steps``). With ``rate`` the
+    as fast as possible, all their messages written at once (``StepRecorder.steps``), in a thread of its own
+    while the next steps are read and solved (the block's chunks are compressed beside the building of the
+    next chunk's records, and the thread, not the replay, waits for them). With ``rate`` the
     messages go one by one (``StepRecorder.input``, ``step``), each input's written at its receive time
     scaled by 1 / ``rate`` from the first: a block written at once cannot keep that pace."""
 
@@ -45,6 +48,8 @@ class BagOutput:
         except BaseException:
             self.writer.close()
             raise
+        self._writing = ThreadPoolExecutor(max_workers=1, thread_name_prefix="replay output")
+        self._written: Future[None] | None = None   # the block being written (one at a time: memory stays flat)
         self.messenger = StepMessenger(description, f"linkage_monitor: {description.name}", DEFAULT_RATE_HZ)
         self.encoder = OutputEncoder()
         self.first, self.rate, self.pace_start = first_receive_ns, rate, time.perf_counter()
@@ -56,7 +61,8 @@ class BagOutput:
             outputs = self.encoder.output_rows(monitor, steps)
             if not self.rate:
                 besides = self.messenger.sent_of(steps, [r.receive_ns for r in inputs])
-                self.recorder.steps(inputs, steps.stamps_ns, besides, outputs)
+                self._wait()
+                self._written = self._writing.submit(self.recorder.steps, inputs, steps.stamps_ns, besides, outputs)
                 continue
             sent = self.messenger.messages_of(steps, per_step(outputs, len(steps)), [r.receive_ns for r in inputs])
             for recorded, messages in zip(inputs, sent):
@@ -68,7 +74,17 @@ class BagOutput:
                 self.recorder.step(messages, receive)
 
     def close(self) -> None:
-        self.writer.close()
+        try:
+            self._wait()
+        finally:
+            self._writing.shutdown()
+            self.writer.close()
+
+    def _wait(self) -> None:
+        """Once the block being written is (what its writing raised raised here)."""
+        if self._written is not None:
+            written, self._written = self._written, None
+            written.result()
 
 
 class RerunOutput:
