@@ -12,7 +12,7 @@ from the IMU to the body whose inertia it gives), with the simulator's noise (0.
 0.5 mrad; no seal friction (the weighing's matter, bench_weighing.py). The monitor's side: the
 solver's poses of the noisy inputs, the IMU's samples one by one (``mechanics.dynamics.ImuBody``: the
 gyro differentiated over ``PITCH_WINDOW``, centred) and ``monitoring.road.RoadInput.balance`` as the node
-and the replay compute it (the weight at rest averaged over the bounce, ``RestLoad``); each step's
+and the replay compute it (the weight at rest averaged while the implement is carried, ``RestLoad``); each step's
 dynamic values and static margin are those of the solve at its body's stamp and are compared with that
 solve's truth.
 The truth, from the simulator's true body motion and implement mass: the unit at rest (the solver at the true lengths with the implement's
@@ -27,7 +27,8 @@ margin "unaffected by the bumps"); then that error without a road and with the b
 IMU's correction (the pressures carry the implement's inertia); the
 truth's dynamic dips (its lowest margin minus the static one). Goal: dynamic margin RMS error ≤ 0.01.
 
-Run: ``.venv/bin/python bench/bench_dynamics.py [--runs 10] [--rate 400]``
+Run: ``.venv/bin/python bench/bench_dynamics.py [--runs 10] [--rate 400] [--accel-noise 0.05] [--gyro-noise 0.005]``
+(the last two: the IMU's noise, to see what a better sensor buys).
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ from linkage_monitor.mechanics.machine import MachineModel  # noqa: E402
 from linkage_monitor.monitoring.config import MonitorConfig  # noqa: E402
 from linkage_monitor.monitoring.road import RoadInput  # noqa: E402
 from linkage_monitor.sim.friction import SealFriction  # noqa: E402
-from linkage_monitor.sim.road import ImuReadings, Road  # noqa: E402
+from linkage_monitor.sim.road import ImuNoise, ImuReadings, Road  # noqa: E402
 from linkage_monitor.sim.telemetry import Noise  # noqa: E402
 from linkage_monitor.sim.work_cycle import ImplementTruth, WorkRun, simulate_work, with_implement  # noqa: E402
 
@@ -101,12 +102,12 @@ def _margins(mech: Mechanism, batch, stamps_ns: np.ndarray, imu: ImuReadings, im
         newest = body.add(stamp, f_z, rate) or newest
         bodies.append(newest)
     found = road.balance(stamps_ns, batch.frame_load_points, batch.frame_load_forces, batch.implement_load,
-                         batch.implement_cg[:, 0], bodies)
+                         batch.implement_cg[:, 0], batch.cylinder_length, bodies)
     described = np.array([int(np.searchsorted(stamps_ns, b.stamp_ns)) if b is not None else -1 for b in bodies])
     return Margins(found.static[:, MARGIN], found.dynamic[:, DYNAMIC_MARGIN], described)
 
 
-def _run(base: Mechanism, seed: int, rate: float, places: dict[str, float]) -> dict[str, float]:
+def _run(base: Mechanism, seed: int, rate: float, places: dict[str, float], imu_noise: ImuNoise) -> dict[str, float]:
     """One implement on one road: the errors (RMS over the run) with the IMU at each of ``places`` (m)."""
     rng = np.random.default_rng([seed, 4903])
     ref = np.asarray(base.implement.cg)
@@ -122,7 +123,7 @@ def _run(base: Mechanism, seed: int, rate: float, places: dict[str, float]) -> d
     out = {"static smooth": math.sqrt(np.nanmean((static - static_truth) ** 2))}
     for place, imu_x in places.items():
         run = simulate_work(base, implement, DURATION, rate, friction=SealFriction(share=0.0), road=road,
-                            noise=NOISE, seed=seed, imu_x=imu_x)
+                            noise=NOISE, imu_noise=imu_noise, seed=seed, imu_x=imu_x)
         assert run.imu is not None
         batch = Solver(mech).solve_batch(**run.stream.solver_inputs())
         static_truth, dynamic_truth = _truth(mech, run)
@@ -145,17 +146,22 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=10)
     parser.add_argument("--rate", type=float, default=400.0, help="sensor and IMU rate, Hz (default 400, the node's)")
+    parser.add_argument("--accel-noise", type=float, default=ImuNoise().acceleration,
+                        help="the IMU accelerometer's noise, m/s² (default %(default)s, the simulator's)")
+    parser.add_argument("--gyro-noise", type=float, default=ImuNoise().angular_velocity,
+                        help="the IMU gyroscope's noise, rad/s (default %(default)s, the simulator's)")
     args = parser.parse_args()
     base = load_preset("belarus_1221")
     wheelbase = base.tractor.wheelbase
     places = {"rear axle": 0.0, "mid-wheelbase": 0.5 * wheelbase, "front axle": wheelbase}
-    runs = [_run(base, seed, args.rate, places) for seed in range(args.runs)]
+    imu_noise = ImuNoise(acceleration=args.accel_noise, angular_velocity=args.gyro_noise)
+    runs = [_run(base, seed, args.rate, places, imu_noise) for seed in range(args.runs)]
 
     def rms(key: str) -> float:
         return math.sqrt(np.mean([r[key] ** 2 for r in runs]))
 
     print(f"belarus_1221: {args.runs} runs of {DURATION:.0f} s at {args.rate:.0f} Hz, implement bounced ±0.3 g "
-          "in transport")
+          f"in transport, IMU noise {imu_noise.acceleration:g} m/s², {imu_noise.angular_velocity:g} rad/s")
     print(f"{'IMU at':<24} {'dynamic margin RMS error':>25} {'in transport':>13} {'worst run':>10} "
           f"{'static margin RMS error':>24} {'/ without a road':>17}")
     for place, imu_x in places.items():

@@ -17,6 +17,7 @@ import pytest
 from linkage_monitor.mechanics import load_preset
 from linkage_monitor.mechanics.constants import STANDARD_GRAVITY
 from linkage_monitor.mechanics.dynamics import PITCH_WINDOW
+from linkage_monitor.mechanics.kernels import STEERABILITY_COLUMNS
 from linkage_monitor.monitoring.config import MonitorConfig, Topics
 from linkage_monitor.monitoring.core import Monitor
 from linkage_monitor.monitoring.events import ImuEvent, JointStateEvent
@@ -200,7 +201,8 @@ def test_a_measured_load_s_static_rows_are_those_of_the_solve_at_the_body_s_stam
     in the load, so the unit at rest of solve j is that solve with its load and frame forces scaled by
     g/(g + a) (``kernels.steerability_rows`` on them). Each row k is solve k − 15's at rest, its pose
     and load with its own weight at rest (a row of solve k's pose with solve k − 15's weight at rest
-    mixes two instants); a row without a body is the solve's own, as without an IMU."""
+    mixes two instants); a row without a body is the solve's own, as without an IMU. No lift cylinder
+    length given: the implement is never taken as carried, its weight at rest followed at once."""
     from linkage_monitor.mechanics import Solver, kernels
     from linkage_monitor.mechanics.dynamics import BodyAcceleration, BodyAt
     from linkage_monitor.mechanics.machine import machine_parameters
@@ -215,12 +217,66 @@ def test_a_measured_load_s_static_rows_are_those_of_the_solve_at_the_body_s_stam
     points, x6 = solved.frame_load_points[part], solved.implement_cg[part, 0]
     load, forces = solved.implement_load[part] * scale, solved.frame_load_forces[part] * scale[:, None, None]
     stamps = START + np.arange(n) * IMU_RATE_NS
-    bodies = [BodyAt(int(stamps[k - lag]), BodyAcceleration(heave, 0.0), 0.0) if k >= lag else None for k in range(n)]
+    bodies = [BodyAt(int(stamps[k - lag]), BodyAcceleration(heave, 0.0)) if k >= lag else None for k in range(n)]
     road = RoadInput(mech, _config(mech), load_measured=True)
     static = np.concatenate([road.balance(stamps[k:k + 1], points[k:k + 1], forces[k:k + 1], load[k:k + 1],
-                                          x6[k:k + 1], bodies[k:k + 1]).static for k in range(n)])
+                                          x6[k:k + 1], {}, bodies[k:k + 1]).static for k in range(n)])
     params = machine_parameters(mech.tractor, mech.gravity)
     rest, j = STANDARD_GRAVITY / (STANDARD_GRAVITY + heave), np.arange(n) - lag
     expected = kernels.steerability_rows(points[j], forces[j] * rest, load[j] * rest, x6[j], params)
     np.testing.assert_allclose(static[lag:], expected[lag:], rtol=1e-9)
     np.testing.assert_array_equal(static[:lag], kernels.steerability_rows(points, forces, load, x6, params)[:lag])
+
+
+@pytest.mark.parametrize("beyond", [0.1, -0.01])
+def test_the_weight_at_rest_is_averaged_while_the_lift_cylinder_is_beyond_the_ground_contact_zone(beyond):
+    """The reference pose's load steps from its weight to 1.5 times it at solve 40 (400 Hz), the body still,
+    the lift cylinder ``beyond`` (m) past the ground-contact zone's edge (``WeighingModel.contact_edge``,
+    the weighing's 6 % of the stroke) or, negative, short of it (within the zone). Carried, the weight at rest is the
+    exponential average over REST_TIME_CONSTANT (closed form); within the zone it follows at once. The
+    static total weight is the tractor's with the weight at rest in place of the load (total at rest −
+    total with the load = rest − load)."""
+    from linkage_monitor.mechanics import Solver, kernels
+    from linkage_monitor.mechanics.dynamics import REST_TIME_CONSTANT, BodyAcceleration, BodyAt
+    from linkage_monitor.mechanics.machine import machine_parameters
+    from linkage_monitor.monitoring.road import RoadInput, ground_zone
+    from linkage_monitor.monitoring.weighing import WeighingSettings
+
+    mech = load_preset("belarus_1221")
+    solved = Solver(mech).solve_batch(cylinders={c: np.array([v]) for c, v in mech.reference_inputs["cylinders"].items()},
+                                      angles={a: np.array([v]) for a, v in mech.reference_inputs["angles"].items()})
+    zone = ground_zone(mech)
+    assert zone.edge == pytest.approx(zone.model.contact_edge(WeighingSettings().ground_contact))
+    n = 200
+    scale = np.where(np.arange(n) < 40, 1.0, 1.5)
+    points = np.repeat(solved.frame_load_points, n, axis=0)
+    load, forces = solved.implement_load[0] * scale, solved.frame_load_forces[0][None] * scale[:, None, None]
+    x6 = np.full(n, solved.implement_cg[0, 0])
+    lengths = {zone.model.cylinder: np.full(n, zone.edge + zone.model.lifting_sign * beyond)}
+    stamps = START + np.arange(n) * IMU_RATE_NS
+    road = RoadInput(mech, _config(mech), load_measured=True)
+    static = road.balance(stamps, points, forces, load, x6, lengths,
+                          [BodyAt(int(s), BodyAcceleration(0.0, 0.0)) for s in stamps]).static
+    total = STEERABILITY_COLUMNS.index("total_weight")
+    rest = load + static[:, total] - kernels.steerability_rows(points, forces, load, x6,
+                                                              machine_parameters(mech.tractor, mech.gravity))[:, total]
+    t = np.maximum(np.arange(n) - 40 + 1, 0) * IMU_RATE_NS * 1e-9   # the average takes the step at solve 40
+    expected = (load[-1] - (load[-1] - load[0]) * np.exp(-t / REST_TIME_CONSTANT) if beyond > 0.0
+                else load.copy())
+    expected[:40] = load[0]
+    np.testing.assert_allclose(rest, expected, rtol=1e-9)
+
+
+def test_the_ground_contact_zone_is_found_once_and_kept_over_a_reconfiguration_of_the_same_linkage():
+    """The zone (a sweep of the stroke) is found at start-up (``load_kernels``), kept when the monitor is
+    reconfigured on the same linkage (a new staleness limit), and its edge is the weighing's."""
+    mech = load_preset("belarus_1221")
+    config = MonitorConfig(mechanism=mech.name, topics=Topics(imu="/imu"), pressure_absolute=False,
+                           pressure_topics={"/pressure": "lift_cap_pressure"})
+    monitor = Monitor(mech, config)
+    monitor.load_kernels()
+    zone = monitor.road.ground()
+    from linkage_monitor.monitoring.weighing import WeighingEstimator
+    assert zone.edge == WeighingEstimator(mech)._contact_edge
+    monitor.reconfigure(replace(config, staleness_limit_s=0.4))
+    assert monitor.road.ground() is zone

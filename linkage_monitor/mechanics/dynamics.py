@@ -27,11 +27,11 @@ weight at rest P·g/(g + a_6) (``implement_at_rest``; P and a_6 of one instant) 
 difference ΔP is an upward force at the implement's cg on the frame (by the linkage's equilibrium
 the same change of the frame loads' resultant), so that the static axle loads, ratio, margin,
 ballast advice and largest implement mass are those of the unit at rest and do not follow the
-bumps. The weight at rest is averaged (``RestLoad``) over a time constant that grows with the
-body's bounce (the RMS of the IMU's vertical acceleration over ``BOUNCE_WINDOW``): on a bouncing
-body the implement is carried and its weight does not change, and what the correction leaves of
-a bump (the pitch acceleration's error at the implement's lever) averages out; on a quiet body
-the weight changes when the ground takes or gives up the implement and is followed at once. A
+bumps. The weight at rest is averaged (``RestLoad``) over ``REST_TIME_CONSTANT`` while the
+implement is carried (its weight does not change, and what the correction leaves of the body's
+motion, the pitch acceleration's error at the implement's lever and the sensors' noise, averages
+out) and followed at once near the working position, where the ground takes or gives up the
+implement (``monitoring.road`` tells the two by the lift cylinder's length). A
 load not measured (no pressures: the implement's configured weight) is the weight at rest already.
 
 **Dynamic balance** (d'Alembert: each body's mass times its acceleration applied, reversed, at its
@@ -62,10 +62,9 @@ from .model import Tractor
 PITCH_WINDOW = 0.075   # s: the gyro's rate differentiated over 75 ms, centred (bench/bench_dynamics.py)
 FULL_SPAN = 0.8   # share of PITCH_WINDOW the gyro's samples must span before a pitch acceleration is given
 REBASE_S = 10.0   # s: the running sums' time origin moved on after this (their rounding stays ~1e-12 of the window's)
-BOUNCE_WINDOW = 0.3   # s: the IMU's vertical acceleration RMS over 0.3 s says how much the body bounces
+BOUNCE_WINDOW = 0.3   # s: the pitch acceleration's mean square over 0.3 s is its signal's (Wiener's S, ImuBody)
 FALLING = 0.5   # × g: an implement accelerating down faster than this is not weighed at rest (implement_at_rest)
-REST_TIME_CONSTANT = 0.5   # s: the weight at rest averaged over up to 0.5 s while the body bounces (RestLoad)
-BOUNCE_FULL = 1.0   # m/s²: from this RMS of the body's vertical acceleration on, the full REST_TIME_CONSTANT
+REST_TIME_CONSTANT = 1.0   # s: the weight at rest averaged over 1 s while the implement is carried (RestLoad)
 DYNAMIC_KEYS = ("dynamic_front_axle_load", "dynamic_rear_axle_load", "dynamic_ratio", "dynamic_margin")
 DYNAMIC_FRONT, DYNAMIC_MARGIN = DYNAMIC_KEYS.index("dynamic_front_axle_load"), DYNAMIC_KEYS.index("dynamic_margin")
 _STEER = {k: j for j, k in enumerate(kernels.STEERABILITY_COLUMNS)}
@@ -84,13 +83,10 @@ class BodyAcceleration(NamedTuple):
 
 
 class BodyAt(NamedTuple):
-    """The body's acceleration at the IMU sample of header stamp ``stamp_ns`` (ns), and ``bounce``: the
-    RMS of the IMU's vertical acceleration (m/s², gravity excluded) over the ``BOUNCE_WINDOW`` before
-    the newest sample."""
+    """The body's acceleration at the IMU sample of header stamp ``stamp_ns`` (ns)."""
 
     stamp_ns: int
     acceleration: BodyAcceleration
-    bounce: float
 
 
 class _Sample(NamedTuple):
@@ -115,8 +111,6 @@ class ImuBody:
         self.mount_x, self.gravity = mount_x, gravity
         self.window_ns = int(round(window * 1e9))
         self._samples: deque[_Sample] = deque()
-        self._squares: deque[tuple[int, float]] = deque()   # (stamp ns, (f_z − g)²) over BOUNCE_WINDOW
-        self._square_sum = 0.0
         self._slopes: deque[tuple[int, float]] = deque()   # (stamp ns, slope²) over BOUNCE_WINDOW
         self._slope_sum = 0.0
         self._origin = 0
@@ -138,9 +132,8 @@ class ImuBody:
         samples = self._samples
         if samples and stamp_ns <= samples[-1].stamp_ns:
             samples.clear()
-            self._squares.clear()
             self._slopes.clear()
-            self._square_sum = self._slope_sum = 0.0
+            self._slope_sum = 0.0
         samples.append(_Sample(stamp_ns, -rate_y, specific_force_z))
         if len(samples) == 1 or (stamp_ns - self._origin) * 1e-9 > REBASE_S:   # the sums again from a new origin
             self._origin, self._sums = samples[0].stamp_ns, [0.0] * 6
@@ -150,11 +143,6 @@ class ImuBody:
             self._count(samples[-1], 1.0)
         while samples[0].stamp_ns < stamp_ns - self.window_ns:
             self._count(samples.popleft(), -1.0)
-        vertical = specific_force_z - self.gravity
-        self._squares.append((stamp_ns, vertical * vertical))
-        self._square_sum += vertical * vertical
-        while self._squares[0][0] < stamp_ns - BOUNCE_WINDOW * 1e9:
-            self._square_sum -= self._squares.popleft()[1]
         if len(samples) < 3 or stamp_ns - samples[0].stamp_ns < FULL_SPAN * self.window_ns:
             return None
         n, st, sw, stt, stw, sww = self._sums
@@ -168,9 +156,8 @@ class ImuBody:
         signal = max(self._slope_sum / len(self._slopes) - noise, 0.0)
         pitch = slope * signal / (signal + noise) if signal > 0.0 else 0.0
         centre = samples[len(samples) // 2]
-        bounce = math.sqrt(max(self._square_sum, 0.0) / len(self._squares))
         return BodyAt(centre.stamp_ns, imu_body_acceleration(centre.specific_force_z, pitch, self.mount_x,
-                                                             self.gravity), bounce)
+                                                             self.gravity))
 
 
 def imu_body_acceleration(specific_force_z: float | np.ndarray, pitch_acceleration: float | np.ndarray,
@@ -202,26 +189,26 @@ def implement_at_rest(implement_load: np.ndarray, implement_acceleration: np.nda
 
 class RestLoad:
     """The implement's weight at rest averaged from IMU sample to IMU sample: an exponential average
-    whose time constant follows the body's bounce, ``time_constant``·min(1, (bounce/``BOUNCE_FULL``)²)
-    s of the samples' stamps. A bouncing body's weight at rest does not change (the implement is
-    carried; what the correction leaves of a bump, the pitch acceleration's error at the implement's
-    lever, averages out over a few bumps); a quiet body's does when the ground takes or gives up the
-    implement, and is followed at once. The first value is taken as it is; a NaN (an implement
-    falling faster than ``FALLING``·g) leaves it as it was and is answered with it."""
+    over ``time_constant`` s of the samples' stamps while the implement is carried (its driver beyond
+    the ground-contact zone, ``monitoring.road``), followed at once while it is not. A carried
+    implement's weight at rest does not change, so what the correction leaves of the body's motion
+    (the pitch acceleration's error at the implement's lever, the gyro's and the accelerometer's noise)
+    averages out; near the working position the ground takes or gives up the implement within a few
+    tenths of a second, and the weight at rest follows it. The first value is taken as it is; a NaN
+    (an implement falling faster than ``FALLING``·g) leaves it as it was and is answered with it."""
 
     def __init__(self, time_constant: float = REST_TIME_CONSTANT) -> None:
         self.time_constant = time_constant
         self._last: tuple[int, float] | None = None
 
-    def add(self, stamp_ns: int, rest: float, bounce: float) -> float:
+    def add(self, stamp_ns: int, rest: float, carried: bool) -> float:
         """The averaged weight at rest (N) after a sample at ``stamp_ns`` whose weight at rest is ``rest``
-        (N) with the body bouncing ``bounce`` (m/s² RMS)."""
+        (N), the implement ``carried`` (off the ground) or not."""
         last = self._last
         if not math.isfinite(rest):
             return last[1] if last is not None else math.nan
-        tau = self.time_constant * min(1.0, (bounce / BOUNCE_FULL) ** 2)
-        if last is not None and stamp_ns > last[0] and tau > 0.0:
-            rest = last[1] + (1.0 - math.exp(-(stamp_ns - last[0]) * 1e-9 / tau)) * (rest - last[1])
+        if carried and last is not None and stamp_ns > last[0] and self.time_constant > 0.0:
+            rest = last[1] + (1.0 - math.exp(-(stamp_ns - last[0]) * 1e-9 / self.time_constant)) * (rest - last[1])
         self._last = (stamp_ns, rest)
         return rest
 

@@ -99,7 +99,10 @@ class Monitor:
     def load_kernels(self) -> None:
         """Solve the mechanism's reference pose once, cold and warm-started, with its machine-level
         results, and forget it: numba loads each compiled kernel from its cache at the first call
-        (milliseconds each), which is better paid at start-up than on the first inputs."""
+        (milliseconds each), which is better paid at start-up than on the first inputs; the same for
+        the IMU's ground-contact zone (a sweep of the stroke)."""
+        if self.road is not None:
+            self.road.ground()
         reference = Inputs(**{k: dict(v) for k, v in self.mechanism.reference_inputs.items()})
         try:
             self.machine.evaluate(self.machine.solve(reference, previous=self.solver.solve(reference))[0])
@@ -350,7 +353,7 @@ class Monitor:
         dynamic: np.ndarray | list[None] = [None] * len(batch)
         if self.road is not None:
             balance = self.road.balance(taken.stamps_ns, batch.frame_load_points, batch.frame_load_forces,
-                                        batch.implement_load, batch.implement_cg[:, 0],
+                                        batch.implement_load, batch.implement_cg[:, 0], batch.cylinder_length,
                                         [due.body for due in taken.all()])
             machine = MachineBatch(dict(zip(machine.steerability, balance.static.T)), machine.lift_capacity,
                                    machine.size)
@@ -434,7 +437,9 @@ class Monitor:
         if self.road is not None:
             balance = self.road.balance(np.array([due.stamp_ns]), result.frame_load_points[None],
                                         result.frame_load_forces[None],
-                                        np.array([result.implement_load]), result.implement_cg[:1], [due.body])
+                                        np.array([result.implement_load]), result.implement_cg[:1],
+                                        dict(zip(result.names.cylinders, result.cylinder_values[:, None, 0])),
+                                        [due.body])
             machine = MachineResult(balance.static[0], machine.capacity_row, machine.steerability_keys,
                                     machine.capacity_keys)
             values = self._with_static(values, balance.static[0]) if values is not None else None

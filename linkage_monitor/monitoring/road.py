@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_left, bisect_right
-from typing import Sequence
+from typing import Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -33,6 +33,8 @@ from .config import MonitorConfig
 from .events import ImuEvent
 from .findings import Code, Finding, fmt
 from .inputs import NS, Refused
+from .weighing import WeighingSettings
+from .weighing_model import WeighingModel
 
 NO_DYNAMIC = np.full(len(DYNAMIC_KEYS), math.nan)   # the dynamic values of a pose without an IMU reading
 # The plausible readings of an IMU on a tractor body driving on its wheels: the specific force along z
@@ -46,25 +48,28 @@ PRUNE_AT = 1024   # solves forgotten before the history's lists are cut
 
 
 class _History:
-    """The recent solves, by header stamp (ns, non-decreasing): the implement load (N) at its cg's x (m)
-    and the forces the linkage puts on the frame (points / forces (K, 2), m / N), so that a solve's rows
-    at rest can be taken once its body's acceleration is known (``RoadInput.balance``)."""
+    """The recent solves, by header stamp (ns, non-decreasing): the implement load (N) at its cg's x (m),
+    whether it is carried (off the ground-contact zone) and the forces the linkage puts on the frame
+    (points / forces (K, 2), m / N), so that a solve's rows at rest can be taken once its body's
+    acceleration is known (``RoadInput.balance``)."""
 
     def __init__(self) -> None:
         self.stamps: list[int] = []
         self.load: list[float] = []
         self.x: list[float] = []
+        self.carried: list[bool] = []
         self.points: list[np.ndarray] = []
         self.forces: list[np.ndarray] = []
         self.start = 0
 
-    def extend(self, stamps: np.ndarray, load: np.ndarray, x: np.ndarray, points: np.ndarray,
+    def extend(self, stamps: np.ndarray, load: np.ndarray, x: np.ndarray, carried: np.ndarray, points: np.ndarray,
                forces: np.ndarray) -> None:
         if self.stamps and stamps.size and int(stamps[0]) < self.stamps[-1]:   # a stamp going back: start again
             self.__init__()   # type: ignore[misc]
         self.stamps += stamps.tolist()
         self.load += load.tolist()
         self.x += x.tolist()
+        self.carried += carried.tolist()
         self.points += list(np.array(points, dtype=float))   # copies: the solver's arrays are not kept
         self.forces += list(np.array(forces, dtype=float))
 
@@ -83,9 +88,35 @@ class _History:
             return
         self.start = bisect_left(self.stamps, self.stamps[-1] - keep_ns, lo=self.start)
         if self.start > PRUNE_AT:
-            for name in ("stamps", "load", "x", "points", "forces"):
+            for name in ("stamps", "load", "x", "carried", "points", "forces"):
                 setattr(self, name, getattr(self, name)[self.start:])
             self.start = 0
+
+
+class GroundZone(NamedTuple):
+    """Where the ground may carry the implement: the lift cylinder's length (m) short of ``edge``
+    (``WeighingModel.contact_edge``, the weighing's ``ground_contact`` share of the stroke from the
+    working length)."""
+
+    model: WeighingModel
+    edge: float
+
+    def carried(self, lengths: Mapping[str, np.ndarray], count: int) -> np.ndarray:
+        """(count,) bool: the solves whose lift cylinder (of ``lengths``, m by name) is beyond the zone."""
+        if self.model.cylinder not in lengths:
+            return np.zeros(count, dtype=bool)
+        return np.array([not self.model.grounded(length, self.edge) for length in lengths[self.model.cylinder].tolist()],
+                        dtype=bool)
+
+
+def ground_zone(mechanism: Mechanism) -> GroundZone | None:
+    """``mechanism``'s ground-contact zone, None where its lift cylinder's length is not measured with a
+    pressure (or it has no implement): the implement then never counts as carried."""
+    try:
+        model = WeighingModel(mechanism)
+    except ValueError:
+        return None
+    return GroundZone(model, model.contact_edge(WeighingSettings().ground_contact))
 
 
 class RoadInput:
@@ -94,6 +125,11 @@ class RoadInput:
 
     def __init__(self, mechanism: Mechanism, config: MonitorConfig, load_measured: bool) -> None:
         self.mechanism, self.config, self.load_measured = mechanism, config, load_measured
+        # the ground-contact zone, found when first needed (a stroke's sweep: tenths of a second) and kept
+        # over a reconfiguration of the same linkage (another implement or its estimate in use)
+        self._zone: GroundZone | None = None
+        self._zone_found = not load_measured
+        self._linkage = (mechanism.file, repr(mechanism.points), repr(mechanism.reference_inputs))
         self._imu, self._rest = ImuBody(config.imu_x, gravity=mechanism.gravity), RestLoad()
         assert mechanism.tractor is not None   # RoadInput is built for a mechanism with a tractor block only
         self._params = machine_parameters(mechanism.tractor, mechanism.gravity)
@@ -106,6 +142,8 @@ class RoadInput:
         """Keep ``previous``'s readings (a reconfiguration with the same IMU); the body's acceleration from
         the next message on with this configuration's mounting (``imu_x``)."""
         self._imu, self._rest, self._history = previous._imu, previous._rest, previous._history
+        if self.load_measured and previous._linkage == self._linkage:
+            self._zone, self._zone_found = previous._zone, previous._zone_found
         self._imu.mount_x, self._imu.gravity = self.config.imu_x, self.mechanism.gravity
         self._rest_at, self._stamp_ns = previous._rest_at, previous._stamp_ns
         self._body = previous._body if previous.config.imu_x == self.config.imu_x else None
@@ -137,6 +175,12 @@ class RoadInput:
             self._body = body
         self._stamp_ns = event.stamp_ns
 
+    def ground(self) -> GroundZone | None:
+        """The ground-contact zone of a measured load (``ground_zone``, found once), None without one."""
+        if not self._zone_found:
+            self._zone, self._zone_found = ground_zone(self.mechanism), True
+        return self._zone
+
     def body_at(self, stamp_ns: int) -> BodyAt | None:
         """The body's acceleration for a solve at ``stamp_ns``: the newest (half the pitch window before the
         newest IMU message), unless that message is older than the staleness limit (or none yet)."""
@@ -145,15 +189,17 @@ class RoadInput:
         return self._body
 
     def balance(self, stamps_ns: np.ndarray, frame_load_points: np.ndarray, frame_load_forces: np.ndarray,
-                implement_load: np.ndarray, implement_x: np.ndarray,
+                implement_load: np.ndarray, implement_x: np.ndarray, cylinder_lengths: Mapping[str, np.ndarray],
                 bodies: Sequence[BodyAt | None]) -> RoadBalance:
         """The static rows at rest and the dynamic values of N solved poses in input order (their stamps (N,)
-        ns, the other arrays as ``mechanics.dynamics.static_at_rest`` takes them), each with its body
+        ns, cylinder lengths (N,) m by name, the other arrays as ``mechanics.dynamics.static_at_rest``
+        takes them), each with its body
         acceleration (None: no IMU reading in use; the rows then as without an IMU, the dynamic values
         NaN). The body's acceleration is known half the pitch window late, so a pose's values are
         **those of the solve at its body's stamp** (``PITCH_WINDOW``/2 = 37.5 ms before the newest IMU
         message): the dynamic ones, and, with a measured load, the static rows, the solve's load with its
-        own inertia taken out (its weight at rest averaged over the bounce, ``RestLoad``), so that no
+        own inertia taken out (its weight at rest averaged while the implement is carried, off the
+        ground-contact zone: ``RestLoad``, ``GroundZone``), so that no
         load is paired with a weight at rest of another instant (the ground taking or giving up the
         implement changes the load within a few tenths of a second). Without a solve within the
         staleness limit of the body's stamp (or where that solve failed) the dynamic values are NaN and
@@ -162,7 +208,9 @@ class RoadInput:
         assert mech.tractor is not None   # RoadInput is built for a mechanism with a tractor block only
         g, history, tolerance = mech.gravity, self._history, self.config.staleness_limit_s * NS
         load, x6 = np.asarray(implement_load, dtype=float), np.asarray(implement_x, dtype=float)
-        history.extend(np.asarray(stamps_ns, dtype=np.int64), load, x6, frame_load_points, frame_load_forces)
+        zone = self.ground()
+        carried = zone.carried(cylinder_lengths, load.size) if zone is not None else np.zeros(load.size, dtype=bool)
+        history.extend(np.asarray(stamps_ns, dtype=np.int64), load, x6, carried, frame_load_points, frame_load_forces)
         found = [history.nearest(b.stamp_ns, tolerance) if b is not None else -1 for b in bodies]
         rest = np.full(load.size, math.nan)   # a measured load's weight at rest, of the solve the row is taken of
         for k, (body, j) in enumerate(zip(bodies, found)):
@@ -171,7 +219,7 @@ class RoadInput:
             if body.stamp_ns != self._rest_at[0] and j >= 0:
                 at_rest = implement_at_rest(np.array([history.load[j]]),
                                             np.array([body.acceleration.at(history.x[j])]), g, True).rest[0]
-                self._rest_at = (body.stamp_ns, self._rest.add(body.stamp_ns, float(at_rest), body.bounce))
+                self._rest_at = (body.stamp_ns, self._rest.add(body.stamp_ns, float(at_rest), history.carried[j]))
             rest[k] = self._rest_at[1]   # the last average while no solve is at the body's stamp
         static = static_at_rest(self._params, frame_load_points, frame_load_forces, load, x6, rest)
         dynamic = np.full((load.size, len(DYNAMIC_KEYS)), math.nan)

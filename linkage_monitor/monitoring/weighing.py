@@ -124,7 +124,7 @@ class WeighingEstimator:
                                    offset=settings.pressure_offset * area)
         m = self.model
         span = m.high - m.low
-        self._contact_edge = m.reference_length + m.lifting_sign * settings.ground_contact * span
+        self._contact_edge = m.contact_edge(settings.ground_contact)
         self._bin_width = span / settings.bins
         self._sums = np.zeros((settings.bins, 2, len(SUMS)))
         self._units = np.zeros((UNITS, settings.bins, 2, len(SUMS)))   # the strokes in groups, a direction each
@@ -201,7 +201,7 @@ class WeighingEstimator:
                 signal = 0.0
             fade = math.exp(-dt / settings.bounce_time)
             self._bounce = fade * self._bounce + (1.0 - fade) * signal
-        if (length - self._contact_edge) * m.lifting_sign < 0.0:
+        if m.grounded(length, self._contact_edge):
             return WeighingPhase.GROUND_CONTACT
         if abs(self._speed) < settings.motion_speed:
             self._bounce = 0.0 if acceleration is None else self._bounce   # a stroke's start judges itself

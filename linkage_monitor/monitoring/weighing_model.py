@@ -108,6 +108,15 @@ class WeighingModel:
         self._rows = list(zip(self.link.tolist(), self.u0.tolist(), self.ux.tolist(), self.uz.tolist(),
                               self.cg_height.tolist()))
 
+    def contact_edge(self, share: float) -> float:
+        """The driver's length (m) ``share`` of the stroke from the reference (working) length toward
+        lifting: up to it the implement may rest on the ground (``grounded``)."""
+        return self.reference_length + self.lifting_sign * share * (self.high - self.low)
+
+    def grounded(self, length: float, edge: float) -> bool:
+        """The driver at ``length`` (m) short of ``edge`` (``contact_edge``): the ground may carry part of the load."""
+        return (length - edge) * self.lifting_sign < 0.0
+
     def at(self, length: float) -> ForceColumns | None:
         """The force model at cylinder ``length`` (m), linear between grid lengths; None off the stroke."""
         where = (length - self.low) / self._step
