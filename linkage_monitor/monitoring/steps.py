@@ -233,8 +233,8 @@ class Steps(Sequence[Step]):
 
     def said(self) -> Iterator[tuple[int, Step]]:
         """The place and Step of each Step that is not a quiet pose's (the only ones with findings)."""
-        return ((i, step) for i, (step, quiet) in enumerate(zip(self.made, self.is_quiet.tolist()))  # type: ignore[misc]
-                if not quiet)   # not quiet: made
+        made = self.made
+        return ((i, made[i]) for i in np.flatnonzero(~self.is_quiet).tolist())  # type: ignore[misc]  # not quiet: made
 
 
 @dataclass(frozen=True)

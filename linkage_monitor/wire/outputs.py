@@ -347,12 +347,12 @@ def _filled(kind: str, template_of: Callable[[Any], Template], keys: list, steps
             source: np.ndarray, flags: np.ndarray | None = None) -> list[OutputRows]:
     """The ``kind`` messages of N poses (of ``steps``): ``template_of(keys[i])`` filled with stamps[i], its
     columns of source[i] and flags[i]; one ``Template.fill_rows`` per distinct key."""
-    codes: dict[Any, int] = {}   # each distinct key's number, in the order of first use
-    code = np.fromiter((codes.setdefault(key, len(codes)) for key in keys), np.intp, len(keys))
+    codes = {key: number for number, key in enumerate(dict.fromkeys(keys))}   # each distinct key's, by first use
+    code = np.fromiter(map(codes.__getitem__, keys), np.intp, len(keys)) if len(codes) > 1 else None
     found = []
     for key, number in codes.items():
         template = template_of(key)
-        at = np.flatnonzero(code == number) if len(codes) > 1 else np.arange(len(keys))
+        at = np.flatnonzero(code == number) if code is not None else np.arange(len(keys))
         found.append(OutputRows(kind, steps[at], template.fill_rows(stamps[at], source[np.ix_(at, template.columns)],
                                                                     flags[at] if flags is not None else None)))
     return found
