@@ -15,7 +15,8 @@ seconds is the derivative at the window's centre, to its curvature error, with n
 σ_ω·√(12/(n·(n²−1)))·rate for n samples. The road's pitch acceleration is broadband (on the
 simulator's road up to 16 Hz, where a tyre follows the profile): assigned to the newest sample a
 slope is 37.5 ms late and its error is as large as the signal, so ``ImuBody`` gives the body's
-acceleration **at the window's centre**, paired with that sample's specific force: known 37.5 ms
+acceleration **at the window's centre**, paired with the specific force there (the quadratic
+least-squares fit of f_z over the same window, at its centre: Savitzky & Golay 1964): known 37.5 ms
 late, and the monitor gives the dynamic values (and, with a measured load, the static rows) of the
 solve at that stamp (``monitoring.road``; bench/bench_dynamics.py). The slope is shrunk by Wiener's gain S/(S + N), N
 its variance from the window's own residuals, S its mean square over the last 0.3 s less N: a
@@ -61,7 +62,8 @@ from .model import Tractor
 
 PITCH_WINDOW = 0.075   # s: the gyro's rate differentiated over 75 ms, centred (bench/bench_dynamics.py)
 FULL_SPAN = 0.8   # share of PITCH_WINDOW the gyro's samples must span before a pitch acceleration is given
-REBASE_S = 10.0   # s: the running sums' time origin moved on after this (their rounding stays ~1e-12 of the window's)
+REBASE_S = 0.5   # s: the running sums' time origin moved on after this (the fit's 4th moments' rounding stays ~1e-10)
+SUMS = 11   # ImuBody's running sums: Σ1, Σt, Σw, Σt², Σt·w, Σw², Σt³, Σt⁴, Σa, Σt·a, Σt²·a (a = f_z − g)
 BOUNCE_WINDOW = 0.3   # s: the pitch acceleration's mean square over 0.3 s is its signal's (Wiener's S, ImuBody)
 FALLING = 0.5   # × g: an implement accelerating down faster than this is not weighed at rest (implement_at_rest)
 REST_TIME_CONSTANT = 1.0   # s: the weight at rest averaged over 1 s while the implement is carried (RestLoad)
@@ -101,7 +103,9 @@ class ImuBody:
     """The body's acceleration from an IMU at x = ``mount_x`` (m) on it, sample by sample (REP 103 body
     axes): the pitch acceleration is the least-squares slope of −ω_y over the samples of the last
     ``window`` s, which is the derivative at the window's centre; it is paired there with the sample
-    of that time (its f_z and stamp), so that the body's acceleration is given ``window``/2 late
+    of that time (its stamp) and the quadratic least-squares fit of f_z over the window at that time
+    (Savitzky & Golay 1964: the accelerometer's white noise σ leaves 0.27·σ for 31 samples), so that
+    the body's acceleration is given ``window``/2 late
     and without the lag a slope assigned to its newest sample has (module docstring). The slope is
     shrunk by Wiener's gain S/(S + N): N its variance from its own residuals (σ_ω²/Σ(t − t̄)²), S its
     mean square over ``BOUNCE_WINDOW`` less N, so that a still body's gyro noise is not taken for a
@@ -114,17 +118,23 @@ class ImuBody:
         self._slopes: deque[tuple[int, float]] = deque()   # (stamp ns, slope²) over BOUNCE_WINDOW
         self._slope_sum = 0.0
         self._origin = 0
-        self._sums = [0.0] * 6   # Σ1, Σt, Σw, Σt², Σt·w, Σw²; t in s from _origin
+        self._sums = [0.0] * SUMS
 
     def _count(self, sample: _Sample, sign: float) -> None:
-        t, w = (sample.stamp_ns - self._origin) * 1e-9, sample.nose_up_rate
+        t, w, a = (sample.stamp_ns - self._origin) * 1e-9, sample.nose_up_rate, sample.specific_force_z - self.gravity
+        tt = t * t
         sums = self._sums
         sums[0] += sign
         sums[1] += sign * t
         sums[2] += sign * w
-        sums[3] += sign * t * t
+        sums[3] += sign * tt
         sums[4] += sign * t * w
         sums[5] += sign * w * w
+        sums[6] += sign * tt * t
+        sums[7] += sign * tt * tt
+        sums[8] += sign * a
+        sums[9] += sign * t * a
+        sums[10] += sign * tt * a
 
     def add(self, stamp_ns: int, specific_force_z: float, rate_y: float) -> BodyAt | None:
         """One IMU sample (header stamp ns, f_z m/s², ω_y rad/s): the body's acceleration at the
@@ -136,7 +146,7 @@ class ImuBody:
             self._slope_sum = 0.0
         samples.append(_Sample(stamp_ns, -rate_y, specific_force_z))
         if len(samples) == 1 or (stamp_ns - self._origin) * 1e-9 > REBASE_S:   # the sums again from a new origin
-            self._origin, self._sums = samples[0].stamp_ns, [0.0] * 6
+            self._origin, self._sums = samples[0].stamp_ns, [0.0] * SUMS
             for sample in samples:
                 self._count(sample, 1.0)
         else:
@@ -145,7 +155,7 @@ class ImuBody:
             self._count(samples.popleft(), -1.0)
         if len(samples) < 3 or stamp_ns - samples[0].stamp_ns < FULL_SPAN * self.window_ns:
             return None
-        n, st, sw, stt, stw, sww = self._sums
+        n, st, sw, stt, stw, sww = self._sums[:6]
         spread = stt - st * st / n   # Σ(t − t̄)², s²
         slope = (stw - st * sw / n) / spread
         noise = max(sww - sw * sw / n - slope * slope * spread, 0.0) / (n - 2) / spread   # the slope's variance
@@ -156,8 +166,23 @@ class ImuBody:
         signal = max(self._slope_sum / len(self._slopes) - noise, 0.0)
         pitch = slope * signal / (signal + noise) if signal > 0.0 else 0.0
         centre = samples[len(samples) // 2]
-        return BodyAt(centre.stamp_ns, imu_body_acceleration(centre.specific_force_z, pitch, self.mount_x,
+        vertical = self._fit_at((centre.stamp_ns - self._origin) * 1e-9)
+        return BodyAt(centre.stamp_ns, imu_body_acceleration(vertical + self.gravity, pitch, self.mount_x,
                                                              self.gravity))
+
+    def _fit_at(self, tc: float) -> float:
+        """The quadratic least-squares fit of f_z − g (m/s²) over the window's samples at ``tc`` (s from the
+        origin): the moments about tc from the running sums, the normal equations by Cramer's rule."""
+        s0, s1, _, s2, _, _, s3, s4, a0, a1, a2 = self._sums
+        d, d2 = tc, tc * tc
+        m1 = s1 - d * s0
+        m2 = s2 - 2.0 * d * s1 + d2 * s0
+        m3 = s3 - 3.0 * d * s2 + 3.0 * d2 * s1 - d2 * d * s0
+        m4 = s4 - 4.0 * d * s3 + 6.0 * d2 * s2 - 4.0 * d2 * d * s1 + d2 * d2 * s0
+        g0, g1, g2 = a0, a1 - d * a0, a2 - 2.0 * d * a1 + d2 * a0
+        minor = m2 * m4 - m3 * m3
+        det = s0 * minor - m1 * (m1 * m4 - m2 * m3) + m2 * (m1 * m3 - m2 * m2)
+        return (g0 * minor - m1 * (g1 * m4 - g2 * m3) + m2 * (g1 * m3 - g2 * m2)) / det
 
 
 def imu_body_acceleration(specific_force_z: float | np.ndarray, pitch_acceleration: float | np.ndarray,
