@@ -101,21 +101,21 @@ class McapWriter(Writer):
         """The chunk compression as MCAP names it: "zstd", "lz4" or ""."""
         return {CompressionType.ZSTD: "zstd", CompressionType.LZ4: "lz4"}.get(self._private("compression"), "")
 
-    def compress(self, data: bytes) -> bytes:
+    def compress(self, data: bytes | memoryview) -> bytes:
         """``data`` compressed by this writer's chunk compression; zstd at ROW_CHUNK_ZSTD_LEVEL."""
         kind = self._private("compression")
         if kind == CompressionType.ZSTD:
             return bytes(self._zstd.compress(data))
         if kind == CompressionType.LZ4:
             return bytes(mcap_writer.lz4.frame.compress(data))
-        return data
+        return bytes(data)
 
     @functools.cached_property
     def _zstd(self) -> Any:
         """This writer's zstd compressor for ``compress`` (one per writer: a compressor is not thread-safe)."""
         return mcap_writer.zstandard.ZstdCompressor(level=ROW_CHUNK_ZSTD_LEVEL)
 
-    def chunk_crc(self, data: bytes) -> int:
+    def chunk_crc(self, data: bytes | memoryview) -> int:
         """The uncompressed CRC this writer gives a chunk of ``data`` (0: CRCs off)."""
         return zlib.crc32(data) if self._private("enable_crcs") else 0
 

@@ -120,12 +120,13 @@ class RowBlock:
     def __len__(self) -> int:
         return len(self.part)
 
-    def records(self, lo: int, hi: int, channels: np.ndarray, lead: bytes) -> tuple[bytes, np.ndarray]:
+    def records(self, lo: int, hi: int, channels: np.ndarray, lead: bytes) -> tuple[memoryview, np.ndarray]:
         """The uncompressed records of a chunk of messages ``lo``..``hi - 1``: ``lead`` (schema and channel
         records) then each message's Message record (its topic's channel id in ``channels``), and each
         message's record offset in them. The records' heads, then each part's payloads of one size, are
         copied as rows into a view of the chunk whose row k starts at byte k (``_starting_at``), from such a
-        view of the part's bytes: a row copy per message, no index per byte."""
+        view of the part's bytes: a row copy per message, no index per byte. The records are a view of the
+        array they were copied into (compressed and checked from there: no copy of the chunk's bytes)."""
         head_size = MESSAGE_RECORD_HEAD.itemsize
         size = self.size[lo:hi]
         head = np.empty(hi - lo, MESSAGE_RECORD_HEAD)
@@ -147,7 +148,7 @@ class RowBlock:
             for width in np.unique(sizes).tolist():
                 these = mine[sizes == width]
                 _starting_at(out, width)[payload[these]] = _starting_at(self.data[k], width)[start[these]]
-        return out.tobytes(), offset
+        return out.data, offset
 
 
 def _starting_at(data: np.ndarray, width: int) -> np.ndarray:
@@ -188,7 +189,7 @@ class ChunkRecords(NamedTuple):
 
     lo: int
     hi: int
-    data: bytes
+    data: memoryview
     offset: np.ndarray
     channels: np.ndarray
     present: np.ndarray
@@ -208,7 +209,7 @@ def chunk_records(block: RowBlock, lo: int, hi: int, current: StorageFile) -> Ch
     return ChunkRecords(lo, hi, data, offset, channels, present, counts)
 
 
-def compressed(current: StorageFile, data: bytes) -> tuple[bytes, int]:
+def compressed(current: StorageFile, data: memoryview) -> tuple[bytes, int]:
     """``data`` compressed as ``current``'s chunks are, and its uncompressed CRC (both release the GIL:
     ``BagWriter`` runs this beside the next chunk's records)."""
     writer = current.writer
