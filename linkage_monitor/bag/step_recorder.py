@@ -14,7 +14,8 @@ same messages in the same order). ``STEP_SENDS`` is the order of a step's messag
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple, Sequence
+from dataclasses import dataclass, field
+from typing import Callable, Iterator, NamedTuple, Sequence
 
 import numpy as np
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -43,6 +44,44 @@ class RecordedInput(NamedTuple):
     stamp_ns: int
     receive_ns: int
     data: bytes
+
+
+@dataclass
+class RecordedInputs:
+    """Input messages as the bag holds them (each a ``RecordedInput``), as columns in their order: topics,
+    type names, header stamps (ns; the receive time of one that does not read), receive times (ns), CDR bytes."""
+
+    topic: list[str] = field(default_factory=list)
+    type_name: list[str] = field(default_factory=list)
+    stamp_ns: list[int] = field(default_factory=list)
+    receive_ns: list[int] = field(default_factory=list)
+    data: list[bytes] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return len(self.data)
+
+    def __iter__(self) -> Iterator[RecordedInput]:
+        return map(RecordedInput, self.topic, self.type_name, self.stamp_ns, self.receive_ns, self.data)
+
+    def span(self, lo: int, hi: int) -> RecordedInputs:
+        """The inputs lo..hi-1."""
+        return RecordedInputs(self.topic[lo:hi], self.type_name[lo:hi], self.stamp_ns[lo:hi], self.receive_ns[lo:hi],
+                              self.data[lo:hi])
+
+    def extend(self, more: RecordedInputs) -> None:
+        """``more`` added after these."""
+        for mine, theirs in zip(self._columns(), more._columns()):
+            mine += theirs
+
+    def take(self, count: int) -> RecordedInputs:
+        """The first ``count`` inputs, taken out of these."""
+        taken = self.span(0, count)
+        for column in self._columns():
+            del column[:count]
+        return taken
+
+    def _columns(self) -> tuple[list, ...]:
+        return self.topic, self.type_name, self.stamp_ns, self.receive_ns, self.data
 
 
 class StepSend(NamedTuple):
@@ -103,7 +142,7 @@ class StepRecorder:
                 self.writer.write(getattr(self.topics, send.topic), data, messages.stamp_ns, type_name=send.type_name,
                                   qos=self.output_qos, log_time_ns=receive_ns)
 
-    def steps(self, inputs: Sequence[RecordedInput], stamps_ns: np.ndarray, sent: SentBesides,
+    def steps(self, inputs: RecordedInputs, stamps_ns: np.ndarray, sent: SentBesides,
               output_rows: Sequence[OutputRows]) -> None:
         """Each of ``inputs`` and what its step sent, as ``input`` then ``step`` of each in turn record them
         (the step's messages logged at its input's receive time), in one ``BagWriter.write_rows``: the inputs
@@ -120,16 +159,16 @@ class StepRecorder:
         for rows in output_rows:
             recorded[rows.steps, column[rows.kind]] = True
         place = np.cumsum(recorded).reshape(recorded.shape) - 1   # each recorded message's place in the block
-        receive = np.fromiter((r.receive_ns for r in inputs), np.int64, n)
-        input_stamp = np.fromiter((r.stamp_ns for r in inputs), np.int64, n)
+        receive = np.array(inputs.receive_ns, np.int64)
+        input_stamp = np.array(inputs.stamp_ns, np.int64)
         step_stamp = stamps_ns
-        by_topic: dict[tuple[str, str], list[int]] = {}
-        for i, r in enumerate(inputs):
-            by_topic.setdefault((r.topic, r.type_name), []).append(i)
+        kinds = list(zip(inputs.topic, inputs.type_name))
+        codes = {kind: code for code, kind in enumerate(dict.fromkeys(kinds))}   # each (topic, type)'s, by first input
+        kind_of = np.fromiter(map(codes.__getitem__, kinds), np.intp, n)
         parts = []
-        for (topic, type_name), which in by_topic.items():
-            at = np.array(which, np.int64)
-            parts.append(MessageRows.of_messages(topic, type_name, [inputs[i].data for i in which], place[at, 0],
+        for (topic, type_name), code in codes.items():
+            at = np.flatnonzero(kind_of == code)
+            parts.append(MessageRows.of_messages(topic, type_name, [inputs.data[i] for i in at.tolist()], place[at, 0],
                                                  input_stamp[at], receive[at], self.input_qos))
         for rows in output_rows:
             send, at = STEP_SENDS[column[rows.kind] - 1], rows.steps

@@ -33,7 +33,7 @@ from std_msgs.msg import String
 
 from linkage_monitor.bag.mcap_file import MessageColumns
 from linkage_monitor.bag.reader import read_bag, read_bag_raw, read_bag_raw_blocks
-from linkage_monitor.bag.step_recorder import RecordedInput
+from linkage_monitor.bag.step_recorder import RecordedInputs
 from linkage_monitor.bag.errors import BagError
 from linkage_monitor.bag.writer import MECHANISM_TOPIC
 from linkage_monitor.mechanics import Mechanism, Status, mechanism_from_text
@@ -151,7 +151,7 @@ def _default_config(bag: Path, description: Mechanism) -> MonitorConfig:
     return replace(config, pressure_topics={t: s for t, s in config.pressure_topics.items() if t in held})
 
 
-def _events(path: Path, config: MonitorConfig, raw: list[RecordedInput]) -> Iterator[Event | InputColumns]:
+def _events(path: Path, config: MonitorConfig, raw: RecordedInputs) -> Iterator[Event | InputColumns]:
     """The bag's input and configuration events in recording order, read as they are asked for (a block of
     columns at a time: ``read_bag_raw_blocks``), the inputs READ_BLOCK messages at a time as runs of columns
     and single events (``wire.input_block``); inputs also appended to ``raw`` (the caller takes them out
@@ -197,7 +197,7 @@ def _recorded_change(path: Path, config: MonitorConfig, data: bytes, log_time_ns
                    dead_centre_transmission_deg=recorded.dead_centre_transmission_deg, implement=recorded.implement)
 
 
-def _read_inputs(block: MessageColumns, raw: list[RecordedInput], count: int) -> Iterator[InputColumns | InputEvent]:
+def _read_inputs(block: MessageColumns, raw: RecordedInputs, count: int) -> Iterator[InputColumns | InputEvent]:
     """The first ``count`` input messages of ``block`` read (``wire.input_block.input_items``), each recorded
     in ``raw``, and taken out of ``block``."""
     if not count:
@@ -210,7 +210,7 @@ def _read_inputs(block: MessageColumns, raw: list[RecordedInput], count: int) ->
     stamps: list[int] = []
     for item in items:
         stamps += item.stamps_ns.tolist() if isinstance(item, InputColumns) else [item.stamp_ns]
-    raw += map(RecordedInput, topics, type_names, stamps, receive, datas)
+    raw.extend(RecordedInputs(topics, type_names, stamps, receive, datas))
     yield from items
 
 
@@ -337,17 +337,16 @@ class _Replayer:
     def replay(self) -> Summary:
         """The summary of the whole replay (its outputs written)."""
         monitor = Monitor(self.description, self.config)
-        raw: list[RecordedInput] = []
+        raw = RecordedInputs()
         output: BagOutput | None = None
         view: RerunOutput | None = None
         try:
             with _progress_bar(self.progress) as advance:
                 for piece in monitor.runs(_events(self.bag, self.config, raw), self.piece_steps):
-                    inputs = raw[:len(piece.steps)]
-                    del raw[:len(piece.steps)]
+                    inputs = raw.take(len(piece.steps))
                     if not self.summary.inputs:
-                        self.summary.start_ns = inputs[0].stamp_ns
-                        output = self._bag_output(inputs[0].receive_ns)
+                        self.summary.start_ns = inputs.stamp_ns[0]
+                        output = self._bag_output(inputs.receive_ns[0])
                         view = RerunOutput(self.rrd, self.description) if self.rrd is not None else None
                     self.summary.inputs += len(inputs)
                     _account(self.summary, piece)

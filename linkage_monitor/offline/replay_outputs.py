@@ -10,7 +10,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from linkage_monitor.bag.step_recorder import RecordedInput, StepRecorder
+from linkage_monitor.bag.step_recorder import RecordedInputs, StepRecorder
 from linkage_monitor.bag.writer import BagWriter
 from linkage_monitor.mechanics import Mechanism
 from linkage_monitor.monitoring.config import MonitorConfig
@@ -54,17 +54,17 @@ class BagOutput:
         self.encoder = OutputEncoder()
         self.first, self.rate, self.pace_start = first_receive_ns, rate, time.perf_counter()
 
-    def write(self, monitor: Monitor, raw: list[RecordedInput], piece: Run) -> None:
+    def write(self, monitor: Monitor, raw: RecordedInputs, piece: Run) -> None:
         """The messages of a piece's steps (``raw``: their inputs, in order)."""
         for start in range(0, len(raw), ENCODE_BLOCK):
-            inputs, steps = raw[start:start + ENCODE_BLOCK], piece.steps[start:start + ENCODE_BLOCK]
+            inputs, steps = raw.span(start, start + ENCODE_BLOCK), piece.steps[start:start + ENCODE_BLOCK]
             outputs = self.encoder.output_rows(monitor, steps)
             if not self.rate:
-                besides = self.messenger.sent_of(steps, [r.receive_ns for r in inputs])
+                besides = self.messenger.sent_of(steps, inputs.receive_ns)
                 self._wait()
                 self._written = self._writing.submit(self.recorder.steps, inputs, steps.stamps_ns, besides, outputs)
                 continue
-            sent = self.messenger.messages_of(steps, per_step(outputs, len(steps)), [r.receive_ns for r in inputs])
+            sent = self.messenger.messages_of(steps, per_step(outputs, len(steps)), inputs.receive_ns)
             for recorded, messages in zip(inputs, sent):
                 receive = recorded.receive_ns
                 delay = (receive - self.first) * 1e-9 / self.rate - (time.perf_counter() - self.pace_start)
