@@ -50,13 +50,14 @@ def _stroke_errors(rng: np.random.Generator, ar: tuple[float, float], sigma: flo
     return x[BURN:] + rng.normal(0.0, NOISE / np.sqrt(SAMPLES), K)
 
 
-def _draw(rng: np.random.Generator, rows: np.ndarray, cycles: int, ar: tuple[float, float], sigma: float
-          ) -> tuple[np.ndarray, np.ndarray]:
-    """The bins' sums (K, 2, SUMS) of ``cycles`` lifts and lowers and their groups (UNITS, K, 2, SUMS)."""
+def _draw(rng: np.random.Generator, rows: np.ndarray, cycles: int, ar: tuple[float, float], sigma: float,
+          gain: float = 0.0, offset: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """The bins' sums (K, 2, SUMS) of ``cycles`` lifts and lowers and their groups (UNITS, K, 2, SUMS),
+    the force read with a calibration error common to all strokes (``gain`` -, ``offset`` N)."""
     units = np.zeros((UNITS, K, 2, len(SUMS)))
     for c in range(cycles):
         for d, sign in enumerate((1.0, -1.0)):
-            y = (rows @ THETA + _stroke_errors(rng, ar, sigma)) * (1.0 + sign * 0.03)
+            y = (1.0 + gain) * (rows @ THETA + _stroke_errors(rng, ar, sigma)) * (1.0 + sign * 0.03) + offset
             stroke = np.column_stack([np.full(K, SAMPLES), SAMPLES * rows, SAMPLES * y, SAMPLES * y**2, SAMPLES * y])
             units[c % UNITS, :, d] += stroke
     return units.sum(axis=0), units
@@ -84,11 +85,47 @@ def test_the_weight_s_uncertainty_matches_its_exact_variance(ar, cycles, sigma, 
         sums, units = _draw(rng, rows, cycles, ar, sigma)
         result = fit(sums, errors, Priors(x=1e3, z=1e3), min_samples=1, units=units)
         assert result is not None and result.pairs == K
-        variances.append(result.covariance[0, 0])
-        u = np.sqrt(result.covariance[0, 0]) * student_factor(result.dof)
+        weight = result.spread(np.array([1.0, 0.0, 0.0]))
+        variances.append(weight.variance)
+        u = np.sqrt(weight.variance) * student_factor(weight.dof)
         covered.append(abs(result.theta[0] - THETA[0]) <= 1.96 * u)
     # the mean of u² over 400 draws against the exact variance: ±20 % (the draws' own spread: a
     # jackknife over 2 × 5 groups has about 8 degrees of freedom, ±2.5 % on the mean of 400)
     assert 0.8 <= np.mean(variances) / exact <= 1.2, (np.mean(variances) / exact, ar, cycles)
     # the Student-widened 95 % interval: 400 draws give a coverage to ±1.1 % (1 σ)
     assert 0.925 <= np.mean(covered) <= most, (np.mean(covered), ar, cycles)
+
+
+GAIN, OFFSET = 0.02, 40.0   # the declared calibration (1 σ; -, N): the weight's error mostly a gain's
+
+
+@pytest.mark.parametrize(("ar", "cycles"), [((0.0, 0.0), 5), ((0.6, 0.0), 3)])
+def test_each_quantity_takes_its_own_degrees_of_freedom(ar, cycles):
+    """A calibration drawn once per draw from its declared σ: it dominates the weight's variance
+    (exact, many degrees of freedom) but a gain scales W·dx with W and leaves the cg's offset
+    dx = θ1/θ0 to the strokes' scatter and the jackknife's few degrees of freedom. Widened by the
+    weight's, dx's interval would cover about 91 % (5 cycles: t(0.975, 8) = 2.31 against 1.96)."""
+    rows = _rows()
+    rng = np.random.default_rng(51)
+    gain = np.linalg.pinv(rows)
+    scatter = (gain @ _process_covariance(ar, SIGMA) @ gain.T + NOISE**2 / SAMPLES * gain @ gain.T) / (2 * cycles)
+    ones = gain.sum(axis=1)
+    exact_weight = scatter[0, 0] + (GAIN * THETA[0]) ** 2 + (OFFSET * ones[0]) ** 2
+    jac = np.array([-THETA[1] / THETA[0] ** 2, 1.0 / THETA[0], 0.0])   # dx = θ1/θ0 at the truth
+    exact_dx = float(jac @ scatter @ jac + (OFFSET * jac @ ones) ** 2)   # a gain leaves dx as it is
+    errors = SensorErrors(noise=NOISE, gain=GAIN, offset=OFFSET)
+    found: dict[str, list[tuple[float, bool]]] = {"weight": [], "dx": []}
+    for _ in range(400):
+        sums, units = _draw(rng, rows, cycles, ar, SIGMA, rng.normal(0.0, GAIN), rng.normal(0.0, OFFSET))
+        result = fit(sums, errors, Priors(x=1e3, z=1e3), min_samples=1, units=units)
+        assert result is not None
+        theta = result.theta
+        at = np.array([-theta[1] / theta[0] ** 2, 1.0 / theta[0], 0.0])
+        for name, spread, error in (("weight", result.spread(np.array([1.0, 0.0, 0.0])), theta[0] - THETA[0]),
+                                    ("dx", result.spread(at), theta[1] / theta[0] - THETA[1] / THETA[0])):
+            u = np.sqrt(spread.variance) * student_factor(spread.dof)
+            found[name].append((spread.variance, abs(error) <= 1.96 * u))
+    for name, exact in (("weight", exact_weight), ("dx", exact_dx)):
+        variances, covered = (np.array(v) for v in zip(*found[name]))
+        assert 0.8 <= np.mean(variances) / exact <= 1.2, (name, np.mean(variances) / exact, ar, cycles)
+        assert 0.925 <= np.mean(covered) <= 0.975, (name, np.mean(covered), ar, cycles)

@@ -29,7 +29,7 @@ class Body:
     inertia: float = 0.0
 
 
-# Hinge and Mount: alike in form only to sim.work_cycle's records (fields of other data).
+# Hinge and Mount: alike in form only to sim.work_cycle's and monitoring.weighing_fit's records (fields of other data).
 @dataclass(frozen=True)
 class Hinge:
     """Revolute joint at ``point`` joining ``bodies = (a, b)``; its reaction is the force on b from a."""

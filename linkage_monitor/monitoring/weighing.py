@@ -33,7 +33,7 @@ import numpy as np
 from linkage_monitor.mechanics import Mechanism, Result
 from linkage_monitor.mechanics.constants import STANDARD_GRAVITY
 
-from .weighing_fit import N, SUMS, UNITS, Y, Fit, Priors, SensorErrors, fit, student_factor
+from .weighing_fit import N, SUMS, UNITS, Y, Fit, Priors, SensorErrors, Spread, fit, student_factor
 from .weighing_model import ForceColumns, WeighingModel
 
 
@@ -276,20 +276,25 @@ class WeighingEstimator:
             return None
         g = self.model.gravity
         weight, wx, wz = (float(v) for v in result.theta)
-        cov = result.covariance * student_factor(result.dof) ** 2   # the 95 % interval ±1.96·u: Student's
+        mass = result.spread(np.array([1.0, 0.0, 0.0]))
         offsets = []
-        for j in (1, 2):   # d = θj/θ0: first-order propagation of θ's covariance
+        for j in (1, 2):   # d = θj/θ0: first-order propagation of θ's covariance, with its own degrees of freedom
             jac = np.zeros(3)
             jac[0], jac[j] = -result.theta[j] / weight**2, 1.0 / weight
-            offsets.append(math.sqrt(max(float(jac @ cov @ jac), 0.0)))
+            offsets.append(_widened(result.spread(jac)))
         priors = self.settings.priors
         ref = self.model.reference_cg
-        return WeighingEstimate(mass=weight / g, mass_u=math.sqrt(max(float(cov[0, 0]), 0.0)) / g,
+        return WeighingEstimate(mass=weight / g, mass_u=_widened(mass) / g,
                                 cg_x=float(ref[0]) + wx / weight, cg_x_u=offsets[0],
                                 cg_z=float(ref[1]) + wz / weight, cg_z_u=offsets[1],
                                 cg_x_identified=offsets[0] < 0.5 * priors.x,
                                 cg_z_identified=offsets[1] < 0.5 * priors.z,
                                 pairs=result.pairs, friction_share=result.friction_share)
+
+
+def _widened(spread: Spread) -> float:
+    """The standard uncertainty widened by Student's factor for its degrees of freedom: ±1.96 u is 95 %."""
+    return math.sqrt(max(spread.variance, 0.0)) * student_factor(spread.dof)
 
 
 def estimate_text(estimate: WeighingEstimate | None, file_mass: float | None) -> str:

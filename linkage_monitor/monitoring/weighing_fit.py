@@ -30,7 +30,10 @@ freedom left, taken white: right for a noise white along the stroke, not for a b
 moves neighbouring bins together, so that an estimate from one lift and one lower says so by its
 few degrees of freedom). The sensors' calibration (a gain and an offset of the pressure,
 ``SensorErrors``) is common to all rows: it is propagated through the fit's gain matrix and
-added. Units SI.
+added as declared (exact). Each quantity (the weight, a cg offset) takes its degrees of freedom
+from its own parts (``Fit.spread``): the calibration dominates the weight's variance and lends it
+many, while a gain error scales W·dx with W and leaves the cg's offset to the strokes' scatter and
+its few. Units SI.
 """
 
 from __future__ import annotations
@@ -45,8 +48,9 @@ SUMS = ("n", "u0", "ux", "uz", "y", "yy", "force")   # the columns of a bin's su
 N, U0, UX, UZ, Y, YY, FORCE = range(len(SUMS))
 
 
-# The fit's records (declared errors, priors, the fit): fields of their own data, alike in form only
-# to sim.work_cycle's records (the simulated truth) and sim.road's.
+# The fit's records (declared errors, priors, a part of the covariance, a quantity's spread, the
+# fit): fields of their own data, alike in form only to sim.work_cycle's records (the simulated
+# truth), sim.road's and mechanics.model's joints and mounts.
 @dataclass(frozen=True)
 class SensorErrors:
     """The pressure measurement's declared errors (1 σ), as force on the lift cylinder: noise per
@@ -66,17 +70,50 @@ class Priors:
 
 
 @dataclass(frozen=True)
-class Fit:
-    """θ = (W N, W·dx N·m, W·dz N·m), its covariance (3, 3) and the degrees of freedom of its W entry
-    (∞: from the declared errors alone), the pairs used, the rows' RMS residual (N),
-    the mean friction share (half the lifting-lowering difference over the mean, -)."""
+class Part:
+    """A share of θ's covariance estimated from the data (N², N²·m, N²·m²; (3, 3)) and its degrees of freedom."""
 
-    theta: np.ndarray
     covariance: np.ndarray
     dof: float
+
+
+@dataclass(frozen=True)
+class Spread:
+    """A quantity's variance (its unit²) and the degrees of freedom it is known to (∞: declared alone)."""
+
+    variance: float
+    dof: float
+
+
+@dataclass(frozen=True)
+class Fit:
+    """θ = (W N, W·dx N·m, W·dz N·m) and its covariance (3, 3) in parts: the ``parts`` estimated from
+    the data (the jackknife's per direction, or the rows' scatter) plus the priors' share
+    (``estimated``, their sum and the prior's), the ``floor`` the declared pressure noise gives,
+    the sensors' ``calibration``; the pairs used, the rows' RMS residual (N), the mean friction share
+    (half the lifting-lowering difference over the mean, -)."""
+
+    theta: np.ndarray
+    parts: tuple[Part, ...]
+    estimated: np.ndarray
+    floor: np.ndarray
+    calibration: np.ndarray
     pairs: int
     scatter: float
     friction_share: float
+
+    def spread(self, jacobian: np.ndarray) -> Spread:
+        """The variance of the linear combination ``jacobian``·θ and its degrees of freedom: the
+        estimated parts never below the declared noise's (known to as many more degrees of
+        freedom as the floor is above them), plus the calibration (declared: no degrees of
+        freedom lost), combined by Satterthwaite (1946). Each quantity takes its own: the
+        calibration that dominates the weight's variance scales W·dx with W and leaves the cg's
+        offset almost all to the strokes' scatter and its few degrees of freedom."""
+        j = np.asarray(jacobian, dtype=float)
+        random = max(float(j @ self.estimated @ j), float(j @ self.floor @ j))
+        variance = random + float(j @ self.calibration @ j)
+        denominator = sum(float(j @ p.covariance @ j) ** 2 / p.dof for p in self.parts)
+        return Spread(variance, variance**2 / denominator if denominator > 0.0 else math.inf)
 
 
 def student_factor(dof: float) -> float:
@@ -138,55 +175,47 @@ def fit(sums: np.ndarray, errors: SensorErrors, priors: Priors, min_samples: int
     if solution is None:
         return None
     s = solution
-    covariance, dof = _jackknife(s, sums, units, errors, priors, min_samples) if units is not None else (None, 0.0)
-    if covariance is None:
-        covariance, dof = _scatter(s)
-    if covariance[0, 0] < s.inverse[0, 0]:   # never below the declared noise's, known to as many more
-        dof = dof * (s.inverse[0, 0] / covariance[0, 0]) ** 2   # degrees of freedom as the floor is above
-        covariance = s.inverse
+    parts = _jackknife(s, sums, units, errors, priors, min_samples) if units is not None else None
+    if parts is None:
+        parts = _scatter(s)
     calibration = (np.outer(s.gain @ s.force, s.gain @ s.force) * errors.gain**2
                    + np.outer(s.gain.sum(axis=1), s.gain.sum(axis=1)) * errors.offset**2)
-    total = covariance + calibration
-    # the calibration's variance is declared (no degrees of freedom lost): Satterthwaite's sum
-    dof = dof * (total[0, 0] / covariance[0, 0]) ** 2
     mean_y = float(np.mean(s.y))
-    return Fit(theta=s.theta, covariance=total, dof=dof, pairs=int(s.y.size),
+    return Fit(theta=s.theta, parts=parts, estimated=s.inverse @ s.prior @ s.inverse + sum(p.covariance for p in parts),
+               floor=s.inverse, calibration=calibration, pairs=int(s.y.size),
                scatter=float(math.sqrt(np.mean(s.residual**2))),
                friction_share=float(np.mean(s.half_gap)) / mean_y if mean_y != 0.0 else math.nan)
 
 
-def _scatter(s: _Solution) -> tuple[np.ndarray, float]:
+def _scatter(s: _Solution) -> tuple[Part, ...]:
     """The covariance from the rows' own scatter taken white (the weighted residuals' mean square over
-    the degrees of freedom left, times the declared-noise covariance), its degrees of freedom."""
+    the degrees of freedom left, times the declared-noise covariance) with its degrees of freedom;
+    none where no residual is left (the declared noise alone)."""
     w = 1.0 / s.noise_var
     dof = s.y.size - float(np.trace(s.inverse @ (s.rows.T @ (s.rows * w[:, None]))))
-    if dof < 1.0:   # no residual left: the declared noise alone
-        return s.inverse, math.inf
+    if dof < 1.0:
+        return ()
     ratio = float(np.sum(w * s.residual**2)) / dof
-    return s.inverse @ (s.rows.T @ (s.rows * (ratio * w)[:, None]) + s.prior) @ s.inverse, dof
+    return (Part(s.inverse @ (s.rows.T @ (s.rows * (ratio * w)[:, None])) @ s.inverse, dof),)
 
 
 def _jackknife(s: _Solution, sums: np.ndarray, units: np.ndarray, errors: SensorErrors, priors: Priors,
-               min_samples: int) -> tuple[np.ndarray | None, float]:
-    """The stratified delete-a-group jackknife covariance of θ plus the prior's share, and the
-    degrees of freedom of its W entry; None where a direction has fewer than two groups."""
-    covariance = s.inverse @ s.prior @ s.inverse
-    shares = []
+               min_samples: int) -> tuple[Part, ...] | None:
+    """The stratified delete-a-group jackknife covariance of θ, a part per direction with its groups
+    less one degrees of freedom; None where a direction has fewer than two groups."""
+    parts = []
     for direction in (0, 1):
         present = np.flatnonzero(units[:, :, direction, N].sum(axis=1) > 0.0)
         if present.size < 2:
-            return None, 0.0
+            return None
         thetas = []
         for group in present:
             left = sums.copy()
             left[:, direction] -= units[group, :, direction]
             other = _solve(left, errors, priors, min_samples)
             if other is None:
-                return None, 0.0
+                return None
             thetas.append(other.theta)
         spread = np.asarray(thetas) - np.mean(thetas, axis=0)
-        part = spread.T @ spread * (present.size - 1) / present.size
-        covariance = covariance + part
-        shares.append((float(part[0, 0]), present.size - 1))
-    denominator = sum(v * v / n for v, n in shares)
-    return covariance, (sum(v for v, _ in shares) ** 2 / denominator if denominator > 0.0 else math.inf)
+        parts.append(Part(spread.T @ spread * (present.size - 1) / present.size, float(present.size - 1)))
+    return tuple(parts)

@@ -41,7 +41,7 @@ CONTACT_TRAVEL = 0.005    # m of cylinder travel over which the implement leaves
 
 # The work cycle's records (its durations, the true implement, a load change, pressure errors, the
 # truth per sample): fields of their own data, alike in form only to mechanics.model's joints and
-# mounts, monitoring.weighing's settings and weighing_fit's errors, sim.road's and sim.coverage's
+# mounts, monitoring.weighing's settings and weighing_fit's records, sim.road's and sim.coverage's
 # records and test/support/fuzz_check's tally.
 @dataclass(frozen=True)
 class WorkCycle:
