@@ -8,7 +8,8 @@ Goals, per preset and output kind, over >= 200 runs and >= 5,000 steps: the 95 %
 k from the budget's shape) holds the true value in 93-97 % of the steps (coverage); the mean 95 %
 half-width is <= 2.5 times the RMS of the actual error (sharpness); no step passed by the monitor (no
 finding about the limit) whose true steerability margin, lift reserve or axle load is beyond its limit
-(wrong with OK). 1,000 runs by default: a group whose error a bias dominates (one draw per run) has a
+(wrong with OK), nor one whose judged value's u is unbounded (OK while unbounded: no interval to
+clear). 1,000 runs by default: a group whose error a bias dominates (one draw per run) has a
 coverage as scattered as the runs', about ±3 % (95 %) at 200 runs, wider than the goal's band, ±1.4 %
 at 1,000. Every figure printed, with the goal it meets or misses.
 
@@ -45,7 +46,8 @@ def report(preset: str, tally: CoverageTally, seconds: float) -> bool:
     met = compared >= 5000 and tally.runs >= 200
     for group, g in tally.groups.items():
         if g.steps == 0 and g.unbounded:   # e.g. a lift capacity that exists only within reach of a pole
-            print(f"    {group:<20} every one of its {g.unbounded} values unbounded: no interval claimed", flush=True)
+            print(f"    {group:<20} every one of its {g.unbounded} values unbounded (u NaN: no interval claimed, "
+                  f"coverage not measured, its verdicts WARN)", flush=True)
             continue
         if g.squared_error == 0.0 and g.half_width == 0.0:   # e.g. the configured implement weight: no source
             print(f"    {group:<20} exact: no error and u 0 over {g.steps} values", flush=True)
@@ -63,6 +65,11 @@ def report(preset: str, tally: CoverageTally, seconds: float) -> bool:
               f"({'ok' if wrong == 0 else 'MISS'})")
     if not tally.beyond:
         print("    wrong with OK: no step truly beyond a limit (or the mechanism has none)")
+    for output, unbounded in tally.unbounded_value.items():
+        passed = tally.unbounded_ok.get(output, 0)
+        met = met and passed == 0
+        print(f"    OK while unbounded: {output} {passed} of {unbounded} steps whose value clears the limit with "
+              f"its u unbounded ({'ok' if passed == 0 else 'MISS'})")
     return met
 
 

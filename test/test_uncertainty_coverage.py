@@ -65,6 +65,24 @@ def test_no_step_passed_whose_truth_is_beyond_a_limit(tallies, preset: str) -> N
     assert tallies[preset].wrong_with_ok == {}
 
 
+@pytest.mark.parametrize("preset", preset_names())
+def test_no_step_passed_whose_judged_value_is_unbounded(tallies, preset: str) -> None:
+    """A value judged against a limit whose u the monitor calls unbounded (ttz1080_base_change's lift reserve
+    wherever it exists: within reach of pivot O's pole, docs/accuracy.md) is a WARN, never OK."""
+    assert tallies[preset].unbounded_ok == {}
+
+
+def test_ttz1080s_lift_reserve_is_unbounded_and_never_ok() -> None:
+    """ttz1080_base_change's lift reserve exists only where its lift capacity does, within 1.5 mm of the
+    load's line through pivot O (the pole at a stroke of 0.7135 m, the stroke's end at 0.715 m; elsewhere
+    pushing the cylinder lowers the front half-frame: NaN), within reach of the pole: every such value is
+    unbounded, and each is a WARN. 40 runs of the lift (holding the stroke's end 29 % of its time) meet some."""
+    tally = study(load_preset("ttz1080_base_change"), 40, 30, np.random.default_rng(5), streams_per_scenario=1)
+    assert tally.unbounded_value.get("lift_reserve", 0) > 0
+    assert tally.unbounded_ok == {}
+    assert all(tally.groups[group].steps == 0 for group in DEFINED_IN_PART if group in tally.groups)
+
+
 def test_the_limits_are_exercised() -> None:
     """belarus_1221's overload scenario takes the true steerability margin and lift reserve below their
     limits: the zero above is over steps that could have been wrong."""

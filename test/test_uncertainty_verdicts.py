@@ -19,9 +19,10 @@ from linkage_monitor.cli.verdict import judge
 from linkage_monitor.mechanics import Inputs, Solver, apply_overrides, load_preset
 from linkage_monitor.mechanics.error_sources import Motion
 from linkage_monitor.mechanics.machine import MachineModel
+from linkage_monitor.mechanics.uncertainty import UncertaintyModel
 from linkage_monitor.monitoring.motion import MotionTracker
 from linkage_monitor.monitoring.bounds import (LimitUncertainties, ballast_at_bound, interval_checks,
-                                               uncertain_findings, verdict_half_width)
+                                               VERDICT_FACTOR_FLOOR, uncertain_findings, verdict_half_width)
 from linkage_monitor.monitoring.checks import Check
 from linkage_monitor.monitoring.core import Monitor
 from linkage_monitor.monitoring.events import ConfigEvent
@@ -232,3 +233,25 @@ def test_an_infinite_uncertainty_reads_as_unbounded() -> None:
         findings = uncertain_findings(Check.LIFT_RESERVE_UNCERTAIN, budget, MECH, step.pose.machine.value("total_weight"))
         assert [f.code for f in findings] == [Code.LIFT_RESERVE_UNCERTAIN] and "unbounded" in findings[0].text
     assert budget.line("implement_load").u == step.pose.budget.line("implement_load").u   # the other rows as they were
+
+
+def test_a_verdict_judges_each_tail_where_a_moving_seals_friction_shifts_the_error() -> None:
+    """Lifting, the seal's friction has a known sign: the 95 % interval (k) holds 95 % of the error in all,
+    one tail up to 5 %; a verdict's bound (``Budget.tail_k``, at least 1.96) leaves no more than 2.5 % on
+    either side (test_coverage_factor.py), so it is wider. Standing, the two are one factor."""
+    ri = MECH.reference_inputs
+    inputs = Inputs(cylinders=dict(ri["cylinders"]), angles=dict(ri["angles"]),
+                    pressures={"lift_cap_pressure": 10.132e6})
+    model = MachineModel(MECH, Solver(MECH))
+    pose = model.solve(inputs)
+    budgets = {motion: UncertaintyModel(model).budget(inputs, pose.result, pose.machine, motion)
+               for motion in (Motion.LIFTING, Motion.STANDING)}
+    lifting, standing = budgets[Motion.LIFTING], budgets[Motion.STANDING]
+    np.testing.assert_array_equal(standing.tail_k, standing.k)
+    i = lifting.index["implement_load"]
+    assert lifting.tail_k[i] > lifting.k[i] + 0.05   # the friction a large share of the load's u
+    for name in ("steerability_margin", "implement_load"):
+        i = lifting.index[name]
+        assert verdict_half_width(lifting, name) == pytest.approx(max(lifting.tail_k[i], VERDICT_FACTOR_FLOOR)
+                                                                   * lifting.u[i], rel=1e-12)
+        assert verdict_half_width(lifting, name) >= lifting.half_width[i]

@@ -14,7 +14,7 @@ from typing import Callable, Mapping, NamedTuple
 
 import numpy as np
 
-from .coverage_factor import coverage_factors
+from .coverage_factor import Factors, coverage_factors
 from .error_sources import Motion
 
 
@@ -102,13 +102,15 @@ class Budget:
     @staticmethod
     def summarised(outputs: tuple[Output, ...], sources: Callable[[], tuple[Source, ...]], values: np.ndarray,
                    contributions: np.ndarray, motions: Mapping[str, Motion], index: Mapping[str, int],
-                   uniform: np.ndarray, sign: np.ndarray, u: np.ndarray, k: np.ndarray) -> "Budget":
-        """A budget whose ``u`` and ``k`` are computed already (``kernels.tabulated_budget``: as the
+                   uniform: np.ndarray, sign: np.ndarray, u: np.ndarray, k: np.ndarray, tail_k: np.ndarray
+                   ) -> "Budget":
+        """A budget whose ``u``, ``k`` and ``tail_k`` are computed already (``kernels.tabulated_budget``: as the
         properties below compute them) and whose ``sources`` are built by ``sources()`` when first read
         (a live step reads u and k alone, the names only where a finding words them)."""
         budget = object.__new__(_SummarisedBudget)   # the fields and the cached properties' values at once
         budget.__dict__.update(outputs=outputs, _sources=sources, values=values, contributions=contributions,
-                               motions=motions, index=index, uniform=uniform, sign=sign, u=u, k=k)
+                               motions=motions, index=index, uniform=uniform, sign=sign, u=u, k=k,
+                               tail_k=tail_k)
         return budget
 
     @cached_property
@@ -119,13 +121,24 @@ class Budget:
         return np.where(np.isfinite(u), u, math.nan)
 
     @cached_property
+    def _factors(self) -> Factors:
+        """Both coverage factors of every output (``coverage_factor.coverage_factors``)."""
+        return coverage_factors(self.contributions.reshape(len(self.outputs), len(self.sources)), self.uniform,
+                                self.sign)
+
+    @cached_property
     def k(self) -> np.ndarray:
-        """The 95 % coverage factor (n_out,) of every output from the shape of its budget: 1.96 where the
-        normal sources dominate, down to 1.645 where one uniform source does, 1.69 where a moving seal's
-        friction (its sign known) does (``coverage_factor.coverage_factors``)."""
-        factors = coverage_factors(self.contributions.reshape(len(self.outputs), len(self.sources)), self.uniform,
-                                   self.sign)
-        return np.where(np.isfinite(self.u), factors, math.nan)
+        """The 95 % coverage factor (n_out,) of every output from the shape of its budget, 95 % of its
+        declared error within ±k·u: 1.96 where the normal sources dominate, down to 1.645 where one
+        uniform source does (a quantization step, a seal's friction standing or moving)
+        (``coverage_factor.coverage_factors``)."""
+        return np.where(np.isfinite(self.u), self._factors.interval, math.nan)
+
+    @cached_property
+    def tail_k(self) -> np.ndarray:
+        """The factor (n_out,) of a verdict's bound: no tail of the declared error beyond ±k·u above 2.5 %;
+        ``k`` where no moving seal's friction enters (else larger: up to 1.69 where it dominates)."""
+        return np.where(np.isfinite(self.u), self._factors.tail, math.nan)
 
     @cached_property
     def half_width(self) -> np.ndarray:

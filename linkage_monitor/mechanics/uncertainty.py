@@ -29,7 +29,8 @@ from these moved poses, interpolated per pose, the rest of the budget in one com
 (``budget_table``, ``kernels.tabulated_budget``); the moved poses serve what the table does not.
 u_y² = Σ_s (∂y/∂s · u_s)² (the sources independent); the share of s is (∂y/∂s · u_s)² / u_y².
 The 95 % interval is y ± k·u_y, k from the shape of the budget (``coverage_factor``: 1.96 for normal
-sources, down to 1.645 where one uniform source, a seal's friction or a quantization step, dominates).
+sources, down to 1.645 where one uniform source, a seal's friction or a quantization step, dominates; with a
+moving seal's friction, of known sign, 95 % of the error within and a verdict's bound apart, ``Factors``).
 Units SI (m, rad, Pa, N, kg); frame x forward, z up, origin at the rear wheels' ground contact.
 """
 
@@ -298,16 +299,17 @@ class UncertaintyModel:
                              MappingProxyType(dict(zip(fast.cylinders, moving))))
             fast.motions.append(codes)
         n_out, n_src = len(self.table.outputs), len(fast.uniform)
-        y0, u, k, sign = np.empty(n_out), np.empty(n_out), np.empty(n_out), np.empty(n_src)
+        summary, sign = np.empty((4, n_out)), np.empty(n_src)   # y0, u, k and the verdicts' factor, as rows
         contributions, friction_u = np.empty((n_out, n_src)), np.empty(len(moving))
         args = (fast.program, result.hinge_force, result.cylinder_values, result.body_q, result.implement_load,
-                machine.steerability_row, machine.capacity_row, codes.codes, y0, contributions, u, k, sign, friction_u)
+                machine.steerability_row, machine.capacity_row, codes.codes, summary, contributions, sign, friction_u)
         node = kernels.tabulated_budget(*args)
         if node <= -2:   # a node next to the pose not computed yet
             stroke.fill(-2 - node, result)
             node = kernels.tabulated_budget(*args)
         if node < 0:
             return None
+        y0, u, k, tail = summary[0], summary[1], summary[2], summary[3]   # indexed (iterating takes twice)
         sources = partial(_tabulated_sources, plan.sources, fast, friction_u)
         if self.geometry.sources:   # the point coordinates' columns join: u and k of them all, as Budget has them
             columns, contributions = self._with_geometry(plan, _Columns(sources(), np.zeros(0, dtype=np.int64),
@@ -317,7 +319,7 @@ class UncertaintyModel:
             return Budget(self.table.outputs, columns.sources, y0, contributions, codes.motions, self.table.index,
                           columns.uniform, columns.sign)
         return Budget.summarised(self.table.outputs, sources, y0, contributions, codes.motions, self.table.index,
-                                 fast.uniform, sign, u, k)
+                                 fast.uniform, sign, u, k, tail)
 
     def _with_geometry(self, plan: _Plan, columns: _Columns, contributions: np.ndarray, y0: np.ndarray,
                        inputs: Inputs) -> tuple[_Columns, np.ndarray]:

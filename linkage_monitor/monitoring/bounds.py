@@ -3,9 +3,10 @@
 
 A value beyond its limit is the finding it always was (``steerability_low``, ``lift_reserve_low``,
 ``axle_lift_off``). A value on the right side of its limit whose 95 % interval (value ± k·u, u the
-standard uncertainty of the declared error sources, ``mechanics.uncertainty``, k the coverage factor
-of its budget's shape, ``mechanics.coverage_factor``, taken no smaller than the normal's 1.96 for a
-verdict: ``verdict_half_width``) reaches across it
+standard uncertainty of the declared error sources, ``mechanics.uncertainty``, k for a verdict the
+factor of its budget's shape that leaves no more than 2.5 % on either side, ``Budget.tail_k`` — with a
+moving seal's friction, of known sign, wider than the interval's 95 % in all — taken no smaller than the
+normal's 1.96: ``verdict_half_width``) reaches across it
 — or whose u is unbounded — is a WARN of its own code (``steerability_uncertain``,
 ``lift_reserve_uncertain``, ``axle_load_uncertain``) naming the dominant source; the steerability's
 also gives the front ballast that clears the limit at the interval's lower bound. Only a value whose
@@ -57,7 +58,7 @@ class LimitUncertainties(NamedTuple):
 
 def limit_half_widths(budget: Budget) -> list[float]:
     """``LimitUncertainties.of``'s four, in its order, as a list (``pose_interval_checks`` takes them)."""
-    u, k, index = budget.u, budget.k, budget.index
+    u, k, index = budget.u, budget.tail_k, budget.index
     found = []   # max(k·u, floor·u) = max(k, floor)·u, u ≥ 0 (NaN where k is); four items, not the rows' lists
     for name in _LIMIT_OUTPUTS:
         i = index.get(name)
@@ -73,9 +74,12 @@ _LIMIT_OUTPUTS = ("front_axle_load", "rear_axle_load", "steerability_margin", "l
 
 
 def verdict_half_width(budget: Budget, name: str) -> float:
-    """The half-width a verdict judges the output ``name`` on: its 95 % half-width k·u, no smaller than
-    VERDICT_FACTOR_FLOOR·u (the output's unit; NaN where unbounded or not computed)."""
-    return max(budget.half_width_of(name), VERDICT_FACTOR_FLOOR * budget.u_of(name))
+    """The half-width a verdict judges the output ``name`` on: its tail's factor times u (``Budget.tail_k``),
+    no smaller than VERDICT_FACTOR_FLOOR·u (the output's unit; NaN where unbounded or not computed)."""
+    k = budget.index.get(name)
+    if k is None:
+        return math.nan
+    return max(float(budget.tail_k[k]), VERDICT_FACTOR_FLOOR) * float(budget.u[k])
 
 
 _STEER, _RESERVE = int(Check.STEERABILITY_UNCERTAIN), int(Check.LIFT_RESERVE_UNCERTAIN)

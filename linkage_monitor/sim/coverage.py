@@ -9,11 +9,13 @@ run's true points) solved from the true inputs (the pressures of the true loads,
 angles). Tallied per output kind (``KIND_GROUPS``): the share of steps whose 95 % interval (value ±
 k·u) holds the true value, the mean 95 % half-width (k·u, ``Budget.half_width``) over the RMS of the
 actual error (sharpness), and per machine-level limit the steps the monitor passed (no finding about
-that limit) whose true value is beyond it (wrong with OK). Units SI (N, -).
+that limit) whose true value is beyond it (wrong with OK) and those it passed while it called the judged
+value's u unbounded (OK unbounded: its verdict then has no interval to clear). Units SI (N, -).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -89,7 +91,8 @@ class CoverageTally:
     """A study's counts: ``runs``; ``steps`` (samples fed), ``refused`` (no pose: the monitor refused
     the readings), ``untrue`` (the truth did not solve); per group a ``GroupTally``; per limit output
     the steps whose true value is beyond it (``beyond``) and those of them the monitor passed
-    (``wrong_with_ok``)."""
+    (``wrong_with_ok``), the steps whose value clears it with its u unbounded (``unbounded_value``) and
+    those of them the monitor passed (``unbounded_ok``)."""
 
     runs: int = 0
     steps: int = 0
@@ -98,6 +101,8 @@ class CoverageTally:
     groups: dict[str, GroupTally] = field(default_factory=dict)
     beyond: dict[str, int] = field(default_factory=dict)
     wrong_with_ok: dict[str, int] = field(default_factory=dict)
+    unbounded_value: dict[str, int] = field(default_factory=dict)
+    unbounded_ok: dict[str, int] = field(default_factory=dict)
 
     def add(self, step: Step, truth: np.ndarray, kinds: list[str], names: list[str]) -> None:
         """One step whose pose has a budget, against the true outputs ``truth`` (in the budget's order)."""
@@ -126,7 +131,13 @@ class CoverageTally:
         index = {name: k for k, name in enumerate(names)}
         for limit in LIMITS:
             row = index.get(limit.output)
-            if row is None or not truth[row] < limit.limit:
+            if row is None:
+                continue
+            if math.isfinite(budget.values[row]) and budget.values[row] >= limit.limit and not math.isfinite(u[row]):
+                self.unbounded_value[limit.output] = self.unbounded_value.get(limit.output, 0) + 1
+                if not limit.flagged(step):
+                    self.unbounded_ok[limit.output] = self.unbounded_ok.get(limit.output, 0) + 1
+            if not truth[row] < limit.limit:
                 continue
             self.beyond[limit.output] = self.beyond.get(limit.output, 0) + 1
             if not limit.flagged(step):

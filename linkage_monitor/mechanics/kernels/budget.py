@@ -181,41 +181,46 @@ class BudgetProgram(structref.StructRefProxy):
     """What ``tabulated_budget`` takes of one set of inputs, in one object built once (``budget_program``;
     one pointer to pass, where its three records took ~3 µs at every call): ``table`` a PoseTable,
     ``columns`` the SourceColumns, ``layout`` the OutputLayout, the coverage factors' table
-    (``factors``, ``shares``, ``inverse_counts``: ``coverage_factor.FactorTable``) and the normal's
-    factor. It holds references to the arrays (the table's nodes filled later are seen), not copies."""
+    (``factors``, ``shares``, ``inverse_counts``, ``shift_step``: ``coverage_factor.FactorTable``) and
+    the normal's factor. It holds references to the arrays (the table's nodes filled later are seen), not copies."""
 
 
 structref.define_proxy(BudgetProgram, BudgetProgramType,
-                       ["table", "columns", "layout", "factors", "shares", "inverse_counts", "normal_factor"])
+                       ["table", "columns", "layout", "factors", "shares", "inverse_counts", "shift_step",
+                        "normal_factor"])
 
 
 @njit(cache=True)
-def budget_program(table_fields, columns_fields, layout_fields, factors, shares, inverse_counts, normal_factor):
+def budget_program(table_fields, columns_fields, layout_fields, factors, shares, inverse_counts, shift_step,
+                   normal_factor):
     """The ``BudgetProgram`` of a PoseTable, SourceColumns and OutputLayout as plain tuples of their
     fields (``programs.fields``) and the coverage factors' table."""
     return BudgetProgram(PoseTable(*table_fields), SourceColumns(*columns_fields), OutputLayout(*layout_fields),
-                         factors, shares, inverse_counts, normal_factor)
+                         factors, shares, inverse_counts, shift_step, normal_factor)
 
 
 @njit(cache=True, error_model="numpy")
 def tabulated_budget(program, hinge_force, cylinder_values, body_q, implement_load, steerability, capacity, motions,
-                     y0, contributions, u, k, sign, friction_u):
+                     summary, contributions, sign, friction_u):
     """The budget of one pose from ``program.table`` (``program``: a ``BudgetProgram``), in one call:
     its coordinate θ (``pose_coordinate`` of its cylinder values (C, 5) and body poses (B, 3)); its
-    outputs into ``y0`` (n_out,) from its hinge forces (H, 2) N, cylinder forces, implement load N,
+    outputs into ``summary[0]`` (y0, n_out; ``summary`` (4, n_out): one array to pass where four took
+    ~0.1 µs each) from its hinge forces (H, 2) N, cylinder forces, implement load N,
     steerability and capacity rows (``_output_row``); each measured cylinder's seal friction by its
     motion (``motions`` (K,), MOTION_* codes) into ``friction_u`` (K,) N: u = band/√3, the band
     share·|F| + force, standing times the breakaway (``error_sources.SealFriction.standard_uncertainty``'s
     rule: kept apart, a compiled call; test_uncertainty_table.py holds the two equal), its sign into
     ``sign`` (n_src,) with the other columns'; the two nodes' rows at the measured cylinders' forces
     (affine in them), interpolated linearly in θ, the chain rule (``chain_rule``), times each
-    source's u into ``contributions`` (n_out, n_src); the standard uncertainties into ``u`` (n_out,),
-    the coverage factors (``coverage_factors``) into ``k`` (n_out,).
+    source's u into ``contributions`` (n_out, n_src); the standard uncertainties into ``summary[1]`` (u),
+    the coverage factors (``coverage_factors``) into ``summary[2]`` (k, the 95 % interval's) and
+    ``summary[3]`` (a verdict's bound's).
 
     Returns the node below θ (≥ 0) when done; NOT_TABULATED where θ is beyond the table, a node next
     to it failed or a seal friction is 0; −2 − j where node j or j + 1 is not filled yet (fill them,
     call again)."""
     table, columns = program.table, program.columns
+    y0, u, k, tail = summary[0], summary[1], summary[2], summary[3]
     theta = pose_coordinate(table, cylinder_values, body_q)
     position = (theta - table.origin) / table.step
     if not (position >= 0.0 and position < table.state.shape[0] - 1):
@@ -265,6 +270,6 @@ def tabulated_budget(program, hinge_force, cylinder_values, body_q, implement_lo
         for s in range(n_src):
             total += contributions[o, s] * contributions[o, s]
         u[o] = math.sqrt(total)
-    k[:] = coverage_factors(contributions, columns.uniform, sign, program.factors, program.shares,
-                            program.inverse_counts, program.normal_factor)
+    coverage_factors(contributions, columns.uniform, sign, program.factors, program.shares, program.inverse_counts,
+                     program.shift_step, program.normal_factor, k, tail)
     return node
