@@ -106,7 +106,7 @@ class Budget:
                    ) -> "Budget":
         """A budget whose ``u``, ``k`` and ``tail_k`` are computed already (``kernels.tabulated_budget``: as the
         properties below compute them) and whose ``sources`` are built by ``sources()`` when first read
-        (a live step reads u and k alone, the names only where a finding words them)."""
+        (a live step reads u and the verdicts' factor alone, the names only where a finding words them)."""
         budget = object.__new__(_SummarisedBudget)   # the fields and the cached properties' values at once
         budget.__dict__.update(outputs=outputs, _sources=sources, values=values, contributions=contributions,
                                motions=motions, index=index, uniform=uniform, sign=sign, u=u, k=k,
