@@ -126,6 +126,7 @@ RUNS: dict[str, Run] = {
                                                                  ros=True),
     # inline commands
     "linkage-monitor --help": AS_IS,
+    "linkage-monitor replay --help": AS_IS,
     "linkage-monitor capacity --preset belarus_1221 --stroke 0.515 0.715 --plot docs/capacity_belarus_1221.png": AS_IS,
     "linkage-monitor replay BAG --spectra": Run(arguments={"BAG": "bags/drill_coulter_relief"}),
     # docs/weighing.md
