@@ -1,5 +1,5 @@
-"""The implement library: one YAML per implement beside this file (docs/implements.md), read with
-importlib.resources, and the implement files a user keeps anywhere else.
+"""The implement library: one YAML per implement beside this file (docs/implements.md; read as
+files, as the presets), and the implement files a user keeps anywhere else.
 
 An implement file names the mechanism whose points it uses and gives the implement's mass (kg),
 centre of gravity (a point name of that mechanism, or [x, z] m in its reference pose; frame x
@@ -13,19 +13,18 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
-from importlib import resources
-from importlib.resources.abc import Traversable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import yaml
 
 from ..errors import MechanismFileError
+from ..safe_yaml import LIBYAML_LOADER
 
 if TYPE_CHECKING:   # the schema (numpy) only when an implement is hung: `linkage-monitor presets` reads the files only
     from ..model import Mechanism
 
-IMPLEMENT_DIR: Traversable = resources.files(__name__)
+IMPLEMENT_DIR = Path(__file__).parent
 _KEYS = {"name", "description", "mechanism", "mass", "cg", "hitch_point", "mast_point", "tolerances"}
 _REQUIRED = ("name", "mechanism", "mass", "cg")
 
@@ -64,7 +63,7 @@ def load_implement(spec: str) -> ImplementFile:
     """The bundled implement ``spec`` or else the implement file at path ``spec``; MechanismFileError
     naming the file and the key when it is not one."""
     if spec in implement_names():
-        path: Traversable | Path = IMPLEMENT_DIR / f"{spec}.yaml"
+        path = IMPLEMENT_DIR / f"{spec}.yaml"
         file = f"{spec}.yaml (implement)"
     else:
         path, file = Path(spec), spec
@@ -77,7 +76,7 @@ def load_implement(spec: str) -> ImplementFile:
 def implement_from_text(text: str, file: str = "<text>") -> ImplementFile:
     """Parse and check an implement file's YAML text (module docstring; docs/implements.md)."""
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=LIBYAML_LOADER)   # noqa: S506 - a safe loader
     except yaml.YAMLError as exc:
         raise MechanismFileError(file, "", f"not YAML ({exc})") from exc
     if not isinstance(data, dict):

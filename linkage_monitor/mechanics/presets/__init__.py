@@ -1,20 +1,20 @@
-"""The bundled presets: one YAML per source paper beside this file, read with importlib.resources
-(so they load from a wheel or a zip as well as from a checkout)."""
+"""The bundled presets: one YAML per source paper beside this file (the package runs from files, never
+from a zip: its messages and kernels are compiled modules; a path costs no importlib.resources)."""
 
 from __future__ import annotations
 
-from importlib import resources
-from importlib.resources.abc import Traversable
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import yaml
 
 from ..errors import MechanismFileError
+from ..safe_yaml import LIBYAML_LOADER
 
 if TYPE_CHECKING:   # the schema (numpy) only when a preset is loaded: `linkage-monitor presets` reads the files only
     from ..model import Mechanism
 
-PRESET_DIR: Traversable = resources.files(__name__)
+PRESET_DIR = Path(__file__).parent
 
 
 def preset_names() -> list[str]:
@@ -22,7 +22,7 @@ def preset_names() -> list[str]:
     return sorted(p.name[:-5] for p in PRESET_DIR.iterdir() if p.name.endswith(".yaml"))
 
 
-def preset_path(name: str) -> Traversable:
+def preset_path(name: str) -> Path:
     """Path of preset ``name``; MechanismFileError listing the presets if there is none."""
     path = PRESET_DIR / f"{name}.yaml"
     if not path.is_file():
@@ -48,9 +48,7 @@ def load_description(spec: str) -> Mechanism:
 def preset_description(name: str) -> str:
     """The preset's one-line ``description`` ('' if missing or unreadable)."""
     try:
-        # libyaml's safe loader where built (10x faster: `linkage-monitor presets` reads every file)
-        loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-        data = yaml.load(preset_path(name).read_text(encoding="utf-8"), Loader=loader)
+        data = yaml.load(preset_path(name).read_text(encoding="utf-8"), Loader=LIBYAML_LOADER)   # noqa: S506 - safe
     except (OSError, yaml.YAMLError):
         return ""
     return str(data.get("description", "")) if isinstance(data, dict) else ""
