@@ -28,7 +28,7 @@ from linkage_monitor.mechanics.programs import ValueRow
 from linkage_monitor.mechanics.budget import Budget
 from linkage_monitor.mechanics.uncertainty import UncertaintyModel
 
-from .bounds import LimitUncertainties, interval_checks, limit_half_widths, pose_interval_checks
+from .bounds import LimitRows, LimitUncertainties, budget_interval_checks, interval_checks
 from .checks import Check, CheckedValues, pose_checks
 from .config import MonitorConfig
 from .events import ConfigEvent, Event, ImuEvent, InputEvent, JointStateEvent, PressureEvent, UnreadableEvent
@@ -86,6 +86,8 @@ class Monitor:
         self.estimates_load = bool(tracker.pressure_names)
         self.warm: Result | None = None   # the last solved pose: where the next live solve starts
         self.uncertainty = UncertaintyModel(machine) if config.uncertainty else None
+        # the rows of the values judged against a limit in every budget (``bounds.budget_interval_checks``)
+        self._limit_rows = LimitRows.of(self.uncertainty.table.index if self.uncertainty is not None else {})
         self.motion = MotionTracker.of(mech, mech.error_sources)
         # the IMU (mechanics.dynamics): with a topic and a tractor block only; its readings carried over
         road = (RoadInput(mech, config, bool(tracker.pressure_names)) if config.topics.imu and machine.has_steerability
@@ -431,7 +433,7 @@ class Monitor:
 
     def _finish(self, due: Due, result: Result, machine: MachineResult, values: np.ndarray | None) -> Step:
         """The Step of one solved pose with its machine-level results and value row, if any
-        (``checks.pose_checks``; with the uncertainty, ``bounds.pose_interval_checks`` too; with an IMU
+        (``checks.pose_checks``; with the uncertainty, ``bounds.budget_interval_checks`` too; with an IMU
         reading, the axle loads on the road: ``road``)."""
         dynamic = None
         if self.road is not None:
@@ -452,7 +454,7 @@ class Monitor:
                                                dynamic[DYNAMIC_MARGIN] if dynamic is not None else math.nan)))
         budget = self._budget(due, result, machine) if self.uncertainty is not None else None
         if budget is not None:
-            checks += pose_interval_checks(*limits, limit_half_widths(budget))
+            checks += budget_interval_checks(*limits, budget, self._limit_rows)
         return self._pose_step(due, Pose(result, machine, values, budget, dynamic), checks)
 
     def _with_static(self, values: np.ndarray, static: np.ndarray) -> np.ndarray:
