@@ -108,9 +108,9 @@ class Budget:
         properties below compute them) and whose ``sources`` are built by ``sources()`` when first read
         (a live step reads u and the verdicts' factor alone, the names only where a finding words them)."""
         budget = object.__new__(_SummarisedBudget)   # the fields and the cached properties' values at once
-        budget.__dict__.update(outputs=outputs, _sources=sources, values=values, contributions=contributions,
-                               motions=motions, index=index, uniform=uniform, sign=sign, u=u, k=k,
-                               tail_k=tail_k)
+        budget.__dict__ = {"outputs": outputs, "_sources": sources, "values": values, "contributions": contributions,
+                           "motions": motions, "index": index, "uniform": uniform, "sign": sign, "u": u, "k": k,
+                           "tail_k": tail_k}
         return budget
 
     @cached_property

@@ -16,6 +16,8 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Mapping
 
 from linkage_monitor.mechanics.error_sources import ErrorSources, Motion
 from linkage_monitor.mechanics.inputs import Inputs
@@ -38,6 +40,7 @@ class MotionTracker:
     deadband: dict[str, float]
     window_ns: int = int(MOTION_WINDOW_S * 1e9)
     readings: dict[str, deque[tuple[int, float]]] = field(default_factory=dict)
+    last: Mapping[str, Motion] = field(default_factory=lambda: MappingProxyType({}))   # handed out last (``motions``)
 
     @staticmethod
     def of(mech: Mechanism, sources: ErrorSources) -> "MotionTracker":
@@ -49,9 +52,11 @@ class MotionTracker:
             deadband[name] = max(MOTION_DEADBAND_M, MOTION_DEADBAND_SIGMAS * scatter)
         return MotionTracker(deadband)
 
-    def motions(self, inputs: Inputs, stamp_ns: int) -> dict[str, Motion]:
+    def motions(self, inputs: Inputs, stamp_ns: int) -> Mapping[str, Motion]:
         """Each measured cylinder's motion over the window ending at ``stamp_ns`` (ns), these inputs its
-        latest reading; a stamp before the latest one starts the window anew."""
+        latest reading; a stamp before the latest one starts the window anew. Read-only, and the same
+        object as the call before while the motions are the same (the error budget then knows them
+        by identity: ``UncertaintyModel.budget``)."""
         out = {}
         start = stamp_ns - self.window_ns
         for name, length in inputs.cylinders.items():
@@ -66,4 +71,6 @@ class MotionTracker:
             out[name] = (_STANDING if abs(change) <= self.deadband.get(name, MOTION_DEADBAND_M)
                          else _LIFTING if change > 0.0 else _LOWERING)
             kept.append((stamp_ns, length))
-        return out
+        if out != self.last:   # Motion compares by identity: no Python call
+            self.last = MappingProxyType(out)
+        return self.last

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Callable, Iterator, Sequence, overload
+from typing import Callable, Iterator, Mapping, Sequence, overload
 
 import numpy as np
 
@@ -254,7 +254,7 @@ class Due:
     stamp_ns: int
     trigger: str
     inputs: Inputs
-    motions: dict[str, Motion] | None = None   # each measured cylinder's motion since the due before (uncertainty)
+    motions: Mapping[str, Motion] | None = None   # each measured cylinder's motion since the due before (uncertainty)
     body: BodyAt | None = None   # the tractor body's acceleration in use (an IMU configured), and its stamp
 
 
