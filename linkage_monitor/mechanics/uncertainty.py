@@ -127,7 +127,7 @@ class _Fast(NamedTuple):
     (``kernels.BudgetProgram``), its columns' shapes (``uniform``) with every measured cylinder's
     friction (``cylinders``, in the columns' order), the implement mass's source (``mass``, empty
     without), the cylinders' motions as the call takes them (``motions``, each set once), and the
-    shapes of the arrays the call writes (``summary`` (4, n_out), ``contributions`` (n_out, n_src))."""
+    shapes of the arrays the call writes (``summary`` (5, n_out), ``contributions`` (n_out, n_src))."""
 
     program: kernels.BudgetProgram
     uniform: np.ndarray
@@ -136,6 +136,8 @@ class _Fast(NamedTuple):
     motions: list["_Motions"]   # each set of the cylinders' motions met, built when first met
     summary: tuple[int, int]
     contributions: tuple[int, int]
+    sign: np.ndarray   # the columns' signs (``Budget.sign``), the frictions' 0: a set of motions sets theirs
+    frictions: slice   # the frictions' columns
     last: list["_Given"]   # one item: the read-only motions given last, and their set
 
 
@@ -150,15 +152,18 @@ class _Given(NamedTuple):
 
 class _Motions(NamedTuple):
     """A set of the measured cylinders' motions (``moving``, in ``_Fast.cylinders``' order) as
-    ``kernels.tabulated_budget`` takes them (``codes``, MOTION_*) and as a budget names them
-    (``motions``, cylinder name -> motion; read-only: budgets share it)."""
+    ``kernels.tabulated_budget`` takes them (``codes``, MOTION_*, and the columns' signs at them,
+    ``sign``) and as a budget names them (``motions``, cylinder name -> motion); read-only: budgets
+    share them."""
 
     moving: tuple[Motion, ...]
     codes: np.ndarray
+    sign: np.ndarray
     motions: Mapping[str, Motion]
 
 
-_NOTHING_GIVEN = _Given(MappingProxyType({}), _Motions((), np.zeros(0, np.int64), MappingProxyType({})))   # no budget yet
+# no budget yet
+_NOTHING_GIVEN = _Given(MappingProxyType({}), _Motions((), np.zeros(0, np.int64), np.zeros(0), MappingProxyType({})))
 _STANDING = Motion.STANDING   # read once: a lookup on the Enum class takes ~0.1 µs
 # a cylinder's motion as kernels.tabulated_budget takes it
 _MOTION_CODES = {Motion.STANDING: kernels.MOTION_STANDING, Motion.LIFTING: kernels.MOTION_LIFTING,
@@ -312,11 +317,11 @@ class UncertaintyModel:
             codes = self._motion_codes(fast, motion)
             if type(motion) is MappingProxyType:
                 fast.last[0] = _Given(motion, codes)
-        summary = np.empty(fast.summary)   # y0, u, k and the verdicts' factor, as rows
+        summary = np.empty(fast.summary)   # y0, u, k, the verdicts' factor and the frictions' u, as rows
         contributions = np.empty(fast.contributions)
-        sign, friction_u = np.empty(fast.contributions[1]), np.empty(len(codes.moving))
+        sign = codes.sign
         args = (fast.program, result.hinge_force, result.cylinder_values, result.body_q, result.implement_load,
-                machine.steerability_row, machine.capacity_row, codes.codes, summary, contributions, sign, friction_u)
+                machine.steerability_row, machine.capacity_row, codes.codes, sign, summary, contributions)
         node = kernels.tabulated_budget(*args)
         if node <= -2:   # a node next to the pose not computed yet
             stroke.fill(-2 - node, result)
@@ -324,7 +329,7 @@ class UncertaintyModel:
         if node < 0:
             return None
         y0, u, k, tail = summary[0], summary[1], summary[2], summary[3]   # indexed (iterating takes twice)
-        sources = partial(_tabulated_sources, plan.sources, fast, friction_u)
+        sources = partial(_tabulated_sources, plan.sources, fast, summary)
         if self.geometry.sources:   # the point coordinates' columns join: u and k of them all, as Budget has them
             columns, contributions = self._with_geometry(plan, _Columns(sources(), np.zeros(0, dtype=np.int64),
                                                                         np.zeros(len(sign)), fast.uniform, sign,
@@ -344,7 +349,10 @@ class UncertaintyModel:
         for codes in fast.motions:   # compared by identity: a Motion's hash is a Python call
             if codes.moving == moving:
                 return codes
-        codes = _Motions(moving, np.array([_MOTION_CODES[m] for m in moving], np.int64),
+        sign = fast.sign.copy()
+        sign[fast.frictions] = [FRICTION_SIGN[m] for m in moving]
+        sign.flags.writeable = False
+        codes = _Motions(moving, np.array([_MOTION_CODES[m] for m in moving], np.int64), sign,
                          MappingProxyType(dict(zip(fast.cylinders, moving))))
         fast.motions.append(codes)
         return codes
@@ -466,7 +474,7 @@ class UncertaintyModel:
         seals = [self.sources.seal_friction(c) for c, _ in measured]
         n_fixed = len(plan.sources)
         columns = kernels.SourceColumns(
-            rows=every.rows, scales=every.scales, uniform=every.uniform, sign=every.sign,
+            rows=every.rows, scales=every.scales, uniform=every.uniform,
             cylinders=np.array([solver.cylinder_index[c] for c, _ in measured], dtype=np.int64),
             friction_at=np.arange(n_fixed, n_fixed + len(measured), dtype=np.int64),
             friction_share=np.array([seal.share for seal in seals]), friction_force=np.array([seal.force for seal in seals]),
@@ -476,9 +484,11 @@ class UncertaintyModel:
         program = kernels.budget_program(fields(stroke.table), fields(columns), fields(self.table.layout),
                                          *factor_table(), NORMAL_FACTOR)
         n_out = len(self.table.outputs)
+        assert len(measured) <= n_out   # the frictions' u in a row of the call's summary (a force output each)
         return replace(plan, stroke=stroke, fast=_Fast(program, every.uniform, tuple(c for c, _ in measured),
                                                        every.sources[len(every.sources) - plan.mass:], [],
-                                                       (4, n_out), (n_out, len(every.uniform)), [_NOTHING_GIVEN]))
+                                                       (5, n_out), (n_out, len(every.uniform)), every.sign,
+                                                       slice(n_fixed, n_fixed + len(measured)), [_NOTHING_GIVEN]))
 
     def _node_rows(self, plan: _Plan) -> RawRows:
         """The rows of a table node (``budget_table.RawRows``): ``raw_rows`` at the node's pose, the
@@ -575,11 +585,11 @@ class UncertaintyModel:
         return self.table.values(pose.result, pose.machine)
 
 
-def _tabulated_sources(fixed: tuple[Source, ...], fast: _Fast, friction_u: np.ndarray) -> tuple[Source, ...]:
+def _tabulated_sources(fixed: tuple[Source, ...], fast: _Fast, summary: np.ndarray) -> tuple[Source, ...]:
     """The sources of a budget from the stroke's table: the inputs' (``fixed``), each measured cylinder's
-    seal friction of u ``friction_u`` (N), the implement mass."""
+    seal friction of u (N) the call's ``summary`` gives (its row 4), the implement mass."""
     return (*fixed, *(Source(f"{c} seal friction", c, "friction", f, "N")
-                      for c, f in zip(fast.cylinders, friction_u.tolist())), *fast.mass)
+                      for c, f in zip(fast.cylinders, summary[4, :len(fast.cylinders)].tolist())), *fast.mass)
 
 
 def _moved(inputs: Inputs, move: _Move | tuple[_Move, ...]) -> Inputs:

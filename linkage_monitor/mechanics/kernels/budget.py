@@ -140,20 +140,19 @@ def pose_coordinate(table: PoseTable, cylinder_values: np.ndarray, body_q: np.nd
 
 
 class SourceColumns(NamedTuple):
-    """The sources of a tabulated budget as columns of its contributions: the table row each takes
-    (``rows`` (n_src,): a length's, an angle's, a pressure sensor's — a seal friction's through its
-    sensor's — or the implement mass's), its u in its input's unit (``scales`` (n_src,), a friction's
-    set per pose) and shape (``uniform``, ``sign`` (n_src,): ``coverage_factor.coverage_factors``, a
-    friction's sign set per pose); the measured cylinders of the table's levels (``cylinders`` (K,),
-    their rows of the cylinder values), each one's friction column (``friction_at`` (K,)), seal
-    friction band (``friction_share``, ``friction_force`` N, ``friction_breakaway``: as
-    ``error_sources.SealFriction``) and N per Pa of its sensor (``per_pascal`` (K,)); the steerability
-    columns of the outputs (``steer_columns``, ``output_rows``)."""
+    """The sources of a tabulated budget as columns of its contributions: the table row each takes (``rows`` (n_src,):
+    a length's, an angle's, a pressure sensor's — a seal friction's through its sensor's — or the implement mass's),
+    its u in its input's unit (``scales`` (n_src,), a friction's set per pose) and whether uniform (``uniform``
+    (n_src,): ``coverage_factor.coverage_factors``; the signs, a friction's by its motion, are
+    ``tabulated_budget``'s ``sign``); the measured cylinders of the table's levels (``cylinders`` (K,), their rows
+    of the cylinder values), each one's friction column (``friction_at`` (K,)), seal friction band
+    (``friction_share``, ``friction_force`` N, ``friction_breakaway``: as ``error_sources.SealFriction``) and N per
+    Pa of its sensor (``per_pascal`` (K,)); the steerability columns of the outputs (``steer_columns``,
+    ``output_rows``)."""
 
     rows: np.ndarray
     scales: np.ndarray
     uniform: np.ndarray
-    sign: np.ndarray
     cylinders: np.ndarray
     friction_at: np.ndarray
     friction_share: np.ndarray
@@ -163,10 +162,8 @@ class SourceColumns(NamedTuple):
     steer_columns: np.ndarray
 
 
-# a cylinder's motion as ``tabulated_budget`` takes it (``error_sources.Motion``), and the sign of its
-# seal friction in the force the pressure carries (``budget.FRICTION_SIGN``'s, by code)
+# a cylinder's motion as ``tabulated_budget`` takes it (``error_sources.Motion``)
 MOTION_STANDING, MOTION_LIFTING, MOTION_LOWERING = 0, 1, 2
-_FRICTION_SIGN = (0.0, 1.0, -1.0)
 
 
 @structref.register
@@ -201,26 +198,24 @@ def budget_program(table_fields, columns_fields, layout_fields, factors, shares,
 
 @njit(cache=True, error_model="numpy")
 def tabulated_budget(program, hinge_force, cylinder_values, body_q, implement_load, steerability, capacity, motions,
-                     summary, contributions, sign, friction_u):
-    """The budget of one pose from ``program.table`` (``program``: a ``BudgetProgram``), in one call:
-    its coordinate θ (``pose_coordinate`` of its cylinder values (C, 5) and body poses (B, 3)); its
-    outputs into ``summary[0]`` (y0, n_out; ``summary`` (4, n_out): one array to pass where four took
-    ~0.1 µs each) from its hinge forces (H, 2) N, cylinder forces, implement load N,
-    steerability and capacity rows (``_output_row``); each measured cylinder's seal friction by its
-    motion (``motions`` (K,), MOTION_* codes) into ``friction_u`` (K,) N: u = band/√3, the band
-    share·|F| + force, standing times the breakaway (``error_sources.SealFriction.standard_uncertainty``'s
-    rule: kept apart, a compiled call; test_uncertainty_table.py holds the two equal), its sign into
-    ``sign`` (n_src,) with the other columns'; the two nodes' rows at the measured cylinders' forces
-    (affine in them), interpolated linearly in θ, the chain rule (``chain_rule``), times each
-    source's u into ``contributions`` (n_out, n_src); the standard uncertainties into ``summary[1]`` (u),
-    the coverage factors (``coverage_factors``) into ``summary[2]`` (k, the 95 % interval's) and
-    ``summary[3]`` (a verdict's bound's).
+                     sign, summary, contributions):
+    """The budget of one pose from ``program.table`` (``program``: a ``BudgetProgram``), in one call: its coordinate θ
+    (``pose_coordinate`` of its cylinder values (C, 5) and body poses (B, 3)); its outputs into ``summary[0]`` (y0,
+    n_out; ``summary`` (5, n_out): one array to pass and allocate where five took ~0.1 µs and more each) from its
+    hinge forces (H, 2) N, cylinder forces, implement load N, steerability and capacity rows (``_output_row``); each
+    measured cylinder's seal friction by its motion (``motions`` (K,), MOTION_* codes; K <= n_out) into the first K
+    of ``summary[4]`` N: u = band/√3, the band share·|F| + force, standing times the breakaway
+    (``error_sources.SealFriction.standard_uncertainty``'s rule: kept apart, a compiled call;
+    test_uncertainty_table.py holds the two equal); ``sign`` (n_src,) each column's sign at these motions (read
+    only: built once per set of motions); the two nodes' rows at the measured cylinders' forces (affine in them),
+    interpolated linearly in θ, the chain rule (``chain_rule``), times each source's u into ``contributions``
+    (n_out, n_src); the standard uncertainties into ``summary[1]`` (u), the coverage factors (``coverage_factors``)
+    into ``summary[2]`` (k, the 95 % interval's) and ``summary[3]`` (a verdict's bound's).
 
-    Returns the node below θ (≥ 0) when done; NOT_TABULATED where θ is beyond the table, a node next
-    to it failed or a seal friction is 0; −2 − j where node j or j + 1 is not filled yet (fill them,
-    call again)."""
+    Returns the node below θ (≥ 0) when done; NOT_TABULATED where θ is beyond the table, a node next to it failed or
+    a seal friction is 0; −2 − j where node j or j + 1 is not filled yet (fill them, call again)."""
     table, columns = program.table, program.columns
-    y0, u, k, tail = summary[0], summary[1], summary[2], summary[3]
+    y0, u, k, tail, friction_u = summary[0], summary[1], summary[2], summary[3], summary[4]
     theta = pose_coordinate(table, cylinder_values, body_q)
     position = (theta - table.origin) / table.step
     if not (position >= 0.0 and position < table.state.shape[0] - 1):
@@ -233,7 +228,6 @@ def tabulated_budget(program, hinge_force, cylinder_values, body_q, implement_lo
             return NOT_TABULATED
     n_src = columns.rows.shape[0]
     scales = columns.scales.copy()
-    sign[:] = columns.sign
     for c in range(columns.cylinders.shape[0]):
         band = columns.friction_share[c] * abs(cylinder_values[columns.cylinders[c], 1]) + columns.friction_force[c]
         if motions[c] == MOTION_STANDING:
@@ -242,7 +236,6 @@ def tabulated_budget(program, hinge_force, cylinder_values, body_q, implement_lo
         if not friction_u[c] > 0.0:
             return NOT_TABULATED
         scales[columns.friction_at[c]] = friction_u[c] / columns.per_pascal[c]
-        sign[columns.friction_at[c]] = _FRICTION_SIGN[motions[c]]
     _output_row(hinge_force, cylinder_values[:, 1], implement_load, steerability, capacity, columns.steer_columns, y0)
     raw, levels = table.raw, table.forces
     n_rows, n_out = raw.shape[2], raw.shape[3]
