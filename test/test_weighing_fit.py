@@ -129,3 +129,25 @@ def test_each_quantity_takes_its_own_degrees_of_freedom(ar, cycles):
         variances, covered = (np.array(v) for v in zip(*found[name]))
         assert 0.8 <= np.mean(variances) / exact <= 1.2, (name, np.mean(variances) / exact, ar, cycles)
         assert 0.925 <= np.mean(covered) <= 0.975, (name, np.mean(covered), ar, cycles)
+
+
+@pytest.mark.parametrize("support", [0.0, 0.4, 0.02])
+def test_the_contact_zone_s_bins_are_taken_only_where_the_ground_carries_nothing(support):
+    """The last 3 bins are the contact zone (from its edge toward the working position); the ground
+    carries ``support`` of the load in the last 2 of them. Without support the 3 are taken; with 40 %
+    (the simulator's) or 2 % (about 9 σ of a bin's declared noise here) only the one left free."""
+    rows = _rows()
+    sums, units = _draw(np.random.default_rng(7), rows, 5, (0.0, 0.0), 0.0)
+    carried = np.zeros(K)
+    carried[-2:] = support
+    for data in (sums[None], units):   # y, y² and the force as the ground leaves them (in place)
+        data[..., :, :, 4:] *= (1.0 - carried)[:, None, None] ** np.array([1.0, 2.0, 1.0])
+    contact = np.array([K - 3, K - 2, K - 1])
+    errors = SensorErrors(noise=NOISE, gain=0.0, offset=0.0)
+    free = fit(sums, errors, Priors(), 3, units, contact)
+    without = fit(sums, errors, Priors(), 3, units, contact[:0])
+    assert free is not None and without is not None
+    assert free.pairs == (K if support == 0.0 else K - 2)
+    assert abs(free.theta[0] - THETA[0]) <= 1.96 * np.sqrt(free.floor[0, 0])
+    if support:   # the grounded bins taken would bias the weight by several σ
+        assert abs(without.theta[0] - THETA[0]) > 3.0 * np.sqrt(without.floor[0, 0])

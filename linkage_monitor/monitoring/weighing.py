@@ -7,7 +7,8 @@ IMU, the body's vertical acceleration) and
 1. names the step's phase (``WeighingPhase``): only a cylinder that moves with its valve open
    says the load plus a known-signed friction; a standing cylinder holds its load with any
    friction within the breakaway band (unusable); near the working position the implement may
-   rest on the ground; a bouncing body adds inertia (rejected from the IMU's vertical
+   rest on the ground (its moving steps are binned, and the fit takes the zone's bins only where
+   they agree with the rest: ``weighing_fit``); a bouncing body adds inertia (rejected from the IMU's vertical
    acceleration, or without one from the pressure's own variation: the load's relative rate of
    change, smoothed);
 2. collects the moving steps of each stroke (a lift or a lower) in bins of the stroke
@@ -126,6 +127,10 @@ class WeighingEstimator:
         span = m.high - m.low
         self._contact_edge = m.contact_edge(settings.ground_contact)
         self._bin_width = span / settings.bins
+        # the bins reaching into the contact zone, from its edge toward the working position
+        touched = [k for k in range(settings.bins)
+                   if m.grounded(m.low + (k + (0.0 if m.lifting_sign > 0 else 1.0)) * self._bin_width, self._contact_edge)]
+        self._contact = np.array(sorted(touched, reverse=m.lifting_sign > 0), dtype=int)
         self._sums = np.zeros((settings.bins, 2, len(SUMS)))
         self._units = np.zeros((UNITS, settings.bins, 2, len(SUMS)))   # the strokes in groups, a direction each
         self._strokes = [0, 0]   # strokes so far per direction (lifting, lowering): the next one's group
@@ -142,6 +147,7 @@ class WeighingEstimator:
         self.fits = 0   # fits made so far: the estimate changes only when this grows
         self.phase_steps = {phase: 0 for phase in WeighingPhase}
         self.phase = WeighingPhase.NOT_SOLVED
+        self._motion = 0   # the step's direction of motion, +1 lifting, -1 lowering, 0 standing or bouncing
 
     # ---- per step -----------------------------------------------------------------------------
     def step(self, stamp_ns: int, length: float, force: float, vertical_acceleration: float | None = None
@@ -150,7 +156,7 @@ class WeighingEstimator:
         the body's vertical acceleration (m/s², gravity excluded; None without an IMU). Returns the
         step's phase."""
         phase = self._phase(stamp_ns, length, force, vertical_acceleration)
-        direction = 1 if phase is WeighingPhase.LIFTING else -1 if phase is WeighingPhase.LOWERING else 0
+        direction = self._motion
         if phase is not WeighingPhase.BOUNCING and direction != self._stroke_direction:
             self._close_stroke(stamp_ns)
             self._stroke_direction = direction
@@ -182,6 +188,7 @@ class WeighingEstimator:
         if last_stamp is None or stamp_ns > last_stamp:   # a second step of one stamp (another input) keeps the first
             self._last_stamp, self._last_length = stamp_ns, length
         columns = self._columns = m.at(length) if math.isfinite(force) else None
+        self._motion = 0
         if columns is None:
             self._smooth_load = math.nan
             return WeighingPhase.NOT_SOLVED
@@ -201,16 +208,21 @@ class WeighingEstimator:
                 signal = 0.0
             fade = math.exp(-dt / settings.bounce_time)
             self._bounce = fade * self._bounce + (1.0 - fade) * signal
-        if m.grounded(length, self._contact_edge):
-            return WeighingPhase.GROUND_CONTACT
+        self._motion = 0
+        grounded = m.grounded(length, self._contact_edge)
         if abs(self._speed) < settings.motion_speed:
             self._bounce = 0.0 if acceleration is None else self._bounce   # a stroke's start judges itself
-            return WeighingPhase.STANDING
+            return WeighingPhase.GROUND_CONTACT if grounded else WeighingPhase.STANDING
         limit = settings.imu_bounce if acceleration is not None else settings.bounce_rate
         now = acceleration * acceleration if acceleration is not None else 0.0
         if self._bounce > limit * limit or now > limit * limit:
-            return WeighingPhase.BOUNCING
-        return WeighingPhase.LIFTING if self._speed * m.lifting_sign > 0.0 else WeighingPhase.LOWERING
+            return WeighingPhase.GROUND_CONTACT if grounded else WeighingPhase.BOUNCING
+        self._motion = 1 if self._speed * m.lifting_sign > 0.0 else -1
+        # a moving step within the contact zone is collected in its bin all the same: the fit takes
+        # the zone's bins only while the ground carries none of the load they show (weighing_fit)
+        if grounded:
+            return WeighingPhase.GROUND_CONTACT
+        return WeighingPhase.LIFTING if self._motion > 0 else WeighingPhase.LOWERING
 
     def _collect(self, length: float, force: float, direction: int, columns: ForceColumns | None) -> None:
         assert columns is not None   # _phase names a step off the table NOT_SOLVED
@@ -248,7 +260,8 @@ class WeighingEstimator:
         side = 0 if self._stroke_direction > 0 else 1
         self._units[self._strokes[side] % UNITS, :, side] += stroke[:, side]
         self._strokes[side] += 1
-        self._fit = fit(self._sums, self.errors, self.settings.priors, self.settings.min_samples, self._units)
+        self._fit = fit(self._sums, self.errors, self.settings.priors, self.settings.min_samples, self._units,
+                        self._contact)
         self.fits += 1
 
     def _relative_change(self, stroke: np.ndarray) -> float | None:
@@ -256,6 +269,7 @@ class WeighingEstimator:
         relative difference of the bins' mean y); None where they share no bin."""
         minimum = self.settings.min_samples
         both = (stroke[:, :, N] >= minimum) & (self._sums[:, :, N] >= minimum)
+        both[self._contact] = False   # the ground's share may differ from stroke to stroke
         if not both.any():
             return None
         new = stroke[both][:, Y] / stroke[both][:, N]

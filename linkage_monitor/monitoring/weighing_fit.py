@@ -15,6 +15,13 @@ the file's cg (``Priors``), so that what the stroke does not identify (dz where 
 hardly turns, everything from one pair) stays at the file's value with its prior uncertainty
 instead of making the system singular.
 
+Near the working position the ground may carry part of the load, lowering a bin's lifting and
+lowering force alike (the pair's mean shows it). The bins reaching into that zone are taken one
+by one from its edge toward the working position while each one's pair agrees with the fit of
+the bins taken so far (``CONTACT_AGREEMENT`` σ): the stroke the fit sees is longer where the
+implement leaves the ground early, which separates the weight from the cg's x (their columns are
+nearly proportional over a short stroke).
+
 The uncertainty: a bin's error is not independent of its neighbours' (a bounce during a stroke
 moves the loads of the bins the rod crosses meanwhile, in turn or together), and the weight's
 variance is the sum of those correlations weighted by the fit's smooth gain, which the
@@ -43,6 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+CONTACT_AGREEMENT = 3.0   # σ within which a contact-zone bin's pair must agree with the fit to be taken
 UNITS = 8   # groups of strokes per direction that the jackknife leaves out in turn
 SUMS = ("n", "u0", "ux", "uz", "y", "yy", "force")   # the columns of a bin's sums, in this order
 N, U0, UX, UZ, Y, YY, FORCE = range(len(SUMS))
@@ -167,10 +175,18 @@ def _solve(sums: np.ndarray, errors: SensorErrors, priors: Priors, min_samples: 
 
 
 def fit(sums: np.ndarray, errors: SensorErrors, priors: Priors, min_samples: int,
-        units: np.ndarray | None = None) -> Fit | None:
+        units: np.ndarray | None = None, contact: np.ndarray = np.zeros(0, dtype=int)) -> Fit | None:
     """The fit over the paired bins of ``sums`` (bins, 2 directions, len(SUMS)); None without a pair.
     ``units`` (groups, bins, 2, len(SUMS)): the strokes' sums in independent groups, whose total is
-    ``sums``, for the jackknife; without them (or fewer than two groups a direction) the rows' scatter."""
+    ``sums``, for the jackknife; without them (or fewer than two groups a direction) the rows' scatter.
+    ``contact``: the bins where the ground may carry part of the load, from the zone's edge toward the
+    working position (``_free_of_ground``: taken while their pair agrees with the fit of the others)."""
+    usable = _free_of_ground(sums, errors, priors, min_samples, contact)
+    if usable is None:
+        return None
+    if not usable.all():
+        sums = sums * usable[:, None, None]
+        units = units * usable[None, :, None, None] if units is not None else None
     solution = _solve(sums, errors, priors, min_samples)
     if solution is None:
         return None
@@ -185,6 +201,37 @@ def fit(sums: np.ndarray, errors: SensorErrors, priors: Priors, min_samples: int
                floor=s.inverse, calibration=calibration, pairs=int(s.y.size),
                scatter=float(math.sqrt(np.mean(s.residual**2))),
                friction_share=float(np.mean(s.half_gap)) / mean_y if mean_y != 0.0 else math.nan)
+
+
+def _free_of_ground(sums: np.ndarray, errors: SensorErrors, priors: Priors, min_samples: int,
+                    contact: np.ndarray) -> np.ndarray | None:
+    """The bins to fit (bins,) bool: all but the ``contact`` bins, then these in their order (from the
+    zone's edge toward the working position) while each one's pair mean lies within
+    ``CONTACT_AGREEMENT`` standard deviations of the fit of the bins taken so far (its declared
+    noise's, or the rows' scatter where larger, and the prediction's): a ground that carries part of
+    the load lowers both directions' force alike, which the pair's mean shows and the friction's
+    cancellation does not hide. None without a pair outside the zone."""
+    usable = np.ones(sums.shape[0], dtype=bool)
+    usable[contact] = False
+    s = _solve(sums * usable[:, None, None], errors, priors, min_samples)
+    if s is None:
+        return None
+    counts = sums[:, :, N]
+    scatter = float(np.mean(s.residual**2))
+    for k in contact.tolist():
+        if counts[k, 0] < min_samples or counts[k, 1] < min_samples:
+            break
+        means = sums[k] / counts[k][:, None]
+        row = 0.5 * (means[0, U0:UZ + 1] + means[1, U0:UZ + 1])
+        n_eff = 4.0 / (1.0 / counts[k, 0] + 1.0 / counts[k, 1])
+        variance = max(errors.noise**2 / n_eff, scatter) + float(row @ s.inverse @ row)
+        if abs(0.5 * (means[0, Y] + means[1, Y]) - float(row @ s.theta)) > CONTACT_AGREEMENT * math.sqrt(variance):
+            break
+        usable[k] = True
+        solved = _solve(sums * usable[:, None, None], errors, priors, min_samples)
+        assert solved is not None   # more bins than the solve before
+        s = solved
+    return usable
 
 
 def _scatter(s: _Solution) -> tuple[Part, ...]:
