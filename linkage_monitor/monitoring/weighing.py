@@ -260,8 +260,10 @@ class WeighingEstimator:
         side = 0 if self._stroke_direction > 0 else 1
         self._units[self._strokes[side] % UNITS, :, side] += stroke[:, side]
         self._strokes[side] += 1
+        # the contact zone's bins are judged against the rest once each direction has two strokes: from
+        # one lift and one lower (a start, a change) the rest's fit is too loose to tell the ground's share
         self._fit = fit(self._sums, self.errors, self.settings.priors, self.settings.min_samples, self._units,
-                        self._contact)
+                        self._contact, judge_contact=min(self._strokes) >= 2)
         self.fits += 1
 
     def _relative_change(self, stroke: np.ndarray) -> float | None:

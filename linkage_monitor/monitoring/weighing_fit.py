@@ -175,13 +175,15 @@ def _solve(sums: np.ndarray, errors: SensorErrors, priors: Priors, min_samples: 
 
 
 def fit(sums: np.ndarray, errors: SensorErrors, priors: Priors, min_samples: int,
-        units: np.ndarray | None = None, contact: np.ndarray = np.zeros(0, dtype=int)) -> Fit | None:
+        units: np.ndarray | None = None, contact: np.ndarray = np.zeros(0, dtype=int),
+        judge_contact: bool = True) -> Fit | None:
     """The fit over the paired bins of ``sums`` (bins, 2 directions, len(SUMS)); None without a pair.
     ``units`` (groups, bins, 2, len(SUMS)): the strokes' sums in independent groups, whose total is
     ``sums``, for the jackknife; without them (or fewer than two groups a direction) the rows' scatter.
     ``contact``: the bins where the ground may carry part of the load, from the zone's edge toward the
-    working position (``_free_of_ground``: taken while their pair agrees with the fit of the others)."""
-    usable = _free_of_ground(sums, errors, priors, min_samples, contact)
+    working position (``_free_of_ground``: taken while their pair agrees with the fit of the others;
+    none without ``judge_contact``)."""
+    usable = _free_of_ground(sums, errors, priors, min_samples, contact, judge_contact)
     if usable is None:
         return None
     if not usable.all():
@@ -204,18 +206,20 @@ def fit(sums: np.ndarray, errors: SensorErrors, priors: Priors, min_samples: int
 
 
 def _free_of_ground(sums: np.ndarray, errors: SensorErrors, priors: Priors, min_samples: int,
-                    contact: np.ndarray) -> np.ndarray | None:
+                    contact: np.ndarray, judge: bool) -> np.ndarray | None:
     """The bins to fit (bins,) bool: all but the ``contact`` bins, then these in their order (from the
     zone's edge toward the working position) while each one's pair mean lies within
     ``CONTACT_AGREEMENT`` standard deviations of the fit of the bins taken so far (its declared
     noise's, or the rows' scatter where larger, and the prediction's): a ground that carries part of
     the load lowers both directions' force alike, which the pair's mean shows and the friction's
-    cancellation does not hide. None without a pair outside the zone."""
+    cancellation does not hide; none of them without ``judge``. None without a pair outside the zone."""
     usable = np.ones(sums.shape[0], dtype=bool)
     usable[contact] = False
     s = _solve(sums * usable[:, None, None], errors, priors, min_samples)
     if s is None:
         return None
+    if not judge:
+        return usable
     counts = sums[:, :, N]
     scatter = float(np.mean(s.residual**2))
     for k in contact.tolist():
