@@ -184,6 +184,11 @@ CANNOT_RUN: dict[str, str] = {
         "bench_weighing.py --preset belarus_1221 --runs 240 --change-runs 0 --mass 200 400",
         "bench_weighing.py --preset belarus_1221 --runs 200 --change-runs 0 --mass 200 200",
         "bench_weighing.py --preset belarus_1221 --runs 200 --change-runs 0 --mass 250 250",
+        "bench_weighing.py --preset belarus_1221 --runs 200 --change-runs 0 --mass 275 275",
+        "bench_weighing.py --preset belarus_1221 --runs 200 --change-runs 0 --mass 300 300",
+        "bench_weighing.py --preset belarus_1221 --runs 200 --change-runs 0 --mass 350 350",
+        "bench_weighing.py --preset belarus_1221 --runs 200 --change-runs 0 --mass 200 200 --pressure-noise 5e3 "
+        "--pressure-gain 0.0025 --pressure-offset 5e3",
         "bench_weighing.py --preset belarus_1221 --runs 240 --change-runs 0 --mass 200 400 --pressure-noise 5e3 "
         "--pressure-gain 0.0025 --pressure-offset 5e3", "bench_uncertainty_step.py", "bench_uncertainty_mc.py",
         "bench_dynamics.py",
