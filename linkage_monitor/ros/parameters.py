@@ -102,7 +102,7 @@ PARAMETERS: dict[str, Declaration] = {d.name: d for d in (
     Declaration("uncertainty", False, "", "carry each pose's error budget: publish every output's standard "
                 "uncertainty (1 sigma, the *_u fields; NaN when off) and judge the limits on their 95 % "
                 "intervals (steerability_uncertain, lift_reserve_uncertain, axle_load_uncertain; docs/accuracy.md); "
-                "about 1.5x the step's time on a one-DOF linkage (its stroke tabulated), several times that where "
+                "about 1.4x the step's time on a one-DOF linkage (its stroke tabulated), several times that where "
                 "each pose's moved poses are solved (docs/accuracy.md); applies from the next message", True,
                 config="uncertainty"),
     Declaration("tractor_mass", -1.0, "kg", "tractor operating mass without ballast; -1 (exactly) keeps the file's "
