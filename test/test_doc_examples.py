@@ -192,7 +192,7 @@ CANNOT_RUN: dict[str, str] = {
         "bench_weighing.py --preset belarus_1221 --runs 240 --change-runs 0 --mass 200 400 --pressure-noise 5e3 "
         "--pressure-gain 0.0025 --pressure-offset 5e3", "bench_uncertainty_step.py", "bench_uncertainty_mc.py",
         "bench_dynamics.py",
-        "bench_uncertainty_coverage.py", "bench_replay_process.py --repeat 2", "bench_startup.py 5", "run_all.py --full", "profile_step.py",
+        "bench_uncertainty_coverage.py", "bench_replay_process.py --repeat 2", "bench_replay_process.py --repeat 3", "bench_startup.py 5", "run_all.py --full", "profile_step.py",
         "profile_step.py --idle-ms 5",
         "profile_node.py --stages --rate 50")},
 }
