@@ -178,9 +178,9 @@ CANNOT_RUN: dict[str, str] = {
     "make bench 2>&1 | tee bench.log": BENCHMARK,
     **{f".venv/bin/python bench/{bench}": BENCHMARK for bench in (
         "bench_step.py", "bench_solver.py", "bench_replay.py", "bench_replay.py --long-inputs 1000000",
-        "bench_node.py --quick", "bench_node_rss.py", "bench_startup.py", "bench_fleet.py", "bench_can.py",
+        "bench_node.py --quick", "bench_node_rss.py", "bench_fleet.py", "bench_can.py",
         "bench_can.py --log-only", "bench_can.py --log-only --per-frame", "bench_encode.py", "bench_memory.py",
-        "bench_bag.py", "bench_spin.py", "bench_cli_start.py", "bench_weighing.py", "bench_weighing.py --runs 60",
+        "bench_bag.py", "bench_spin.py", "bench_cli_start.py", "bench_weighing.py",
         "bench_weighing.py --preset belarus_1221 --runs 240 --change-runs 0 --mass 200 400",
         "bench_weighing.py --preset belarus_1221 --runs 200 --change-runs 0 --mass 200 200",
         "bench_weighing.py --preset belarus_1221 --runs 200 --change-runs 0 --mass 250 250",
@@ -192,7 +192,7 @@ CANNOT_RUN: dict[str, str] = {
         "bench_weighing.py --preset belarus_1221 --runs 240 --change-runs 0 --mass 200 400 --pressure-noise 5e3 "
         "--pressure-gain 0.0025 --pressure-offset 5e3", "bench_uncertainty_step.py", "bench_uncertainty_mc.py",
         "bench_dynamics.py",
-        "bench_uncertainty_coverage.py", "bench_replay_process.py --repeat 2", "bench_replay_process.py --repeat 3", "bench_startup.py 5", "run_all.py --full", "profile_step.py",
+        "bench_uncertainty_coverage.py", "bench_replay_process.py --repeat 3", "bench_startup.py 5", "run_all.py --full", "profile_step.py",
         "profile_step.py --idle-ms 5",
         "profile_node.py --stages --rate 50")},
 }
