@@ -17,7 +17,7 @@ whole interval clears its limit passes. One rule for the live pose (floats) and 
 from __future__ import annotations
 
 import math
-from typing import Mapping, NamedTuple, Sequence
+from typing import Mapping, NamedTuple
 
 import numpy as np
 
@@ -53,21 +53,7 @@ class LimitUncertainties(NamedTuple):
     def of(budget: Budget) -> "LimitUncertainties":
         """The four from a pose's budget (NaN for one the mechanism does not compute), each as
         ``verdict_half_width`` gives it."""
-        return LimitUncertainties._make(limit_half_widths(budget))
-
-
-def limit_half_widths(budget: Budget) -> list[float]:
-    """``LimitUncertainties.of``'s four, in its order, as a list (``pose_interval_checks`` takes them)."""
-    u, k, index = budget.u, budget.tail_k, budget.index
-    found = []   # max(k·u, floor·u) = max(k, floor)·u, u ≥ 0 (NaN where k is); four items, not the rows' lists
-    for name in _LIMIT_OUTPUTS:
-        i = index.get(name)
-        if i is None:
-            found.append(math.nan)
-        else:
-            factor = k.item(i)   # max(factor, floor) by max()'s rule, without its call
-            found.append((VERDICT_FACTOR_FLOOR if VERDICT_FACTOR_FLOOR > factor else factor) * u.item(i))
-    return found
+        return LimitUncertainties._make(verdict_half_width(budget, name) for name in _LIMIT_OUTPUTS)
 
 
 _LIMIT_OUTPUTS = ("front_axle_load", "rear_axle_load", "steerability_margin", "lift_reserve")   # the budget's names
@@ -105,7 +91,7 @@ def straddles(value: float | np.ndarray, half_width: float | np.ndarray, limit: 
     """True where a finite ``value`` clears ``limit`` (≥) but its 95 % interval, value ± ``half_width``,
     does not, or the half-width is unbounded (a NaN value fails no check; an infinite one, a reserve
     without load, clears); a 0-d array for one pose (the three broadcast together). The same rule on
-    floats: ``pose_interval_checks`` (kept apart: numpy's calls took ten times its time)."""
+    floats: ``budget_interval_checks`` (kept apart: numpy's calls took ten times its time)."""
     with np.errstate(invalid="ignore"):
         bound = np.subtract(value, np.asarray(half_width))
         return np.asarray(np.isfinite(value) & np.greater_equal(value, limit) & ~np.greater_equal(bound, limit))
@@ -113,51 +99,36 @@ def straddles(value: float | np.ndarray, half_width: float | np.ndarray, limit: 
 
 _LIMITS = np.array([0.0, 0.0, 0.0, 1.0])   # the limits of the four (``LimitUncertainties``' order)
 _BITS = np.array([_FRONT, _REAR, _STEER, _RESERVE])
-_LIMIT_LIST, _BIT_LIST = _LIMITS.tolist(), _BITS.tolist()   # the same, for one pose on floats
+_LIMIT_LIST, _BIT_LIST = _LIMITS.tolist(), _BITS.tolist()   # the same, for one live pose on floats
 
 
 def interval_checks(front_axle_load: float | np.ndarray, rear_axle_load: float | np.ndarray,
                     margin: float | np.ndarray, reserve: float | np.ndarray, u: LimitUncertainties) -> np.ndarray:
     """The ``Check`` bits of the values whose interval straddles their limit: a 0-d int array for one
-    pose (floats: ``pose_interval_checks``), an int array (N,) for N poses (the limits of
-    ``checks.pose_checks``: 0 N, 0, 1)."""
-    if not isinstance(front_axle_load, np.ndarray):
-        return np.asarray(pose_interval_checks(float(front_axle_load), float(rear_axle_load), float(margin),
-                                               float(reserve), [float(h) for h in u]))
+    pose, an int array (N,) for N poses (the limits of ``checks.pose_checks``: 0 N, 0, 1); a live pose
+    is judged on its budget by ``budget_interval_checks``, the same rule on floats."""
     values = np.array([front_axle_load, rear_axle_load, margin, reserve], dtype=float)   # (4,) or (4, N)
     shape = (4,) + (1,) * (values.ndim - 1)
     crossed = straddles(values, np.array(u, dtype=float), _LIMITS.reshape(shape))
     return np.asarray(np.sum(crossed * _BITS.reshape(shape), axis=0))
 
 
-def pose_interval_checks(front_axle_load: float, rear_axle_load: float, margin: float, reserve: float,
-                         half_widths: Sequence[float]) -> int:
-    """``interval_checks`` of one pose, its four 95 % half-widths in ``LimitUncertainties``' order (a
-    live pose's: ``budget_interval_checks``, the same rule in one pass over its budget): ``straddles``' rule
-    on floats, a tenth of its time."""
-    bits = 0
-    for value, half_width, limit, bit in zip((front_axle_load, rear_axle_load, margin, reserve), half_widths,
-                                             _LIMIT_LIST, _BIT_LIST):
-        if math.isfinite(value) and value >= limit and not value - half_width >= limit:
-            bits |= bit
-    return bits
-
-
 def budget_interval_checks(front_axle_load: float, rear_axle_load: float, margin: float, reserve: float,
                            budget: Budget, rows: LimitRows) -> int:
-    """``pose_interval_checks`` of a live pose on its budget's half-widths (``limit_half_widths``) in one
-    pass, ``rows`` the four's rows of ``budget.index`` (``LimitRows.of``): a half-width is taken only for a
-    value that clears its limit. The same rule and half-width as those two (kept apart: the two, with
-    their list and second loop, took ~2.5 µs of the live step's budget of ~14 µs, bench_uncertainty_step.py)."""
+    """``interval_checks`` of a live pose on its budget's half-widths (``verdict_half_width``) in one pass
+    over floats, ``rows`` the four's rows of ``budget.index`` (``LimitRows.of``): a half-width is taken only
+    for a value that clears its limit. ``straddles``' rule and ``verdict_half_width``'s factor, written out
+    on floats (kept apart: numpy's calls and a list of half-widths took ~2.5 µs of the live step's budget
+    of ~14 µs, bench_uncertainty_step.py)."""
     u, k = budget.u, budget.tail_k
     bits = 0
     for value, row, limit, bit in zip((front_axle_load, rear_axle_load, margin, reserve), rows, _LIMIT_LIST,
                                       _BIT_LIST):
         if math.isfinite(value) and value >= limit:
-            if row < 0:   # not computed: unbounded (NaN), as limit_half_widths gives it
+            if row < 0:   # not computed: unbounded (NaN), as verdict_half_width gives it
                 bits |= bit
                 continue
-            factor = k.item(row)   # max(factor, floor) by max()'s rule, as limit_half_widths takes it
+            factor = k.item(row)   # max(factor, floor) by max()'s rule, as verdict_half_width takes it
             if not value - (VERDICT_FACTOR_FLOOR if VERDICT_FACTOR_FLOOR > factor else factor) * u.item(row) >= limit:
                 bits |= bit
     return bits
